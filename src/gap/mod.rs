@@ -1,0 +1,1 @@
+//! Sim-to-real gap diagnosis: datasets, residuals per subsystem, effect fitting, reports.

@@ -1,0 +1,11 @@
+//! ddct: a virtual transmission control unit (TCU) for a dry dual-clutch transmission on CAN, the
+//! plant that simulates it, and a sim-to-real gap diagnosis.
+//!
+//! Layout: `can` (bus contract, buses, logs), `model` (pure physics), `plant` and `tcu` (pure
+//! cores stepped with `now` as an argument), `gap` (diagnosis).
+
+pub mod can;
+pub mod gap;
+pub mod model;
+pub mod plant;
+pub mod tcu;

@@ -1,0 +1,66 @@
+//! `ddct`: parses the command line and hands validated configurations to the library.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Virtual TCU, plant and sim-to-real gap diagnosis for a dry dual-clutch transmission on CAN.
+#[derive(Debug, Parser)]
+#[command(name = "ddct", version, about, long_about = None)]
+struct Cli {
+    /// Log filter for diagnostics on stderr (tracing syntax, e.g. `info`, `ddct=debug`).
+    #[arg(long, global = true, default_value = "warn", env = "DDCT_LOG")]
+    log: String,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Read, decode, record and replay candump logs.
+    #[command(subcommand)]
+    Log(cli::log::LogCmd),
+    /// Inspect the bus contract (dbc/ddct.dbc).
+    #[command(subcommand)]
+    Dbc(cli::dbc::DbcCmd),
+    /// Evaluate and plot the physics models.
+    #[command(subcommand)]
+    Model(cli::model::ModelCmd),
+    /// Run the plant daemon: the simulated dual-clutch transmission on a bus.
+    Plant(cli::plant::PlantArgs),
+    /// Run the virtual TCU daemon on a bus.
+    Tcu(cli::tcu::TcuArgs),
+    /// Run plant and TCU cores in lockstep, faster than real time.
+    Sim(cli::sim::SimArgs),
+    /// Identify torque and thermal parameters from bench data.
+    Identify(cli::gap::IdentifyArgs),
+    /// Sim-to-real gap diagnosis.
+    #[command(subcommand)]
+    Gap(cli::gap::GapCmd),
+    /// Run the bench: plant and TCU daemons and a driver scenario, then print a summary.
+    Bench(cli::bench::BenchArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    cli::init_tracing(&cli.log);
+    let result = match cli.command {
+        Command::Log(c) => cli::log::run(c),
+        Command::Dbc(c) => cli::dbc::run(c),
+        Command::Model(c) => cli::model::run(c),
+        Command::Plant(a) => cli::plant::run(a),
+        Command::Tcu(a) => cli::tcu::run(a),
+        Command::Sim(a) => cli::sim::run(a),
+        Command::Identify(a) => cli::gap::run_identify(a),
+        Command::Gap(c) => cli::gap::run(c),
+        Command::Bench(a) => cli::bench::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
