@@ -361,3 +361,44 @@ mod tests {
         assert_eq!(s.protect(ids::BENCH_TORQUE, &mut d), None);
     }
 }
+
+/// One sample frame per message and case: every signal at its min, mid or max value; protected
+/// messages carry the case's alive counter and the CRC computed here. Used by round-trip tests
+/// and by the cross-tool check against cantools.
+pub fn sample_frames() -> Vec<SampleFrame> {
+    use super::codec::SampleCase;
+    let mut out = Vec::new();
+    for def in MESSAGES {
+        for case in SampleCase::ALL {
+            let mut values: Vec<f64> = def.signals.iter().map(|s| s.sample(case)).collect();
+            let crc_index = def.signal_index("Crc").filter(|_| def.e2e);
+            if let Some(ci) = crc_index {
+                values[ci] = 0.0;
+            }
+            let Ok(mut data) = def.encode_values(&values) else {
+                continue;
+            };
+            if let Some(ci) = crc_index {
+                let counter = counter_of(&data);
+                protect(def.id, &mut data, counter);
+                values[ci] = f64::from(data[CRC_BYTE]);
+            }
+            out.push(SampleFrame {
+                def,
+                case,
+                values,
+                data,
+            });
+        }
+    }
+    out
+}
+
+/// See [`sample_frames`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleFrame {
+    pub def: &'static super::codec::MessageDef,
+    pub case: super::codec::SampleCase,
+    pub values: Vec<f64>,
+    pub data: [u8; 8],
+}

@@ -5,6 +5,7 @@ pub mod bus;
 pub mod candump;
 pub mod codec;
 pub mod dbc;
+pub mod decode;
 pub mod e2e;
 pub mod frame;
 pub mod messages;
