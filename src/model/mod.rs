@@ -4,8 +4,14 @@
 //! engine and actuators, a fixed-step RK4 integrator ([`integrator`]) and the assembled powertrain
 //! ([`powertrain`]). All parameters come from one TOML file ([`params`]). No I/O, no clock.
 
+pub mod actuator;
 pub mod clutch;
+pub mod driveline;
+pub mod engine;
+pub mod integrator;
 pub mod params;
+pub mod powertrain;
+pub mod thermal;
 
 pub use params::{
     ActuatorParams, ClutchParams, DrivelineParams, EngineParams, IntegratorParams, Params,
