@@ -8,4 +8,5 @@ pub mod can;
 pub mod gap;
 pub mod model;
 pub mod plant;
+pub mod plot;
 pub mod tcu;

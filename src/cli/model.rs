@@ -110,8 +110,11 @@ pub fn run(cmd: ModelCmd) -> anyhow::Result<ExitCode> {
         ModelCmd::Plot { out, params } => {
             let p = load(&params)?;
             std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-            let _ = p;
-            anyhow::bail!("`ddct model plot` lands with the plotting module")
+            let files = ddct::model::figures::write_all(&p, &out)
+                .with_context(|| format!("writing figures to {}", out.display()))?;
+            for f in files {
+                println!("{}", f.display());
+            }
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -8,6 +8,7 @@ pub mod actuator;
 pub mod clutch;
 pub mod driveline;
 pub mod engine;
+pub mod figures;
 pub mod integrator;
 pub mod params;
 pub mod powertrain;
