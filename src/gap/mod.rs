@@ -1,1 +1,11 @@
-//! Sim-to-real gap diagnosis: datasets, residuals per subsystem, effect fitting, reports.
+//! Sim-to-real gap diagnosis (DESIGN.md §6, issue 7): bench datasets ([`dataset`]), event
+//! segmentation ([`events`]), least squares ([`lsq`]) and statistics ([`stats`]), synthetic rig
+//! data with known parameters ([`synth`]).
+//!
+//! Pure: nothing here reads a clock, touches a socket or uses tokio.
+
+pub mod dataset;
+pub mod events;
+pub mod lsq;
+pub mod stats;
+pub mod synth;
