@@ -7,5 +7,6 @@
 pub mod dataset;
 pub mod events;
 pub mod lsq;
+pub mod replay;
 pub mod stats;
 pub mod synth;

@@ -1,0 +1,484 @@
+//! The model evaluated on measured data, per subsystem, so that a gap in one subsystem does not
+//! smear into the others (DESIGN.md §6 step 2):
+//!
+//! - torque characteristic (13) in equation-error form: measured x_to and slip, clutch-disk
+//!   temperature θ_c from [`disk_estimate`] — the disk equations (16c)/(16d) driven by the
+//!   *measured* pressure-plate, central-disk and housing temperatures and the *measured* friction
+//!   power T_c·ω_fc (the disk temperature itself is not measured on the bench);
+//! - thermal model (16) in replay form: all five temperatures simulated from the measured friction
+//!   power and housing temperature ([`thermal_replay`]), compared with the measured θ_pp, θ_cd;
+//! - actuator: the bearing position simulated from the position request through the nominal
+//!   first-order lag with rate limit ([`actuator_replay`]);
+//! - engine/driveline: the flywheel balance J_eq·ω̇_f = T_e − T_c1 − T_c2 (18a) with measured
+//!   torques ([`engine_balance`]), the output balance when gears and ω_out are logged
+//!   ([`driveline_balance`]);
+//! - and the free-running replay of the whole rig model ([`full_replay`]): torque and
+//!   temperatures simulated from the measured inputs only (x_to, speeds, θ_h), the model's own
+//!   torque heating its own thermal state — the "replay error" beside the equation error.
+//!
+//! Reality effects enter through the powertrain's [`Hooks`], exactly as in the plant.
+
+use super::dataset::{Col, Dataset};
+use super::events::{segment, SegmentOptions, Segmentation};
+use crate::model::actuator;
+use crate::model::clutch;
+use crate::model::params::{ActuatorParams, Params};
+use crate::model::powertrain::{ClutchContext, Hooks};
+use crate::model::thermal::{Thermal5, Thermal5State, ThermalInputs};
+
+/// Measured quantities of one dataset, precomputed once.
+#[derive(Debug, Clone)]
+pub struct Measured {
+    pub source: String,
+    pub n: usize,
+    pub dt: f64,
+    pub time: Vec<f64>,
+    pub x: [Vec<f64>; 2],
+    pub slip: [Vec<f64>; 2],
+    pub torque: [Vec<f64>; 2],
+    pub pp: [Vec<f64>; 2],
+    pub cd: Vec<f64>,
+    pub th: Vec<f64>,
+    pub w_f: Vec<f64>,
+    /// Measured friction power T_c·ω_fc (W).
+    pub power: [Vec<f64>; 2],
+    /// Cumulative friction energy from the start of the first file of the sequence (J).
+    pub e_cum: [Vec<f64>; 2],
+    pub x_req: Option<[Vec<f64>; 2]>,
+    pub t_e: Option<Vec<f64>>,
+    pub w_out: Option<Vec<f64>>,
+    pub gears: Option<[Vec<f64>; 2]>,
+    pub valid: Vec<bool>,
+    pub seg: Segmentation,
+    /// Samples that inform the torque characteristic of each clutch (near or past the kiss
+    /// point, or with measurable torque), valid only.
+    pub torque_idx: [Vec<usize>; 2],
+}
+
+impl Measured {
+    /// Precomputes a dataset. `e0` is the friction energy dissipated before this file (J), so
+    /// that energy-driven effects (wear) continue across files given in time order.
+    pub fn new(d: &Dataset, p: &Params, e0: [f64; 2], seg: &SegmentOptions) -> Measured {
+        let n = d.len();
+        let slip = [d.slip(0), d.slip(1)];
+        let torque = [d.req(Col::T1).to_vec(), d.req(Col::T2).to_vec()];
+        let power: [Vec<f64>; 2] =
+            [0, 1].map(|i| (0..n).map(|k| torque[i][k] * slip[i][k]).collect::<Vec<f64>>());
+        let e_cum = [0, 1].map(|i| {
+            let mut e = e0[i];
+            let mut v = Vec::with_capacity(n);
+            for k in 0..n {
+                v.push(e);
+                if k + 1 < n {
+                    e += 0.5 * (power[i][k] + power[i][k + 1]).max(0.0) * d.dt;
+                }
+            }
+            v
+        });
+        let x = [d.req(Col::X1).to_vec(), d.req(Col::X2).to_vec()];
+        let theta_max = d
+            .req(Col::Pp1)
+            .iter()
+            .chain(d.req(Col::Pp2))
+            .chain(d.req(Col::Cd))
+            .fold(f64::NEG_INFINITY, |m, v| m.max(*v));
+        let x_gate = (0..=20)
+            .map(|j| clutch::x_isp(&p.clutch, p.clutch.theta_a_c + j as f64 * (theta_max + 80.0 - p.clutch.theta_a_c) / 20.0))
+            .fold(f64::INFINITY, f64::min)
+            - 0.4;
+        let torque_idx = [0, 1].map(|i| {
+            (0..n)
+                .filter(|&k| d.valid[k] && (x[i][k] >= x_gate || torque[i][k].abs() > 1.5))
+                .collect::<Vec<usize>>()
+        });
+        let x_req = match (d.get(Col::X1Req), d.get(Col::X2Req)) {
+            (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
+            _ => None,
+        };
+        let gears = match (d.get(Col::GearOdd), d.get(Col::GearEven)) {
+            (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
+            _ => None,
+        };
+        Measured {
+            source: d.source.clone(),
+            n,
+            dt: d.dt,
+            time: d.time.clone(),
+            x,
+            slip,
+            torque,
+            pp: [d.req(Col::Pp1).to_vec(), d.req(Col::Pp2).to_vec()],
+            cd: d.req(Col::Cd).to_vec(),
+            th: d.req(Col::Th).to_vec(),
+            w_f: d.req(Col::Wf).to_vec(),
+            power,
+            e_cum,
+            x_req,
+            t_e: d.get(Col::Te).map(<[f64]>::to_vec),
+            w_out: d.get(Col::Wout).map(<[f64]>::to_vec),
+            gears,
+            valid: d.valid.clone(),
+            seg: segment(d, seg),
+            torque_idx,
+        }
+    }
+
+    /// Prepares files given in time order, carrying the friction energy across them.
+    pub fn sequence(ds: &[Dataset], p: &Params, seg: &SegmentOptions) -> Vec<Measured> {
+        let mut e0 = [0.0; 2];
+        ds.iter()
+            .map(|d| {
+                let m = Measured::new(d, p, e0, seg);
+                e0 = [0, 1].map(|i| *m.e_cum[i].last().unwrap_or(&e0[i]));
+                m
+            })
+            .collect()
+    }
+
+    /// Measured temperatures at sample k as a (16) state, the disks at the mean of their
+    /// neighbours (they are not measured).
+    pub fn thermal_at(&self, k: usize) -> Thermal5State {
+        let (p1, p2, cd) = (self.pp[0][k], self.pp[1][k], self.cd[k]);
+        Thermal5State {
+            pp1: p1,
+            pp2: p2,
+            c1: 0.5 * (p1 + cd),
+            c2: 0.5 * (p2 + cd),
+            cd,
+        }
+    }
+
+    /// Context of clutch `i` at sample `k` with an estimated disk temperature.
+    #[inline]
+    pub fn context(&self, i: usize, k: usize, theta_c: f64) -> ClutchContext {
+        ClutchContext {
+            clutch: i,
+            x_to_mm: self.x[i][k],
+            slip_radps: self.slip[i][k],
+            theta_c,
+            theta_pp: self.pp[i][k],
+            theta_cd: self.cd[k],
+            e_fric_j: self.e_cum[i][k],
+        }
+    }
+}
+
+/// Disk temperatures θ_c1, θ_c2 from (16c)/(16d) driven by the measured plate, central-disk and
+/// housing temperatures and the measured friction power (exact exponential update per sample,
+/// inputs at the interval midpoint). Effects act through the hooks' β and extra heat.
+pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
+    let a = &p.thermal5;
+    let mut out = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
+    let s0 = m.thermal_at(0);
+    let mut c = [s0.c1, s0.c2];
+    for k in 0..m.n {
+        out[0].push(c[0]);
+        out[1].push(c[1]);
+        if k + 1 == m.n {
+            break;
+        }
+        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+        let th = mid(&m.th);
+        let cd = mid(&m.cd);
+        let pp = [mid(&m.pp[0]), mid(&m.pp[1])];
+        let pw = [mid(&m.power[0]).max(0.0), mid(&m.power[1]).max(0.0)];
+        let beta = [0, 1].map(|i| h.clutch_beta(&p.clutch, &m.context(i, k, c[i])));
+        let state = Thermal5State {
+            pp1: pp[0],
+            pp2: pp[1],
+            c1: c[0],
+            c2: c[1],
+            cd,
+        };
+        let tin = ThermalInputs {
+            p_fric1_w: pw[0],
+            p_fric2_w: pw[1],
+            beta1: beta[0],
+            beta2: beta[1],
+            theta_h_c: th,
+        };
+        let extra = h.extra_heat(&state, &tin);
+        for i in 0..2 {
+            let b = beta[i];
+            // θ̇ = −λθ + g
+            let lam = a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
+            let ex = if i == 0 { extra.c1 } else { extra.c2 };
+            let g = a.alpha4_per_s * b * pp[i]
+                + a.alpha5_per_s * b * cd
+                + a.alpha6_per_s * (1.0 - b) * th
+                + a.alpha7_k_per_j * pw[i]
+                + ex;
+            c[i] = if lam * m.dt > 1e-9 {
+                let inf = g / lam;
+                inf + (c[i] - inf) * (-lam * m.dt).exp()
+            } else {
+                c[i] + (g - lam * c[i]) * m.dt
+            };
+        }
+    }
+    out
+}
+
+/// Equation-error torque of clutch `i` at sample `k` (N·m).
+#[inline]
+pub fn torque_eq(p: &Params, h: &dyn Hooks, m: &Measured, theta_c: &[Vec<f64>; 2], i: usize, k: usize) -> f64 {
+    h.clutch_torque(&p.clutch, &m.context(i, k, theta_c[i][k]))
+}
+
+fn thermal_derivative(
+    t5: &Thermal5,
+    p: &Params,
+    h: &dyn Hooks,
+    s: &Thermal5State,
+    ctx: [ClutchContext; 2],
+    pw: [f64; 2],
+    th: f64,
+) -> Thermal5State {
+    let mut c = ctx;
+    c[0].theta_c = s.c1;
+    c[0].theta_pp = s.pp1;
+    c[0].theta_cd = s.cd;
+    c[1].theta_c = s.c2;
+    c[1].theta_pp = s.pp2;
+    c[1].theta_cd = s.cd;
+    let tin = ThermalInputs {
+        p_fric1_w: pw[0],
+        p_fric2_w: pw[1],
+        beta1: h.clutch_beta(&p.clutch, &c[0]),
+        beta2: h.clutch_beta(&p.clutch, &c[1]),
+        theta_h_c: th,
+    };
+    t5.derivative(s, &tin).axpy(1.0, &h.extra_heat(s, &tin))
+}
+
+/// The thermal model (16) simulated over the record from the measured friction power and housing
+/// temperature (RK4 per sample, inputs held at the interval midpoint), starting from the measured
+/// temperatures at the first sample.
+pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5State> {
+    let t5 = Thermal5::new(p.thermal5);
+    let mut s = m.thermal_at(0);
+    let mut out = Vec::with_capacity(m.n);
+    for k in 0..m.n {
+        out.push(s);
+        if k + 1 == m.n {
+            break;
+        }
+        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+        let pw = [mid(&m.power[0]).max(0.0), mid(&m.power[1]).max(0.0)];
+        let th = mid(&m.th);
+        let ctx = [m.context(0, k, s.c1), m.context(1, k, s.c2)];
+        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, ctx, pw, th);
+        let dt = m.dt;
+        let k1 = f(&s);
+        let k2 = f(&s.axpy(0.5 * dt, &k1));
+        let k3 = f(&s.axpy(0.5 * dt, &k2));
+        let k4 = f(&s.axpy(dt, &k3));
+        s = s
+            .axpy(dt / 6.0, &k1)
+            .axpy(dt / 3.0, &k2)
+            .axpy(dt / 3.0, &k3)
+            .axpy(dt / 6.0, &k4);
+    }
+    out
+}
+
+/// Free-running replay of the rig model from the measured inputs (x_to, slip, θ_h) only.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Replay {
+    pub torque: [Vec<f64>; 2],
+    pub thermal: Vec<Thermal5State>,
+}
+
+/// Simulates torque (13) and temperatures (16) together: the model's own torque heats its own
+/// thermal state (explicit midpoint coupling per sample, RK4 for the temperatures).
+pub fn full_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Replay {
+    let t5 = Thermal5::new(p.thermal5);
+    let mut s = m.thermal_at(0);
+    let mut torque = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
+    let mut thermal = Vec::with_capacity(m.n);
+    let mut e = [m.e_cum[0][0], m.e_cum[1][0]];
+    for k in 0..m.n {
+        let ctx = |i: usize, s: &Thermal5State, e: f64| ClutchContext {
+            clutch: i,
+            x_to_mm: m.x[i][k],
+            slip_radps: m.slip[i][k],
+            theta_c: if i == 0 { s.c1 } else { s.c2 },
+            theta_pp: if i == 0 { s.pp1 } else { s.pp2 },
+            theta_cd: s.cd,
+            e_fric_j: e,
+        };
+        let tq = [0, 1].map(|i| h.clutch_torque(&p.clutch, &ctx(i, &s, e[i])));
+        torque[0].push(tq[0]);
+        torque[1].push(tq[1]);
+        thermal.push(s);
+        if k + 1 == m.n {
+            break;
+        }
+        let pw = [0, 1].map(|i| (tq[i] * m.slip[i][k]).max(0.0));
+        let th = 0.5 * (m.th[k] + m.th[k + 1]);
+        let c = [ctx(0, &s, e[0]), ctx(1, &s, e[1])];
+        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, c, pw, th);
+        let dt = m.dt;
+        let k1 = f(&s);
+        let k2 = f(&s.axpy(0.5 * dt, &k1));
+        let k3 = f(&s.axpy(0.5 * dt, &k2));
+        let k4 = f(&s.axpy(dt, &k3));
+        s = s
+            .axpy(dt / 6.0, &k1)
+            .axpy(dt / 3.0, &k2)
+            .axpy(dt / 3.0, &k3)
+            .axpy(dt / 6.0, &k4);
+        e[0] += pw[0] * dt;
+        e[1] += pw[1] * dt;
+    }
+    Replay { torque, thermal }
+}
+
+/// The bearing position simulated from its request through the first-order lag with rate limit
+/// (RK4 per sample, request held), starting at the measured position. `map` turns the
+/// request into the one the lag sees (identity for the nominal actuator; effects such as a dead
+/// time or backlash are applied by the caller through it).
+pub fn actuator_replay(a: &ActuatorParams, x_req: &[f64], x0: f64, dt: f64) -> Vec<f64> {
+    let mut x = x0;
+    let mut out = Vec::with_capacity(x_req.len());
+    for (k, &r) in x_req.iter().enumerate() {
+        out.push(x);
+        if k + 1 == x_req.len() {
+            break;
+        }
+        let f = |x: f64| actuator::derivative(a, x, r);
+        let k1 = f(x);
+        let k2 = f(x + 0.5 * dt * k1);
+        let k3 = f(x + 0.5 * dt * k2);
+        let k4 = f(x + dt * k3);
+        x += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+    }
+    out
+}
+
+/// Smoothed derivative by a centred difference over ±`half` samples.
+pub fn derivative(v: &[f64], dt: f64, half: usize) -> Vec<f64> {
+    let n = v.len();
+    (0..n)
+        .map(|k| {
+            let a = k.saturating_sub(half);
+            let b = (k + half).min(n.saturating_sub(1));
+            if b > a {
+                (v[b] - v[a]) / ((b - a) as f64 * dt)
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// Flywheel balance residual of (18a): T_e − T_c1 − T_c2 − J_eq·ω̇_f (N·m); `None` without T_e.
+pub fn engine_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
+    let te = m.t_e.as_ref()?;
+    let acc = derivative(&m.w_f, m.dt, 2);
+    Some(
+        (0..m.n)
+            .map(|k| te[k] - m.torque[0][k] - m.torque[1][k] - p.driveline.j_eq_kgm2 * acc[k])
+            .collect(),
+    )
+}
+
+/// Output-side balance with the logged gears: k_odd·T_c1 + k_even·T_c2 − T_load(ω_out) −
+/// J_out·ω̇_out (N·m at the wheels), where the clutch-side inertias are lumped through the engaged
+/// ratios; samples without an engaged gear on a transmitting clutch are NaN. `None` without
+/// ω_out or gears.
+pub fn driveline_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
+    let w_out = m.w_out.as_ref()?;
+    let gears = m.gears.as_ref()?;
+    let dl = &p.driveline;
+    let acc = derivative(w_out, m.dt, 2);
+    let j = crate::model::driveline::inertias(dl);
+    Some(
+        (0..m.n)
+            .map(|k| {
+                let k_odd = crate::model::driveline::overall_ratio(dl, gears[0][k].round() as u8);
+                let k_even = crate::model::driveline::overall_ratio(dl, gears[1][k].round() as u8);
+                let t1 = m.torque[0][k];
+                let t2 = m.torque[1][k];
+                let mut tw = 0.0;
+                let mut jj = j[3];
+                let mut any = false;
+                if let Some(ko) = k_odd {
+                    tw += ko * t1;
+                    jj += j[1] * ko * ko;
+                    any |= t1.abs() > 3.0;
+                }
+                if let Some(ke) = k_even {
+                    tw += ke * t2;
+                    jj += j[2] * ke * ke;
+                    any |= t2.abs() > 3.0;
+                }
+                if !any {
+                    return f64::NAN;
+                }
+                tw - crate::model::driveline::load_torque(dl, w_out[k], 0.0, 0.0) - jj * acc[k]
+            })
+            .collect(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
+    use crate::model::powertrain::Nominal;
+
+    #[test]
+    fn replays_reproduce_the_generating_model() {
+        let p = Params::default();
+        let exp = RigExperiment::identification(8, 60.0);
+        let frames = rig_frames(&p, Nominal, &exp, SensorNoise::default(), 3, 0.005).unwrap();
+        let truth: Vec<[f64; 2]> = frames
+            .iter()
+            .filter(|r| r.frame.raw_id() == u32::from(crate::can::messages::SimTruth::ID))
+            .map(|r| {
+                let t = crate::can::messages::SimTruth::decode(r.frame.bytes()).unwrap();
+                [t.clutch1_temp_true, t.clutch2_temp_true]
+            })
+            .collect();
+        let d = Dataset::from_records("rig", frames.into_iter().map(Ok), 0.01).unwrap();
+        let m = Measured::new(&d, &p, [0.0; 2], &SegmentOptions::default());
+        // Disk estimate tracks the (hidden) true disk temperature.
+        let c = disk_estimate(&p, &Nominal, &m);
+        let worst = (0..m.n)
+            .map(|k| (c[0][k] - truth[k][0]).abs().max((c[1][k] - truth[k][1]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst < 1.0, "disk estimate off by {worst} °C");
+        // Thermal replay follows the measured plates within a fraction of a degree.
+        let r = thermal_replay(&p, &Nominal, &m);
+        let worst = (0..m.n)
+            .map(|k| (r[k].pp1 - m.pp[0][k]).abs().max((r[k].cd - m.cd[k]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst < 1.0, "thermal replay off by {worst} °C");
+        // Equation-error torque matches the measurement to sensor noise.
+        let mut sse = 0.0;
+        let mut cnt = 0;
+        for i in 0..2 {
+            for &k in &m.torque_idx[i] {
+                let e = m.torque[i][k] - torque_eq(&p, &Nominal, &m, &c, i, k);
+                sse += e * e;
+                cnt += 1;
+            }
+        }
+        let rms = (sse / cnt as f64).sqrt();
+        assert!(cnt > 1000 && rms < 1.0, "torque rms {rms} over {cnt}");
+        // The free-running replay too (its temperatures are its own).
+        let fr = full_replay(&p, &Nominal, &m);
+        let e: f64 = m.torque_idx[0]
+            .iter()
+            .map(|&k| (fr.torque[0][k] - m.torque[0][k]).powi(2))
+            .sum::<f64>()
+            / m.torque_idx[0].len() as f64;
+        assert!(e.sqrt() < 1.5, "replay torque rms {}", e.sqrt());
+        // Actuator replay from the request.
+        let xr = m.x_req.as_ref().unwrap();
+        let xs = actuator_replay(&p.actuator, &xr[0], m.x[0][0], m.dt);
+        let worst = (0..m.n).map(|k| (xs[k] - m.x[0][k]).abs()).fold(0.0, f64::max);
+        assert!(worst < 0.03, "actuator replay off by {worst} mm");
+    }
+}
