@@ -553,3 +553,42 @@ fn actuator_is_rate_limited_first_order() {
     // The small move is a plain 20 ms lag: 0.4·(1 − e^{−2.5}).
     assert!((s.x2_mm - 0.4 * (1.0 - (-2.5f64).exp())).abs() < 1e-6);
 }
+
+#[test]
+fn thermal3_defaults_fit_the_5_state_model() {
+    // The α̃ of config/params.toml are the least-squares fit of (17) to (16) over the reference
+    // duty cycle (see the [thermal3] comments): perturbing any of them by ±3 % makes the fit
+    // worse, and the fit is much better than the plain lumping values.
+    use ddct::model::thermal::lumping_cost;
+    use ddct::model::ThermalParams3;
+    let p = Params::default();
+    let rms = |q: &ThermalParams3| {
+        let (c, n) = lumping_cost(&p.thermal5, q, 0.05);
+        (c / n as f64).sqrt()
+    };
+    let base = rms(&p.thermal3);
+    let lumped = ThermalParams3 {
+        alpha1_per_s: p.thermal5.alpha4_per_s + p.thermal5.alpha5_per_s,
+        alpha2_per_s: p.thermal5.alpha6_per_s,
+        alpha3_k_per_j: p.thermal5.alpha7_k_per_j,
+        alpha4_per_s: 7.2e-4,
+    };
+    println!(
+        "3-state fit RMS {base:.3} °C (lumping values {:.3} °C)",
+        rms(&lumped)
+    );
+    assert!(base < 1.3, "rms {base}");
+    assert!(rms(&lumped) > 3.0 * base);
+    for i in 0..4 {
+        for f in [0.97, 1.03] {
+            let mut q = p.thermal3;
+            match i {
+                0 => q.alpha1_per_s *= f,
+                1 => q.alpha2_per_s *= f,
+                2 => q.alpha3_k_per_j *= f,
+                _ => q.alpha4_per_s *= f,
+            }
+            assert!(rms(&q) > base, "alpha~{} x{f} improves the fit", i + 1);
+        }
+    }
+}
