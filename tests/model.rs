@@ -592,3 +592,88 @@ fn thermal3_defaults_fit_the_5_state_model() {
         }
     }
 }
+
+// ---------------------------------------------------------------- `ddct model` CLI
+
+fn ddct(args: &[&str]) -> (bool, String, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ddct"))
+        .args(args)
+        .env_remove("DDCT_PARAMS")
+        .output()
+        .expect("run ddct");
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn cli_torque_invert_and_plot() {
+    let (ok, out, _) = ddct(&[
+        "model", "torque", "--x-to", "4.8", "--slip", "50", "--temp", "240", "--json",
+    ]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    let t = v["torque_nm"].as_f64().unwrap();
+    assert!((t - 85.495).abs() < 0.01, "{t}");
+
+    let (ok, out, _) = ddct(&[
+        "model", "invert", "--torque", "85.495", "--slip", "50", "--temp", "240", "--json",
+    ]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert!((v["x_to_mm"].as_f64().unwrap() - 4.8).abs() < 1e-4);
+    assert_eq!(v["saturated"], false);
+    let (ok, out, _) = ddct(&[
+        "model", "invert", "--torque", "5000", "--slip", "50", "--temp", "25", "--json",
+    ]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["x_to_mm"].as_f64().unwrap(), 7.2);
+    assert_eq!(v["saturated"], true);
+
+    let dir = std::env::temp_dir().join(format!("ddct-model-plot-{}", std::process::id()));
+    let (ok, out, _) = ddct(&["model", "plot", "--out", dir.to_str().unwrap()]);
+    assert!(ok);
+    for name in [
+        "fig4_r_mu.svg",
+        "fig5a_u_fs.svg",
+        "fig5b_spring_load.svg",
+        "fig5c_force_x_to.svg",
+        "fig7a_torque_x_slip.svg",
+        "fig7b_torque_x_temp.svg",
+    ] {
+        assert!(out.contains(name));
+        let svg = std::fs::read_to_string(dir.join(name)).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn cli_rejects_bad_parameter_file() {
+    let dir = std::env::temp_dir().join(format!("ddct-model-params-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bad.toml");
+    let text = ddct::model::params::DEFAULT_TOML.replace("x_to_max_mm = 7.2", "x_to_max_mm = 99");
+    std::fs::write(&path, text).unwrap();
+    let (ok, _, err) = ddct(&[
+        "model",
+        "torque",
+        "--x-to",
+        "5",
+        "--slip",
+        "1",
+        "--temp",
+        "25",
+        "--params",
+        path.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("clutch.x_to_max_mm") && err.contains("50"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
