@@ -5,6 +5,7 @@
 //! cores stepped with `now` as an argument), `gap` (diagnosis).
 
 pub mod can;
+pub mod daemon;
 pub mod gap;
 pub mod model;
 pub mod plant;

@@ -43,6 +43,11 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Behave like other Unix filters when the reader of stdout goes away (`ddct ... | head`).
+    // SAFETY: resetting a signal disposition to its default before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     cli::init_tracing(&cli.log);
     let result = match cli.command {

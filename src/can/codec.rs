@@ -271,3 +271,65 @@ pub fn decimals_of(factor: f64) -> usize {
     }
     d
 }
+
+impl MessageDef {
+    /// Encodes physical values given in signal order (range-checked).
+    pub fn encode_values(&self, values: &[f64]) -> Result<[u8; 8], CodecError> {
+        let mut payload = 0u64;
+        for (si, v) in values.iter().enumerate().take(self.signals.len()) {
+            self.put(si, &mut payload, *v)?;
+        }
+        Ok(payload.to_le_bytes())
+    }
+}
+
+/// A representative value of a signal for encode/decode round trips and cross-tool checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleCase {
+    Min,
+    Mid,
+    Max,
+}
+
+impl SampleCase {
+    pub const ALL: [SampleCase; 3] = [SampleCase::Min, SampleCase::Mid, SampleCase::Max];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SampleCase::Min => "min",
+            SampleCase::Mid => "mid",
+            SampleCase::Max => "max",
+        }
+    }
+}
+
+impl SignalDef {
+    /// The signal's minimum, maximum or a mid value, quantised to its resolution; for
+    /// enumerations the lowest, middle or highest entry of the value table.
+    pub fn sample(&self, case: SampleCase) -> f64 {
+        if !self.values.is_empty() {
+            let n = self.values.len();
+            let i = match case {
+                SampleCase::Min => 0,
+                SampleCase::Mid => n / 2,
+                SampleCase::Max => n - 1,
+            };
+            return self.values[i].0 as f64;
+        }
+        let target = match case {
+            SampleCase::Min => self.min,
+            SampleCase::Mid => 0.5 * (self.min + self.max),
+            SampleCase::Max => self.max,
+        };
+        let (lo, hi) = self.raw_limits();
+        let mut raw = ((target - self.offset) / self.factor).round() as i64;
+        raw = raw.clamp(lo, hi);
+        // Stay inside [min, max] after quantisation.
+        while self.physical(raw) > self.max + 1e-12 && raw > lo {
+            raw -= 1;
+        }
+        while self.physical(raw) < self.min - 1e-12 && raw < hi {
+            raw += 1;
+        }
+        self.physical(raw)
+    }
+}

@@ -1,6 +1,18 @@
 //! The bus layer: the DBC contract (generated message types), E2E protection, the `Bus` trait
 //! with its SocketCAN and in-process implementations, and candump log I/O.
 
+pub mod bus;
+pub mod candump;
 pub mod codec;
 pub mod dbc;
+pub mod decode;
+pub mod e2e;
+pub mod frame;
 pub mod messages;
+pub mod socketcan;
+
+pub use bus::{
+    Bus, BusError, Clock, EndpointConfig, InProcessBus, InProcessEndpoint, ManualClock, Received,
+    SystemClock,
+};
+pub use frame::CanFrame;

@@ -1,14 +1,343 @@
 //! `ddct log`: decode, record and replay candump logs.
 
-use clap::Subcommand;
+use super::{runtime, shutdown_signal};
+use anyhow::{bail, Context};
+use clap::{Subcommand, ValueEnum};
+use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
+use ddct::can::decode::{DecodedFrame, LogDecoder};
+use ddct::can::socketcan::SocketCanBus;
+use ddct::can::Bus;
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
 #[derive(Debug, Subcommand)]
 pub enum LogCmd {
-    /// Decode a candump -l log with the DBC.
-    Decode,
+    /// Decode a candump -l log with the DBC, with the E2E verdict of every frame.
+    Decode {
+        /// The candump -l log file (`-` for standard input).
+        file: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = Format::Table)]
+        format: Format,
+        /// Only frames of these messages (names or ids like 0x130); repeatable.
+        #[arg(long = "message", short = 'm')]
+        messages: Vec<String>,
+    },
+    /// Record every frame of a SocketCAN interface into a candump -l log.
+    Record {
+        /// CAN interface, e.g. vcan0.
+        #[arg(long)]
+        iface: String,
+        /// Output log file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Stop after this many frames.
+        #[arg(long)]
+        count: Option<u64>,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration: Option<f64>,
+    },
+    /// Send the frames of a candump -l log on a SocketCAN interface.
+    Replay {
+        /// The candump -l log file.
+        file: PathBuf,
+        /// CAN interface, e.g. vcan0.
+        #[arg(long)]
+        iface: String,
+        /// Keep the log's relative timing (absolute deadlines from the first frame).
+        #[arg(long)]
+        realtime: bool,
+        /// Minimum spacing between frames in microseconds when not in real time.
+        #[arg(long, default_value_t = 0)]
+        interval_us: u64,
+    },
 }
 
-pub fn run(_cmd: LogCmd) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("`ddct log` is not implemented yet")
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// One line per frame: time, interface, id, message, E2E verdict, signals with units.
+    Table,
+    /// One row per signal: time_s,iface,id,message,signal,value,unit,e2e.
+    Csv,
+    /// One JSON object per frame (JSON lines).
+    Json,
+}
+
+pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
+    match cmd {
+        LogCmd::Decode {
+            file,
+            format,
+            messages,
+        } => decode(&file, format, &messages),
+        LogCmd::Record {
+            iface,
+            out,
+            count,
+            duration,
+        } => record(&iface, &out, count, duration),
+        LogCmd::Replay {
+            file,
+            iface,
+            realtime,
+            interval_us,
+        } => replay(&file, &iface, realtime, interval_us),
+    }
+}
+
+fn open_input(file: &PathBuf) -> anyhow::Result<Box<dyn BufRead>> {
+    if file.as_os_str() == "-" {
+        return Ok(Box::new(BufReader::new(std::io::stdin())));
+    }
+    let f = File::open(file).with_context(|| format!("{}", file.display()))?;
+    Ok(Box::new(BufReader::new(f)))
+}
+
+fn wanted_filter(messages: &[String]) -> anyhow::Result<Vec<u32>> {
+    messages
+        .iter()
+        .map(|m| {
+            if let Some(def) = ddct::can::messages::message_by_name(m) {
+                return Ok(u32::from(def.id));
+            }
+            let t = m.trim_start_matches("0x").trim_start_matches("0X");
+            u32::from_str_radix(t, 16)
+                .ok()
+                .filter(|id| ddct::can::messages::message_def(*id).is_some())
+                .with_context(|| format!("--message {m}: not a message name or id of the contract"))
+        })
+        .collect()
+}
+
+fn decode(file: &PathBuf, format: Format, messages: &[String]) -> anyhow::Result<ExitCode> {
+    let filter = wanted_filter(messages)?;
+    let input = open_input(file)?;
+    let stdout = std::io::stdout();
+    let mut out = BufWriter::new(stdout.lock());
+    let mut decoder = LogDecoder::default();
+    let mut bad_lines = 0usize;
+    let mut verdicts: BTreeMap<&'static str, usize> = BTreeMap::new();
+    if format == Format::Csv {
+        writeln!(out, "time_s,iface,id,message,signal,value,unit,e2e")?;
+    }
+    for item in LogReader::new(input) {
+        let rec = match item {
+            Ok(r) => r,
+            Err(LogError::Line { line, kind }) => {
+                bad_lines += 1;
+                eprintln!("{}:{line}: {kind}", file.display());
+                continue;
+            }
+            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+        };
+        let d = decoder.decode(&rec);
+        if !filter.is_empty() && !filter.contains(&d.id) {
+            continue;
+        }
+        *verdicts.entry(d.e2e.as_str()).or_default() += 1;
+        let written = match format {
+            Format::Table => writeln!(out, "{}", table_line(&d)),
+            Format::Csv => write_csv(&mut out, &d),
+            Format::Json => writeln!(out, "{}", json_line(&d)),
+        };
+        if let Err(e) = written {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                return Ok(ExitCode::SUCCESS);
+            }
+            return Err(e.into());
+        }
+    }
+    out.flush()?;
+    let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    eprintln!("frames by E2E verdict: {}", summary.join(", "));
+    for g in decoder.gaps() {
+        eprintln!(
+            "gap: {} silent from {:.6} to {:.6} s ({} ms)",
+            g.message,
+            g.from.as_secs_f64(),
+            g.to.as_secs_f64(),
+            (g.to - g.from).as_millis()
+        );
+    }
+    if bad_lines > 0 {
+        eprintln!("{}: {bad_lines} malformed line(s)", file.display());
+        return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn table_line(d: &DecodedFrame) -> String {
+    let name = d.message.map_or("?", |m| m.name);
+    let mut s = format!(
+        "({:.6}) {} {:03X} {:<14} e2e={:<16}",
+        d.timestamp.as_secs_f64(),
+        d.iface,
+        d.id,
+        name,
+        d.e2e.as_str()
+    );
+    for sig in &d.signals {
+        let unit = if sig.signal.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", sig.signal.unit)
+        };
+        let flag = if sig.in_range { "" } else { "(!)" };
+        s.push_str(&format!(
+            " {}={}{unit}{flag}",
+            sig.signal.name,
+            sig.display_value()
+        ));
+    }
+    if let Some(e) = &d.error {
+        s.push_str(&format!("  error: {e}"));
+    }
+    s
+}
+
+fn write_csv(out: &mut impl Write, d: &DecodedFrame) -> std::io::Result<()> {
+    let name = d.message.map_or("", |m| m.name);
+    if d.signals.is_empty() {
+        return writeln!(
+            out,
+            "{:.6},{},0x{:03X},{name},,,,{}",
+            d.timestamp.as_secs_f64(),
+            d.iface,
+            d.id,
+            d.e2e.as_str()
+        );
+    }
+    for sig in &d.signals {
+        writeln!(
+            out,
+            "{:.6},{},0x{:03X},{name},{},{},{},{}",
+            d.timestamp.as_secs_f64(),
+            d.iface,
+            d.id,
+            sig.signal.name,
+            sig.value,
+            sig.signal.unit,
+            d.e2e.as_str()
+        )?;
+    }
+    Ok(())
+}
+
+fn json_line(d: &DecodedFrame) -> String {
+    let signals: serde_json::Map<String, serde_json::Value> = d
+        .signals
+        .iter()
+        .map(|s| (s.signal.name.to_string(), json!(s.value)))
+        .collect();
+    let labels: serde_json::Map<String, serde_json::Value> = d
+        .signals
+        .iter()
+        .filter_map(|s| s.label.map(|l| (s.signal.name.to_string(), json!(l))))
+        .collect();
+    json!({
+        "t": d.timestamp.as_secs_f64(),
+        "iface": d.iface,
+        "id": d.id,
+        "name": d.message.map(|m| m.name),
+        "signals": signals,
+        "labels": labels,
+        "e2e": d.e2e.as_str(),
+        "error": d.error.as_ref().map(|e| e.to_string()),
+    })
+    .to_string()
+}
+
+fn record(
+    iface: &str,
+    out: &PathBuf,
+    count: Option<u64>,
+    duration: Option<f64>,
+) -> anyhow::Result<ExitCode> {
+    if let Some(d) = duration {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration {d}: must be a positive number of seconds");
+        }
+    }
+    let file = File::create(out).with_context(|| format!("{}", out.display()))?;
+    let mut writer = LogWriter::new(BufWriter::new(file));
+    let rt = runtime()?;
+    let n = rt.block_on(async {
+        let mut bus = SocketCanBus::open(iface, false)?;
+        let deadline = duration.map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d));
+        let stop = shutdown_signal();
+        tokio::pin!(stop);
+        let mut n = 0u64;
+        let mut last_flush = Instant::now();
+        loop {
+            if count.is_some_and(|c| n >= c) {
+                break;
+            }
+            let until_deadline = async {
+                match deadline {
+                    Some(d) => tokio::time::sleep_until(d).await,
+                    None => std::future::pending().await,
+                }
+            };
+            let flush_tick = tokio::time::sleep(Duration::from_millis(200));
+            tokio::select! {
+                rx = bus.recv() => {
+                    let rx = rx?;
+                    writer.write(&LogRecord { timestamp: rx.timestamp, iface: iface.to_string(), frame: rx.frame, direction: None })?;
+                    n += 1;
+                    if last_flush.elapsed() > Duration::from_millis(200) {
+                        writer.flush()?;
+                        last_flush = Instant::now();
+                    }
+                }
+                _ = flush_tick => { writer.flush()?; last_flush = Instant::now(); }
+                _ = until_deadline => break,
+                _ = &mut stop => break,
+            }
+        }
+        writer.flush()?;
+        anyhow::Ok(n)
+    })?;
+    eprintln!("recorded {n} frame(s) from {iface} into {}", out.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn replay(
+    file: &PathBuf,
+    iface: &str,
+    realtime: bool,
+    interval_us: u64,
+) -> anyhow::Result<ExitCode> {
+    let mut records = Vec::new();
+    for item in LogReader::new(open_input(file)?) {
+        match item {
+            Ok(r) => records.push(r),
+            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
+            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+        }
+    }
+    let rt = runtime()?;
+    let sent = rt.block_on(async {
+        let mut bus = SocketCanBus::open(iface, false)?;
+        let start = tokio::time::Instant::now();
+        let t0 = records.first().map(|r| r.timestamp).unwrap_or_default();
+        let mut next = start;
+        for r in &records {
+            if realtime {
+                tokio::time::sleep_until(start + r.timestamp.saturating_sub(t0)).await;
+            } else if interval_us > 0 {
+                tokio::time::sleep_until(next).await;
+                next += Duration::from_micros(interval_us);
+            }
+            bus.send(r.frame).await?;
+        }
+        anyhow::Ok(records.len())
+    })?;
+    eprintln!("sent {sent} frame(s) on {iface}");
+    Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,197 @@
+//! Decoding logged frames with the contract: every signal's physical value (with labels for
+//! enumerations), the strict-decode verdict (DLC, ranges, value tables) and the E2E verdict per
+//! frame, plus per-message gaps longer than the E2E timeout.
+
+use super::candump::LogRecord;
+use super::codec::{CodecError, DecodedSignal, MessageDef};
+use super::e2e::{E2eChecker, E2eConfig, E2eError};
+use super::messages::{message_def, Message};
+use embedded_can::Frame as _;
+use std::time::Duration;
+
+/// E2E verdict of one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum E2eVerdict {
+    Ok,
+    NotProtected,
+    /// The frame is not a message of the contract (unknown id, extended or remote frame).
+    NotInContract,
+    Failed(E2eError),
+}
+
+impl E2eVerdict {
+    /// Short machine-readable name: `ok`, `not_protected`, `not_in_contract`, `bad_crc`, …
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            E2eVerdict::Ok => "ok",
+            E2eVerdict::NotProtected => "not_protected",
+            E2eVerdict::NotInContract => "not_in_contract",
+            E2eVerdict::Failed(e) => e.kind(),
+        }
+    }
+}
+
+/// One decoded log frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecodedFrame {
+    pub timestamp: Duration,
+    pub iface: String,
+    pub id: u32,
+    pub message: Option<&'static MessageDef>,
+    /// Every signal, decoded leniently (values outside the DBC range are shown and flagged).
+    pub signals: Vec<DecodedSignal>,
+    pub e2e: E2eVerdict,
+    /// Why the strict decode rejected the frame, if it did.
+    pub error: Option<CodecError>,
+}
+
+/// A message that went silent for longer than the E2E timeout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gap {
+    pub message: &'static str,
+    pub from: Duration,
+    pub to: Duration,
+}
+
+/// Stateful decoder of a frame sequence (the E2E counter state carries over between frames).
+pub struct LogDecoder {
+    checker: Option<E2eChecker>,
+    config: E2eConfig,
+    last_seen: Vec<(u16, Duration)>,
+    gaps: Vec<Gap>,
+}
+
+impl Default for LogDecoder {
+    fn default() -> Self {
+        Self::new(E2eConfig::default())
+    }
+}
+
+impl LogDecoder {
+    pub fn new(config: E2eConfig) -> Self {
+        Self {
+            checker: None,
+            config,
+            last_seen: Vec::new(),
+            gaps: Vec::new(),
+        }
+    }
+
+    /// Decodes one record.
+    pub fn decode(&mut self, r: &LogRecord) -> DecodedFrame {
+        let id = r.frame.raw_id();
+        let def = (!r.frame.is_extended() && !r.frame.is_remote_frame())
+            .then(|| message_def(id))
+            .flatten();
+        let Some(def) = def else {
+            return DecodedFrame {
+                timestamp: r.timestamp,
+                iface: r.iface.clone(),
+                id,
+                message: None,
+                signals: Vec::new(),
+                e2e: E2eVerdict::NotInContract,
+                error: (!r.frame.is_extended() && !r.frame.is_remote_frame())
+                    .then_some(CodecError::UnknownId { id }),
+            };
+        };
+        let checker = self
+            .checker
+            .get_or_insert_with(|| E2eChecker::all(self.config, r.timestamp));
+        let e2e = if def.e2e {
+            match checker.check(r.timestamp, id, r.frame.bytes()) {
+                Ok(()) => E2eVerdict::Ok,
+                Err(e) => E2eVerdict::Failed(e),
+            }
+        } else {
+            E2eVerdict::NotProtected
+        };
+        self.track_gap(def, r.timestamp);
+        let data = r.frame.bytes();
+        let signals = def.decode_lenient(data).unwrap_or_default();
+        let error = Message::decode(id, data).err();
+        DecodedFrame {
+            timestamp: r.timestamp,
+            iface: r.iface.clone(),
+            id,
+            message: Some(def),
+            signals,
+            e2e,
+            error,
+        }
+    }
+
+    fn track_gap(&mut self, def: &'static MessageDef, t: Duration) {
+        let limit =
+            Duration::from_millis(u64::from(def.cycle_ms) * u64::from(self.config.timeout_cycles));
+        match self.last_seen.iter_mut().find(|(i, _)| *i == def.id) {
+            Some((_, last)) => {
+                if def.cycle_ms > 0 && t.saturating_sub(*last) >= limit {
+                    self.gaps.push(Gap {
+                        message: def.name,
+                        from: *last,
+                        to: t,
+                    });
+                }
+                *last = t;
+            }
+            None => self.last_seen.push((def.id, t)),
+        }
+    }
+
+    /// Silences longer than the E2E timeout seen so far.
+    pub fn gaps(&self) -> &[Gap] {
+        &self.gaps
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::can::candump::parse_line;
+    use crate::can::e2e::E2eSender;
+    use crate::can::messages::{ids, EngStatus};
+    use crate::can::CanFrame;
+
+    fn rec(t_ms: u64, id: u16, data: &[u8]) -> LogRecord {
+        LogRecord {
+            timestamp: Duration::from_millis(t_ms),
+            iface: "vcan0".into(),
+            frame: CanFrame::standard(id, data).unwrap(),
+            direction: None,
+        }
+    }
+
+    #[test]
+    fn verdicts_and_gaps() {
+        let mut tx = E2eSender::new();
+        let mut d = EngStatus {
+            eng_speed: 800.0,
+            ..Default::default()
+        }
+        .encode()
+        .unwrap();
+        let mut dec = LogDecoder::default();
+        tx.protect(ids::ENG_STATUS, &mut d);
+        let f = dec.decode(&rec(0, ids::ENG_STATUS, &d));
+        assert_eq!(f.e2e, E2eVerdict::Ok);
+        assert_eq!(f.signals[0].value, 800.0);
+        assert_eq!(f.error, None);
+        // Same counter again, 50 ms later: repeated counter and a gap.
+        let f = dec.decode(&rec(50, ids::ENG_STATUS, &d));
+        assert_eq!(f.e2e.as_str(), "counter_repeated");
+        assert_eq!(dec.gaps().len(), 1);
+        let f = dec.decode(&rec(60, ids::BENCH_TORQUE, &[0; 8]));
+        assert_eq!(f.e2e, E2eVerdict::NotProtected);
+        let f = dec.decode(&rec(60, ids::BENCH_TORQUE, &[0; 7]));
+        assert!(matches!(f.error, Some(CodecError::WrongDlc { .. })));
+        let f = dec.decode(&parse_line("(1.000000) vcan0 7FF#00").unwrap());
+        assert_eq!(
+            (f.e2e, f.error),
+            (
+                E2eVerdict::NotInContract,
+                Some(CodecError::UnknownId { id: 0x7FF })
+            )
+        );
+    }
+}

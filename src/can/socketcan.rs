@@ -1,0 +1,118 @@
+//! The SocketCAN bus: a raw CAN socket through the `socketcan` crate's tokio support, with kernel
+//! receive timestamps (`SO_TIMESTAMP`). Needs a tokio runtime with I/O enabled.
+
+use super::bus::{Bus, BusError, Received};
+use super::frame::CanFrame;
+use socketcan::{EmbeddedFrame, Frame as _, SocketOptions};
+use std::future::Future;
+use std::io;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// A SocketCAN endpoint on one interface (e.g. `vcan0`).
+pub struct SocketCanBus {
+    socket: socketcan::tokio::CanSocket,
+    iface: String,
+}
+
+impl std::fmt::Debug for SocketCanBus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SocketCanBus")
+            .field("iface", &self.iface)
+            .finish()
+    }
+}
+
+impl SocketCanBus {
+    /// Opens a raw socket on `iface` with receive timestamps; `own_echo` also delivers this
+    /// socket's own frames back to it.
+    pub fn open(iface: &str, own_echo: bool) -> Result<Self, BusError> {
+        let io_err = |source: io::Error| BusError::Io {
+            iface: iface.to_string(),
+            source,
+        };
+        let socket = socketcan::tokio::CanSocket::open(iface).map_err(io_err)?;
+        socket.set_recv_timestamp(true).map_err(io_err)?;
+        socket.set_recv_own_msgs(own_echo).map_err(io_err)?;
+        Ok(Self {
+            socket,
+            iface: iface.to_string(),
+        })
+    }
+
+    fn convert(&self, frame: socketcan::CanFrame, ts: SystemTime) -> Result<Received, BusError> {
+        if let socketcan::CanFrame::Error(e) = &frame {
+            return Err(BusError::ErrorFrame {
+                iface: self.iface.clone(),
+                id: e.raw_id(),
+            });
+        }
+        let frame = CanFrame::from_frame(&frame).map_err(|e| BusError::Unsupported {
+            iface: self.iface.clone(),
+            what: e.to_string(),
+        })?;
+        Ok(Received {
+            frame,
+            timestamp: ts.duration_since(UNIX_EPOCH).unwrap_or_default(),
+        })
+    }
+
+    fn to_socketcan(&self, frame: &CanFrame) -> Result<socketcan::CanFrame, BusError> {
+        let built = if embedded_can::Frame::is_remote_frame(frame) {
+            socketcan::CanFrame::new_remote(
+                embedded_can::Frame::id(frame),
+                embedded_can::Frame::dlc(frame),
+            )
+        } else {
+            socketcan::CanFrame::new(embedded_can::Frame::id(frame), frame.bytes())
+        };
+        built.ok_or_else(|| BusError::Unsupported {
+            iface: self.iface.clone(),
+            what: format!("frame {frame:?}"),
+        })
+    }
+}
+
+impl Bus for SocketCanBus {
+    fn send(&mut self, frame: CanFrame) -> impl Future<Output = Result<(), BusError>> + Send {
+        let converted = self.to_socketcan(&frame);
+        async move {
+            let f = converted?;
+            self.socket
+                .write_frame(f)
+                .await
+                .map_err(|source| BusError::Io {
+                    iface: self.iface.clone(),
+                    source,
+                })
+        }
+    }
+
+    fn recv(&mut self) -> impl Future<Output = Result<Received, BusError>> + Send {
+        async move {
+            let (f, ts) = self
+                .socket
+                .read_frame_with_timestamp()
+                .await
+                .map_err(|source| BusError::Io {
+                    iface: self.iface.clone(),
+                    source,
+                })?;
+            self.convert(f, ts)
+        }
+    }
+
+    fn try_recv(&mut self) -> Result<Option<Received>, BusError> {
+        match self.socket.try_read_frame() {
+            Ok(f) => self.convert(f, SystemTime::now()).map(Some),
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(None),
+            Err(source) => Err(BusError::Io {
+                iface: self.iface.clone(),
+                source,
+            }),
+        }
+    }
+
+    fn iface(&self) -> &str {
+        &self.iface
+    }
+}

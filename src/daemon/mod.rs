@@ -1,0 +1,234 @@
+//! The thin real-time shell shared by the plant and TCU daemons: absolute-deadline periodic
+//! timing with deadline-miss counting, timing statistics, and a candump tap that records every
+//! frame a daemon sends or receives (flushed on shutdown). This is the only place that reads the
+//! clock; the cores (`plant`, `tcu`) get `now` as an argument.
+
+use crate::can::candump::{LogRecord, LogWriter};
+use crate::can::{CanFrame, Received};
+use std::fs::File;
+use std::io::{self, BufWriter};
+use std::path::Path;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use tokio::time::Instant;
+
+/// One wake-up of a [`Periodic`] timer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tick {
+    /// Index of this cycle since the start (cycles skipped after an overrun are not returned).
+    pub cycle: u64,
+    /// The cycle's deadline, relative to the start.
+    pub deadline: Duration,
+    /// How late the wake-up was.
+    pub late_by: Duration,
+    /// Whole cycles skipped because the previous wake-up came more than one period late.
+    pub skipped: u64,
+}
+
+/// A periodic timer on absolute deadlines `start + k·period` (no drift). When a wake-up comes
+/// more than a period late, the missed deadlines are counted and skipped, not bunched.
+#[derive(Debug)]
+pub struct Periodic {
+    start: Instant,
+    period: Duration,
+    next: u64,
+}
+
+impl Periodic {
+    pub fn new(start: Instant, period: Duration) -> Self {
+        assert!(!period.is_zero(), "period must be positive");
+        Self {
+            start,
+            period,
+            next: 0,
+        }
+    }
+
+    pub fn start(&self) -> Instant {
+        self.start
+    }
+
+    pub fn period(&self) -> Duration {
+        self.period
+    }
+
+    /// The next deadline as an instant.
+    pub fn next_deadline(&self) -> Instant {
+        self.start + self.period * self.next as u32
+    }
+
+    /// Waits for the next deadline.
+    pub async fn tick(&mut self) -> Tick {
+        let deadline = self.next_deadline();
+        tokio::time::sleep_until(deadline).await;
+        self.fire(Instant::now())
+    }
+
+    /// Marks the next deadline as reached at `now` (for loops that wait with `select!`).
+    pub fn fire(&mut self, now: Instant) -> Tick {
+        let cycle = self.next;
+        let deadline_rel = self.period * cycle as u32;
+        let late_by = now.saturating_duration_since(self.start + deadline_rel);
+        let skipped = (late_by.as_nanos() / self.period.as_nanos()) as u64;
+        self.next = cycle + 1 + skipped;
+        Tick {
+            cycle,
+            deadline: deadline_rel,
+            late_by,
+            skipped,
+        }
+    }
+}
+
+/// Timing statistics of a daemon loop: wake-up lateness percentiles and deadline misses.
+#[derive(Debug, Clone, Default)]
+pub struct LoopStats {
+    pub cycles: u64,
+    /// Wake-ups later than the miss threshold, plus skipped cycles.
+    pub deadline_misses: u64,
+    /// Cycles whose computation did not finish before the next deadline.
+    pub overruns: u64,
+    lateness_us: Vec<u32>,
+}
+
+/// Lateness above which a wake-up counts as a missed deadline, as a fraction of the period.
+pub const MISS_FRACTION: f64 = 0.5;
+
+impl LoopStats {
+    const MAX_SAMPLES: usize = 1 << 20;
+
+    /// Records one tick of a loop with the given period.
+    pub fn record(&mut self, tick: &Tick, period: Duration) {
+        self.cycles += 1;
+        self.deadline_misses += tick.skipped;
+        if tick.late_by.as_secs_f64() > MISS_FRACTION * period.as_secs_f64() {
+            self.deadline_misses += 1;
+        }
+        if self.lateness_us.len() < Self::MAX_SAMPLES {
+            self.lateness_us
+                .push(tick.late_by.as_micros().min(u128::from(u32::MAX)) as u32);
+        }
+    }
+
+    /// Lateness percentile in microseconds (`q` in 0..=1).
+    pub fn lateness_percentile_us(&self, q: f64) -> Option<f64> {
+        percentile(&self.lateness_us, q)
+    }
+
+    /// One line for logs and summaries.
+    pub fn summary(&self) -> String {
+        format!(
+            "cycles {} deadline_misses {} overruns {} lateness p50 {:.0} us p99 {:.0} us max {:.0} us",
+            self.cycles,
+            self.deadline_misses,
+            self.overruns,
+            self.lateness_percentile_us(0.5).unwrap_or(0.0),
+            self.lateness_percentile_us(0.99).unwrap_or(0.0),
+            self.lateness_percentile_us(1.0).unwrap_or(0.0)
+        )
+    }
+}
+
+/// Nearest-rank percentile of integer samples.
+pub fn percentile(samples: &[u32], q: f64) -> Option<f64> {
+    if samples.is_empty() {
+        return None;
+    }
+    let mut s = samples.to_vec();
+    s.sort_unstable();
+    let rank = ((q.clamp(0.0, 1.0) * s.len() as f64).ceil() as usize).clamp(1, s.len());
+    Some(f64::from(s[rank - 1]))
+}
+
+/// Wall-clock time since the Unix epoch, the timestamp base of candump logs.
+pub fn wall_clock() -> Duration {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default()
+}
+
+/// Records every frame a daemon receives or sends into a candump -l log.
+pub struct LogTap {
+    writer: LogWriter<BufWriter<File>>,
+    iface: String,
+    frames: u64,
+}
+
+impl LogTap {
+    pub fn create(path: &Path, iface: &str) -> io::Result<Self> {
+        Ok(Self {
+            writer: LogWriter::new(BufWriter::new(File::create(path)?)),
+            iface: iface.to_string(),
+            frames: 0,
+        })
+    }
+
+    pub fn received(&mut self, rx: &Received) -> io::Result<()> {
+        self.write(rx.frame, rx.timestamp)
+    }
+
+    pub fn sent(&mut self, frame: CanFrame, timestamp: Duration) -> io::Result<()> {
+        self.write(frame, timestamp)
+    }
+
+    fn write(&mut self, frame: CanFrame, timestamp: Duration) -> io::Result<()> {
+        self.frames += 1;
+        self.writer.write(&LogRecord {
+            timestamp,
+            iface: self.iface.clone(),
+            frame,
+            direction: None,
+        })
+    }
+
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.writer.flush()
+    }
+}
+
+impl Drop for LogTap {
+    fn drop(&mut self) {
+        let _ = self.writer.flush();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test(start_paused = true)]
+    async fn deadlines_do_not_drift_and_overruns_are_counted() {
+        let start = Instant::now();
+        let mut p = Periodic::new(start, Duration::from_millis(10));
+        let mut stats = LoopStats::default();
+        for k in 0..5u64 {
+            let t = p.tick().await;
+            assert_eq!(t.cycle, k);
+            assert_eq!(Instant::now() - start, Duration::from_millis(10 * k));
+            stats.record(&t, p.period());
+        }
+        // A 35 ms stall: the 50 ms deadline is 25 ms late, 60 and 70 are skipped.
+        tokio::time::advance(Duration::from_millis(35)).await;
+        let t = p.tick().await;
+        assert_eq!(
+            (t.cycle, t.skipped, t.late_by),
+            (5, 2, Duration::from_millis(25))
+        );
+        stats.record(&t, p.period());
+        let t = p.tick().await;
+        assert_eq!((t.cycle, t.deadline), (8, Duration::from_millis(80)));
+        assert_eq!(stats.deadline_misses, 3);
+    }
+
+    #[test]
+    fn percentiles() {
+        let s: Vec<u32> = (1..=100).collect();
+        assert_eq!(percentile(&s, 0.5), Some(50.0));
+        assert_eq!(percentile(&s, 0.99), Some(99.0));
+        assert_eq!(percentile(&s, 1.0), Some(100.0));
+        assert_eq!(percentile(&[], 0.5), None);
+    }
+}

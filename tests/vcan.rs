@@ -1,0 +1,81 @@
+//! SocketCAN on a real kernel CAN stack (vcan0). These tests are `#[ignore]`d: `scripts/test`
+//! runs them through `scripts/vcan-run` (host vcan or User-Mode Linux) with `--ignored`.
+
+use ddct::can::e2e::{E2eChecker, E2eConfig, E2eSender};
+use ddct::can::messages::{ids, DctSensors};
+use ddct::can::socketcan::SocketCanBus;
+use ddct::can::{Bus, CanFrame};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+fn iface() -> String {
+    std::env::var("DDCT_VCAN_IFACE").unwrap_or_else(|_| "vcan0".into())
+}
+
+#[tokio::test]
+#[ignore = "needs vcan0: run through scripts/vcan-run"]
+async fn frames_cross_between_sockets_with_kernel_timestamps() {
+    let mut a = SocketCanBus::open(&iface(), false).expect("open vcan0");
+    let mut b = SocketCanBus::open(&iface(), false).expect("open vcan0");
+    let mut tx = E2eSender::new();
+    let mut checker = E2eChecker::all(E2eConfig::default(), Duration::ZERO);
+    let mut last_ts = Duration::ZERO;
+    for k in 0..200u32 {
+        let mut d = DctSensors {
+            in_shaft1_speed: f64::from(k),
+            housing_temp: 40.0,
+            ..Default::default()
+        }
+        .encode()
+        .unwrap();
+        tx.protect(ids::DCT_SENSORS, &mut d);
+        a.send(CanFrame::standard(ids::DCT_SENSORS, &d).unwrap())
+            .await
+            .unwrap();
+        let rx = tokio::time::timeout(Duration::from_secs(5), b.recv())
+            .await
+            .expect("frame within 5 s")
+            .unwrap();
+        assert_eq!(rx.frame.bytes(), &d);
+        checker
+            .check(rx.timestamp, rx.frame.raw_id(), rx.frame.bytes())
+            .unwrap();
+        assert!(rx.timestamp >= last_ts, "kernel timestamps are monotonic");
+        last_ts = rx.timestamp;
+        assert!(a.try_recv().unwrap().is_none(), "no own echo unless asked");
+    }
+    let now = SystemTime::now().duration_since(UNIX_EPOCH).unwrap();
+    assert!(
+        now.saturating_sub(last_ts) < Duration::from_secs(10),
+        "timestamps are wall-clock"
+    );
+}
+
+#[tokio::test]
+#[ignore = "needs vcan0: run through scripts/vcan-run"]
+async fn own_echo_and_extended_ids() {
+    let mut a = SocketCanBus::open(&iface(), true).expect("open vcan0");
+    let mut b = SocketCanBus::open(&iface(), false).expect("open vcan0");
+    let ext = CanFrame::extended(0x1ABC_DEF0, &[1, 2, 3]).unwrap();
+    a.send(ext).await.unwrap();
+    let mine = tokio::time::timeout(Duration::from_secs(5), a.recv())
+        .await
+        .unwrap()
+        .unwrap();
+    let theirs = tokio::time::timeout(Duration::from_secs(5), b.recv())
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(mine.frame, ext);
+    assert_eq!(theirs.frame, ext);
+}
+
+#[test]
+#[ignore = "needs vcan0: run through scripts/vcan-run"]
+fn opening_a_missing_interface_is_a_clear_error() {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    let err = rt.block_on(async { SocketCanBus::open("nosuchcan7", false).err().unwrap() });
+    assert!(err.to_string().contains("nosuchcan7"), "{err}");
+}
