@@ -214,11 +214,17 @@ def read_candump(path: Union[str, Path]) -> list[tuple[float, str, int, bool, by
 def signal_cases(msg) -> dict[str, dict[str, float]]:
     """min / mid / max physical values of every non-E2E signal, on the signal's raw grid.
 
-    mid is the raw value nearest to the middle of [minimum, maximum].
+    mid is the raw value nearest to the middle of [minimum, maximum]; signals with a value table
+    take its smallest, middle and largest entry (raw values).
     """
     cases: dict[str, dict[str, float]] = {"min": {}, "mid": {}, "max": {}}
     for sig in msg.signals:
         if sig.name in (COUNTER_SIGNAL, CRC_SIGNAL):
+            continue
+        if sig.choices:  # enumerations: the smallest, middle and largest entry of the value table
+            raws = sorted(int(r) for r in sig.choices)
+            lo, mid, hi = raws[0], raws[len(raws) // 2], raws[-1]
+            cases["min"][sig.name], cases["mid"][sig.name], cases["max"][sig.name] = lo, mid, hi
             continue
         lo, hi = sig.minimum, sig.maximum
         raw_mid = round(((lo + hi) / 2 - sig.offset) / sig.scale)
