@@ -190,3 +190,28 @@ def test_log_decode_bad_lines(ddct, db, tmp_path):
     assert recs[2]["e2e"] != "ok"
     errors = proc.stderr + "".join(str(r.get("error")) for r in recs[3:])
     assert re.search(r"\b4\b", errors), f"the malformed line number (4) is not reported: {errors!r}"
+
+
+def test_log_decode_accepts_candump_variants(ddct, tmp_path):
+    """Input may carry a trailing ` R`/` T` (candump -x direction) and 29-bit IDs."""
+    m = ddct_can.protected_messages()[0]
+    frames = [ddct_can.encode(m.name, ddct_can.signal_cases(m)[c], k) for k, c in enumerate(CASES)]
+    ext_id = 0x1ABCDEF0
+    lines = [
+        ddct_can.candump_line(10.0, "vcan0", m.frame_id, frames[0]) + " R",
+        ddct_can.candump_line(10.5, "can1", m.frame_id, frames[1]) + " T",
+        ddct_can.candump_line(11.0, "vcan0", ext_id, b"\x01\x02\x03", extended=True),
+        ddct_can.candump_line(11.5, "vcan0", m.frame_id, frames[2]),
+    ]
+    log = tmp_path / "variants.log"
+    log.write_text("\n".join(lines) + "\n")
+    recs = _decode_json(ddct, log)
+    assert [r["id"] for r in recs] == [m.frame_id, m.frame_id, ext_id, m.frame_id]
+    assert [r["iface"] for r in recs] == ["vcan0", "can1", "vcan0", "vcan0"]
+    assert [r["t"] for r in recs] == pytest.approx([10.0, 10.5, 11.0, 11.5], abs=2e-6)
+    assert recs[2]["name"] is None and recs[2]["signals"] == {}
+    assert [recs[i]["e2e"] for i in (0, 1, 3)] == ["ok", "ok", "ok"]
+    for i, c in zip((0, 1, 3), CASES):
+        assert not lib.signal_mismatches(
+            m, ddct_can.decode(m.frame_id, frames[CASES.index(c)]), recs[i]["signals"], f" ({c})"
+        )
