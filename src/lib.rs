@@ -9,4 +9,5 @@ pub mod daemon;
 pub mod gap;
 pub mod model;
 pub mod plant;
+pub mod plot;
 pub mod tcu;

@@ -195,3 +195,61 @@ mod tests {
         );
     }
 }
+
+/// Cycle-time statistics of one message in a log.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CycleStats {
+    pub id: u32,
+    pub name: Option<&'static str>,
+    /// The contract's cycle time (ms), if the message is in the contract.
+    pub nominal_ms: Option<u32>,
+    pub frames: usize,
+    pub mean_ms: f64,
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    pub min_ms: f64,
+    pub max_ms: f64,
+}
+
+/// Per-message intervals between consecutive frames (nearest-rank percentiles), by id.
+pub fn cycle_stats<'a>(records: impl IntoIterator<Item = &'a LogRecord>) -> Vec<CycleStats> {
+    let mut times: std::collections::BTreeMap<u32, Vec<Duration>> =
+        std::collections::BTreeMap::new();
+    for r in records {
+        times.entry(r.frame.raw_id()).or_default().push(r.timestamp);
+    }
+    times
+        .into_iter()
+        .map(|(id, ts)| {
+            let mut dt: Vec<f64> = ts
+                .windows(2)
+                .map(|w| w[1].saturating_sub(w[0]).as_secs_f64() * 1e3)
+                .collect();
+            dt.sort_by(f64::total_cmp);
+            let pct = |q: f64| {
+                if dt.is_empty() {
+                    f64::NAN
+                } else {
+                    let rank = ((q * dt.len() as f64).ceil() as usize).clamp(1, dt.len());
+                    dt[rank - 1]
+                }
+            };
+            let def = message_def(id);
+            CycleStats {
+                id,
+                name: def.map(|d| d.name),
+                nominal_ms: def.map(|d| d.cycle_ms),
+                frames: ts.len(),
+                mean_ms: if dt.is_empty() {
+                    f64::NAN
+                } else {
+                    dt.iter().sum::<f64>() / dt.len() as f64
+                },
+                p50_ms: pct(0.5),
+                p99_ms: pct(0.99),
+                min_ms: dt.first().copied().unwrap_or(f64::NAN),
+                max_ms: dt.last().copied().unwrap_or(f64::NAN),
+            }
+        })
+        .collect()
+}

@@ -28,6 +28,14 @@ pub enum LogCmd {
         #[arg(long = "message", short = 'm')]
         messages: Vec<String>,
     },
+    /// Cycle-time statistics per message of a candump -l log (p50/p99/min/max intervals).
+    Stats {
+        /// The candump -l log file.
+        file: PathBuf,
+        /// JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Record every frame of a SocketCAN interface into a candump -l log.
     Record {
         /// CAN interface, e.g. vcan0.
@@ -76,6 +84,7 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             format,
             messages,
         } => decode(&file, format, &messages),
+        LogCmd::Stats { file, json } => stats(&file, json),
         LogCmd::Record {
             iface,
             out,
@@ -168,6 +177,47 @@ fn decode(file: &PathBuf, format: Format, messages: &[String]) -> anyhow::Result
     if bad_lines > 0 {
         eprintln!("{}: {bad_lines} malformed line(s)", file.display());
         return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn stats(file: &PathBuf, as_json: bool) -> anyhow::Result<ExitCode> {
+    let mut records = Vec::new();
+    for item in LogReader::new(open_input(file)?) {
+        match item {
+            Ok(r) => records.push(r),
+            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
+            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+        }
+    }
+    let stats = ddct::can::decode::cycle_stats(&records);
+    if as_json {
+        let arr: Vec<_> = stats
+            .iter()
+            .map(|s| {
+                json!({"id": s.id, "name": s.name, "nominal_ms": s.nominal_ms, "frames": s.frames,
+                       "mean_ms": s.mean_ms, "p50_ms": s.p50_ms, "p99_ms": s.p99_ms, "min_ms": s.min_ms, "max_ms": s.max_ms})
+            })
+            .collect();
+        println!("{}", serde_json::Value::Array(arr));
+    } else {
+        println!(
+            "{:<6} {:<14} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8}",
+            "id", "message", "frames", "nominal", "p50 ms", "p99 ms", "min ms", "max ms"
+        );
+        for s in &stats {
+            println!(
+                "0x{:03X}  {:<14} {:>7} {:>7} {:>8.3} {:>8.3} {:>8.3} {:>8.3}",
+                s.id,
+                s.name.unwrap_or("?"),
+                s.frames,
+                s.nominal_ms.map_or("-".to_string(), |m| format!("{m} ms")),
+                s.p50_ms,
+                s.p99_ms,
+                s.min_ms,
+                s.max_ms
+            );
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

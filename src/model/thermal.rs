@@ -1,0 +1,249 @@
+//! Thermal models of the dry dual clutch, paper Sect. 4, as derivative functions.
+//!
+//! - [`Thermal5`]: the 5-state model (16a)–(16e) — pressure plates θ_pp1, θ_pp2, clutch disks
+//!   θ_c1, θ_c2, central disk θ_cd; used by the plant (the "truth" family).
+//! - [`Thermal3`]: the 3-state model (17a)–(17c) — θ_c1, θ_c2 and one body θ_b (pressure plates +
+//!   central disk); used by the TCU estimator.
+//!
+//! Inputs: friction powers P_i = T_fci·ω_fci (W, ≥ 0 for a physical clutch), the housing air
+//! temperature θ_h (°C) and the contact flags β_i = 1 when clutch i is not open (u_fs > 0),
+//! see [`beta`].
+//!
+//! Sign convention: the conduction terms of (16e) and (17c) are the counterparts of those in
+//! (16c)/(16d) and (17a)/(17b) — heat that leaves a clutch disk enters the central disk (body).
+//! The paper prints them as −α5β1(θ_c1 − θ_cd); read literally that would cool the central disk
+//! when the clutch is hotter (an unbounded drift of both), so they are implemented as
+//! +α5β1(θ_c1 − θ_cd), which is what the paper's sentence "the first two terms ... correspond to
+//! the conductive heat terms in (16c) and (16d)" describes.
+
+use super::clutch;
+use super::params::{ClutchParams, ThermalParams3, ThermalParams5};
+use serde::{Deserialize, Serialize};
+
+/// Inputs of a thermal derivative.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct ThermalInputs {
+    /// Friction power of clutch 1, T_fc1·ω_fc1 (W).
+    pub p_fric1_w: f64,
+    /// Friction power of clutch 2 (W).
+    pub p_fric2_w: f64,
+    /// β1: 1.0 when clutch 1 is not open, else 0.0.
+    pub beta1: f64,
+    /// β2.
+    pub beta2: f64,
+    /// Housing air temperature θ_h (°C).
+    pub theta_h_c: f64,
+}
+
+/// β of a clutch: 1.0 when the flat spring is compressed (u_fs > 0), i.e. the clutch is not open.
+#[inline]
+pub fn beta(p: &ClutchParams, x_to_mm: f64, theta_c: f64) -> f64 {
+    if clutch::u_fs(p, x_to_mm, theta_c) > 0.0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// State of the 5-state model (°C).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Thermal5State {
+    pub pp1: f64,
+    pub pp2: f64,
+    pub c1: f64,
+    pub c2: f64,
+    pub cd: f64,
+}
+
+impl Thermal5State {
+    /// All five temperatures equal to `theta_c`.
+    pub fn uniform(theta_c: f64) -> Self {
+        Self {
+            pp1: theta_c,
+            pp2: theta_c,
+            c1: theta_c,
+            c2: theta_c,
+            cd: theta_c,
+        }
+    }
+    /// `self + k·d` (RK4 stages).
+    pub fn axpy(&self, k: f64, d: &Self) -> Self {
+        Self {
+            pp1: self.pp1 + k * d.pp1,
+            pp2: self.pp2 + k * d.pp2,
+            c1: self.c1 + k * d.c1,
+            c2: self.c2 + k * d.c2,
+            cd: self.cd + k * d.cd,
+        }
+    }
+    /// Body temperature as the paper defines it for (17): mean of pressure plates and central disk.
+    pub fn body(&self) -> f64 {
+        (self.pp1 + self.pp2 + self.cd) / 3.0
+    }
+    pub fn as_array(&self) -> [f64; 5] {
+        [self.pp1, self.pp2, self.c1, self.c2, self.cd]
+    }
+}
+
+/// The 5-state thermal model (16).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Thermal5 {
+    pub p: ThermalParams5,
+}
+
+impl Thermal5 {
+    pub fn new(p: ThermalParams5) -> Self {
+        Self { p }
+    }
+
+    /// Time derivative (°C/s) of (16a)–(16e).
+    #[inline]
+    pub fn derivative(&self, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
+        let a = &self.p;
+        let (b1, b2, th) = (u.beta1, u.beta2, u.theta_h_c);
+        Thermal5State {
+            pp1: a.alpha1_per_s * b1 * (s.c1 - s.pp1)
+                + a.alpha2_per_s * (1.0 - b1) * (th - s.pp1)
+                + a.alpha3_k_per_j * u.p_fric1_w,
+            pp2: a.alpha1_per_s * b2 * (s.c2 - s.pp2)
+                + a.alpha2_per_s * (1.0 - b2) * (th - s.pp2)
+                + a.alpha3_k_per_j * u.p_fric2_w,
+            c1: a.alpha4_per_s * b1 * (s.pp1 - s.c1)
+                + a.alpha5_per_s * b1 * (s.cd - s.c1)
+                + a.alpha6_per_s * (1.0 - b1) * (th - s.c1)
+                + a.alpha7_k_per_j * u.p_fric1_w,
+            c2: a.alpha4_per_s * b2 * (s.pp2 - s.c2)
+                + a.alpha5_per_s * b2 * (s.cd - s.c2)
+                + a.alpha6_per_s * (1.0 - b2) * (th - s.c2)
+                + a.alpha7_k_per_j * u.p_fric2_w,
+            cd: a.alpha5_per_s * b1 * (s.c1 - s.cd)
+                + a.alpha5_per_s * b2 * (s.c2 - s.cd)
+                + a.alpha8_per_s * (2.0 - b1 - b2) * (th - s.cd)
+                + a.alpha9_k_per_j * (u.p_fric1_w + u.p_fric2_w),
+        }
+    }
+}
+
+/// State of the 3-state model (°C).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Thermal3State {
+    pub c1: f64,
+    pub c2: f64,
+    /// Body: both pressure plates and the central disk.
+    pub body: f64,
+}
+
+impl Thermal3State {
+    pub fn uniform(theta_c: f64) -> Self {
+        Self {
+            c1: theta_c,
+            c2: theta_c,
+            body: theta_c,
+        }
+    }
+    pub fn axpy(&self, k: f64, d: &Self) -> Self {
+        Self {
+            c1: self.c1 + k * d.c1,
+            c2: self.c2 + k * d.c2,
+            body: self.body + k * d.body,
+        }
+    }
+}
+
+/// The 3-state thermal model (17).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Thermal3 {
+    pub p: ThermalParams3,
+}
+
+impl Thermal3 {
+    pub fn new(p: ThermalParams3) -> Self {
+        Self { p }
+    }
+
+    /// Time derivative (°C/s) of (17a)–(17c).
+    #[inline]
+    pub fn derivative(&self, s: &Thermal3State, u: &ThermalInputs) -> Thermal3State {
+        let a = &self.p;
+        let (b1, b2, th) = (u.beta1, u.beta2, u.theta_h_c);
+        Thermal3State {
+            c1: a.alpha1_per_s * b1 * (s.body - s.c1)
+                + a.alpha2_per_s * (1.0 - b1) * (th - s.c1)
+                + a.alpha3_k_per_j * u.p_fric1_w,
+            c2: a.alpha1_per_s * b2 * (s.body - s.c2)
+                + a.alpha2_per_s * (1.0 - b2) * (th - s.c2)
+                + a.alpha3_k_per_j * u.p_fric2_w,
+            body: a.alpha1_per_s * b1 * (s.c1 - s.body)
+                + a.alpha1_per_s * b2 * (s.c2 - s.body)
+                + a.alpha4_per_s * (2.0 - b1 - b2) * (th - s.body)
+                + a.alpha3_k_per_j * (u.p_fric1_w + u.p_fric2_w),
+        }
+    }
+
+    /// One RK4 step of length `dt` with inputs held constant (the estimator's update).
+    pub fn step(&self, s: &Thermal3State, u: &ThermalInputs, dt: f64) -> Thermal3State {
+        let k1 = self.derivative(s, u);
+        let k2 = self.derivative(&s.axpy(0.5 * dt, &k1), u);
+        let k3 = self.derivative(&s.axpy(0.5 * dt, &k2), u);
+        let k4 = self.derivative(&s.axpy(dt, &k3), u);
+        let mut out = *s;
+        out = out.axpy(dt / 6.0, &k1);
+        out = out.axpy(dt / 3.0, &k2);
+        out = out.axpy(dt / 3.0, &k3);
+        out.axpy(dt / 6.0, &k4)
+    }
+}
+
+impl Thermal5 {
+    /// One RK4 step of length `dt` with inputs held constant.
+    pub fn step(&self, s: &Thermal5State, u: &ThermalInputs, dt: f64) -> Thermal5State {
+        let k1 = self.derivative(s, u);
+        let k2 = self.derivative(&s.axpy(0.5 * dt, &k1), u);
+        let k3 = self.derivative(&s.axpy(0.5 * dt, &k2), u);
+        let k4 = self.derivative(&s.axpy(dt, &k3), u);
+        let mut out = *s;
+        out = out.axpy(dt / 6.0, &k1);
+        out = out.axpy(dt / 3.0, &k2);
+        out = out.axpy(dt / 3.0, &k3);
+        out.axpy(dt / 6.0, &k4)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::params::Params;
+
+    #[test]
+    fn equilibrium_at_housing_temperature() {
+        let p = Params::default();
+        let t5 = Thermal5::new(p.thermal5);
+        let t3 = Thermal3::new(p.thermal3);
+        for (b1, b2) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)] {
+            let u = ThermalInputs {
+                beta1: b1,
+                beta2: b2,
+                theta_h_c: 60.0,
+                ..Default::default()
+            };
+            let d = t5.derivative(&Thermal5State::uniform(60.0), &u);
+            assert!(d.as_array().iter().all(|v| v.abs() < 1e-15));
+            let d = t3.derivative(&Thermal3State::uniform(60.0), &u);
+            assert!(d.c1.abs() + d.c2.abs() + d.body.abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn heat_flows_from_hot_clutch_into_central_disk() {
+        let t5 = Thermal5::new(Params::default().thermal5);
+        let mut s = Thermal5State::uniform(50.0);
+        s.c1 = 150.0;
+        let u = ThermalInputs {
+            beta1: 1.0,
+            theta_h_c: 50.0,
+            ..Default::default()
+        };
+        let d = t5.derivative(&s, &u);
+        assert!(d.c1 < 0.0 && d.cd > 0.0 && d.pp1 > 0.0);
+    }
+}

@@ -1,0 +1,448 @@
+//! Minimal, dependency-free SVG line charts for the project's figures: one or more panels in a
+//! grid, each with axes, "nice" ticks, axis labels with units, a legend and several series
+//! (solid or dashed lines, optional markers). Pure: rendering returns a `String`.
+//!
+//! ```
+//! use ddct::plot::{Figure, Panel, Series};
+//! let mut p = Panel::new("Torque", "x_to (mm)", "T (N·m)");
+//! p.add(Series::line("25 °C", vec![(4.0, 0.0), (6.0, 120.0)]));
+//! let svg = Figure::new("demo", 1).panel(p).to_svg();
+//! assert!(svg.starts_with("<svg"));
+//! ```
+
+use std::fmt::Write as _;
+
+/// Categorical palette (colour-blind friendly, Okabe–Ito).
+pub const PALETTE: [&str; 8] = [
+    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",
+];
+
+/// `n` colours from light to dark along a blue ramp ("darker = higher", as in the paper).
+pub fn ramp(n: usize) -> Vec<String> {
+    (0..n)
+        .map(|i| {
+            let t = if n <= 1 {
+                1.0
+            } else {
+                i as f64 / (n - 1) as f64
+            };
+            let lerp = |a: f64, b: f64| (a + (b - a) * t).round() as u8;
+            format!(
+                "#{:02X}{:02X}{:02X}",
+                lerp(150.0, 8.0),
+                lerp(190.0, 29.0),
+                lerp(230.0, 88.0)
+            )
+        })
+        .collect()
+}
+
+/// Line style of a series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Style {
+    #[default]
+    Solid,
+    Dashed,
+    Dotted,
+    /// Markers only.
+    Markers,
+}
+
+/// One data series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+    /// CSS colour; `None` takes the palette colour of its index.
+    pub color: Option<String>,
+    pub style: Style,
+    pub width: f64,
+}
+
+impl Series {
+    /// A solid line.
+    pub fn line(name: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
+        Series {
+            name: name.into(),
+            points,
+            color: None,
+            style: Style::Solid,
+            width: 1.8,
+        }
+    }
+    pub fn color(mut self, c: impl Into<String>) -> Self {
+        self.color = Some(c.into());
+        self
+    }
+    pub fn style(mut self, s: Style) -> Self {
+        self.style = s;
+        self
+    }
+}
+
+/// One set of axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Panel {
+    pub title: String,
+    /// Axis labels, with units, e.g. "x_to (mm)".
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// Fixed ranges; `None` fits the data (with nice rounding).
+    pub x_range: Option<(f64, f64)>,
+    pub y_range: Option<(f64, f64)>,
+    pub legend: bool,
+    /// Legend title, e.g. "θ_c".
+    pub legend_title: String,
+}
+
+impl Panel {
+    pub fn new(
+        title: impl Into<String>,
+        x_label: impl Into<String>,
+        y_label: impl Into<String>,
+    ) -> Self {
+        Panel {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            series: Vec::new(),
+            x_range: None,
+            y_range: None,
+            legend: true,
+            legend_title: String::new(),
+        }
+    }
+    pub fn add(&mut self, s: Series) -> &mut Self {
+        self.series.push(s);
+        self
+    }
+    pub fn x_range(mut self, lo: f64, hi: f64) -> Self {
+        self.x_range = Some((lo, hi));
+        self
+    }
+    pub fn y_range(mut self, lo: f64, hi: f64) -> Self {
+        self.y_range = Some((lo, hi));
+        self
+    }
+    pub fn legend_title(mut self, t: impl Into<String>) -> Self {
+        self.legend_title = t.into();
+        self
+    }
+}
+
+/// A figure: panels laid out on a grid with `cols` columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Figure {
+    pub title: String,
+    pub cols: usize,
+    pub panels: Vec<Panel>,
+    /// Size of one panel (px).
+    pub panel_width: f64,
+    pub panel_height: f64,
+}
+
+impl Figure {
+    pub fn new(title: impl Into<String>, cols: usize) -> Self {
+        Figure {
+            title: title.into(),
+            cols: cols.max(1),
+            panels: Vec::new(),
+            panel_width: 520.0,
+            panel_height: 380.0,
+        }
+    }
+    pub fn panel(mut self, p: Panel) -> Self {
+        self.panels.push(p);
+        self
+    }
+
+    /// Renders the figure as a standalone SVG document.
+    pub fn to_svg(&self) -> String {
+        let n = self.panels.len().max(1);
+        let cols = self.cols.min(n);
+        let rows = n.div_ceil(cols);
+        let top = if self.title.is_empty() { 10.0 } else { 40.0 };
+        let w = cols as f64 * self.panel_width;
+        let h = top + rows as f64 * self.panel_height;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="DejaVu Sans, Arial, sans-serif">"#
+        );
+        let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+        if !self.title.is_empty() {
+            let _ = writeln!(
+                s,
+                r#"<text x="{}" y="26" font-size="17" text-anchor="middle" font-weight="bold">{}</text>"#,
+                w / 2.0,
+                esc(&self.title)
+            );
+        }
+        for (k, p) in self.panels.iter().enumerate() {
+            let x0 = (k % cols) as f64 * self.panel_width;
+            let y0 = top + (k / cols) as f64 * self.panel_height;
+            render_panel(&mut s, p, x0, y0, self.panel_width, self.panel_height);
+        }
+        s.push_str("</svg>\n");
+        s
+    }
+}
+
+fn esc(t: &str) -> String {
+    t.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// "Nice" tick step for a range and a target count.
+pub fn nice_step(span: f64, target: usize) -> f64 {
+    if !(span.is_finite() && span > 0.0) {
+        return 1.0;
+    }
+    let raw = span / target.max(1) as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let f = raw / mag;
+    let nf = if f < 1.5 {
+        1.0
+    } else if f < 3.0 {
+        2.0
+    } else if f < 7.0 {
+        5.0
+    } else {
+        10.0
+    };
+    nf * mag
+}
+
+/// Ticks covering `[lo, hi]` with a nice step.
+pub fn ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
+    let step = nice_step(hi - lo, target);
+    let start = (lo / step - 1e-9).ceil() * step;
+    let mut v = Vec::new();
+    let mut t = start;
+    while t <= hi + 1e-9 * step && v.len() < 100 {
+        v.push(if t.abs() < 1e-12 * step { 0.0 } else { t });
+        t += step;
+    }
+    v
+}
+
+fn fmt_tick(v: f64, step: f64) -> String {
+    let decimals = if step >= 1.0 {
+        0
+    } else {
+        (-step.log10().floor()) as usize
+    };
+    let a = v.abs();
+    if a != 0.0 && (a >= 1e5 || a < 1e-3) {
+        format!("{v:.1e}")
+    } else {
+        format!("{v:.decimals$}")
+    }
+}
+
+fn data_range(p: &Panel, x: bool) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for s in &p.series {
+        for &(a, b) in &s.points {
+            let v = if x { a } else { b };
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    if hi - lo < 1e-12 * (hi.abs() + lo.abs()).max(1e-12) {
+        return (lo - 0.5, hi + 0.5);
+    }
+    let step = nice_step(hi - lo, 6);
+    ((lo / step).floor() * step, (hi / step).ceil() * step)
+}
+
+fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
+    let (ml, mr, mt, mb) = (70.0, 20.0, 34.0, 52.0);
+    let (px, py, pw, ph) = (x0 + ml, y0 + mt, w - ml - mr, h - mt - mb);
+    let (xl, xh) = p.x_range.unwrap_or_else(|| data_range(p, true));
+    let (yl, yh) = p.y_range.unwrap_or_else(|| data_range(p, false));
+    let sx = |v: f64| px + (v - xl) / (xh - xl) * pw;
+    let sy = |v: f64| py + ph - (v - yl) / (yh - yl) * ph;
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
+        px + pw / 2.0,
+        y0 + 22.0,
+        esc(&p.title)
+    );
+    // Grid and ticks.
+    let xt = ticks(xl, xh, 6);
+    let yt = ticks(yl, yh, 6);
+    let xstep = nice_step(xh - xl, 6);
+    let ystep = nice_step(yh - yl, 6);
+    for &t in &xt {
+        let x = sx(t);
+        let _ = writeln!(
+            s,
+            r##"<line x1="{x:.2}" y1="{py:.2}" x2="{x:.2}" y2="{:.2}" stroke="#e4e4e4"/><text x="{x:.2}" y="{:.2}" font-size="11" text-anchor="middle">{}</text>"##,
+            py + ph,
+            py + ph + 16.0,
+            fmt_tick(t, xstep)
+        );
+    }
+    for &t in &yt {
+        let y = sy(t);
+        let _ = writeln!(
+            s,
+            r##"<line x1="{px:.2}" y1="{y:.2}" x2="{:.2}" y2="{y:.2}" stroke="#e4e4e4"/><text x="{:.2}" y="{:.2}" font-size="11" text-anchor="end">{}</text>"##,
+            px + pw,
+            px - 6.0,
+            y + 4.0,
+            fmt_tick(t, ystep)
+        );
+    }
+    let _ = writeln!(
+        s,
+        r##"<rect x="{px:.2}" y="{py:.2}" width="{pw:.2}" height="{ph:.2}" fill="none" stroke="#333"/>"##
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.2}" y="{:.2}" font-size="13" text-anchor="middle">{}</text>"#,
+        px + pw / 2.0,
+        y0 + h - 12.0,
+        esc(&p.x_label)
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.2}" y="{:.2}" font-size="13" text-anchor="middle" transform="rotate(-90 {:.2} {:.2})">{}</text>"#,
+        x0 + 18.0,
+        py + ph / 2.0,
+        x0 + 18.0,
+        py + ph / 2.0,
+        esc(&p.y_label)
+    );
+    // Series, clipped to the plot area.
+    let clip = format!("clip{}_{}", x0 as i64, y0 as i64);
+    let _ = writeln!(
+        s,
+        r#"<clipPath id="{clip}"><rect x="{px:.2}" y="{py:.2}" width="{pw:.2}" height="{ph:.2}"/></clipPath>"#
+    );
+    for (k, ser) in p.series.iter().enumerate() {
+        let color = ser
+            .color
+            .clone()
+            .unwrap_or_else(|| PALETTE[k % PALETTE.len()].to_string());
+        let pts: Vec<(f64, f64)> = ser
+            .points
+            .iter()
+            .filter(|(a, b)| a.is_finite() && b.is_finite())
+            .map(|&(a, b)| (sx(a), sy(b)))
+            .collect();
+        if ser.style == Style::Markers {
+            for (a, b) in &pts {
+                let _ = writeln!(
+                    s,
+                    r#"<circle cx="{a:.2}" cy="{b:.2}" r="2.6" fill="{color}" clip-path="url(#{clip})"/>"#
+                );
+            }
+            continue;
+        }
+        let mut d = String::new();
+        for (i, (a, b)) in pts.iter().enumerate() {
+            let _ = write!(d, "{}{a:.2},{b:.2} ", if i == 0 { "M" } else { "L" });
+        }
+        let dash = match ser.style {
+            Style::Dashed => r#" stroke-dasharray="7,4""#,
+            Style::Dotted => r#" stroke-dasharray="2,3""#,
+            _ => "",
+        };
+        let _ = writeln!(
+            s,
+            r#"<path d="{}" fill="none" stroke="{color}" stroke-width="{}"{dash} clip-path="url(#{clip})"/>"#,
+            d.trim_end(),
+            ser.width
+        );
+    }
+    // Legend (top-left inside the axes).
+    if p.legend && !p.series.is_empty() {
+        let rows = p.series.len() + usize::from(!p.legend_title.is_empty());
+        let lw = 12.0
+            + 30.0
+            + 7.0
+                * p.series
+                    .iter()
+                    .map(|x| x.name.chars().count())
+                    .chain(std::iter::once(p.legend_title.chars().count()))
+                    .max()
+                    .unwrap_or(4) as f64;
+        let (lx, ly) = (px + 8.0, py + 8.0);
+        let _ = writeln!(
+            s,
+            r##"<rect x="{lx:.2}" y="{ly:.2}" width="{lw:.2}" height="{:.2}" fill="white" fill-opacity="0.85" stroke="#999"/>"##,
+            8.0 + 16.0 * rows as f64
+        );
+        let mut y = ly + 16.0;
+        if !p.legend_title.is_empty() {
+            let _ = writeln!(
+                s,
+                r#"<text x="{:.2}" y="{y:.2}" font-size="11" font-weight="bold">{}</text>"#,
+                lx + 6.0,
+                esc(&p.legend_title)
+            );
+            y += 16.0;
+        }
+        for (k, ser) in p.series.iter().enumerate() {
+            let color = ser
+                .color
+                .clone()
+                .unwrap_or_else(|| PALETTE[k % PALETTE.len()].to_string());
+            let dash = match ser.style {
+                Style::Dashed => r#" stroke-dasharray="7,4""#,
+                Style::Dotted => r#" stroke-dasharray="2,3""#,
+                _ => "",
+            };
+            let _ = writeln!(
+                s,
+                r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{color}" stroke-width="2.2"{dash}/><text x="{:.2}" y="{:.2}" font-size="11">{}</text>"#,
+                lx + 6.0,
+                y - 4.0,
+                lx + 30.0,
+                y - 4.0,
+                lx + 36.0,
+                y,
+                esc(&ser.name)
+            );
+            y += 16.0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nice_ticks() {
+        assert_eq!(ticks(0.0, 10.0, 5), vec![0.0, 2.0, 4.0, 6.0, 8.0, 10.0]);
+        assert_eq!(nice_step(0.8, 4), 0.2);
+        let t = ticks(3.3, 7.2, 6);
+        assert!(t.first().unwrap() >= &3.3 && t.last().unwrap() <= &7.2);
+    }
+
+    #[test]
+    fn renders_panels_series_and_legend() {
+        let mut a = Panel::new("A", "x (mm)", "y (N)");
+        a.add(Series::line("one", vec![(0.0, 0.0), (1.0, 2.0)]));
+        a.add(Series::line("two", vec![(0.0, 1.0), (1.0, 1.5)]).style(Style::Dashed));
+        let b = Panel::new("B", "t (s)", "T (°C)");
+        let svg = Figure::new("fig <1>", 2).panel(a).panel(b).to_svg();
+        assert!(svg.contains("fig &lt;1&gt;"));
+        assert_eq!(svg.matches("<path").count(), 2);
+        assert!(svg.contains(">one<") && svg.contains(">two<"));
+        assert!(svg.contains("x (mm)") && svg.contains("T (°C)"));
+        assert!(svg.trim_end().ends_with("</svg>"));
+    }
+}
