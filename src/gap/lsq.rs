@@ -23,8 +23,10 @@ pub struct ParamSpec {
     pub init: f64,
     pub lo: f64,
     pub hi: f64,
-    /// Typical magnitude: the solver works on p/scale.
+    /// Typical magnitude: the solver works on p/scale (or ln(p/scale) with `log`).
     pub scale: f64,
+    /// Solve for ln(p) (positive parameters whose magnitude, not offset, matters).
+    pub log: bool,
 }
 
 impl ParamSpec {
@@ -39,7 +41,44 @@ impl ParamSpec {
             } else {
                 1.0
             },
+            log: false,
         }
+    }
+
+    /// The same parameter solved for in log space (needs `lo > 0`; ignored otherwise).
+    pub fn log(mut self) -> Self {
+        self.log = self.lo > 0.0;
+        self
+    }
+
+    fn to_z(&self, p: f64) -> f64 {
+        if self.log {
+            (p.max(self.lo) / self.scale).ln()
+        } else {
+            p / self.scale
+        }
+    }
+
+    fn to_p(&self, z: f64) -> f64 {
+        let p = if self.log {
+            self.scale * z.exp()
+        } else {
+            self.scale * z
+        };
+        p.clamp(self.lo, self.hi)
+    }
+
+    /// dp/dz at p.
+    fn dp_dz(&self, p: f64) -> f64 {
+        if self.log {
+            p
+        } else {
+            self.scale
+        }
+    }
+
+    fn z_bounds(&self) -> (f64, f64) {
+        (self.to_z(self.lo), self.to_z(self.hi))
     }
 }
 
@@ -58,9 +97,9 @@ pub struct LmOptions {
 impl Default for LmOptions {
     fn default() -> Self {
         LmOptions {
-            max_iter: 60,
-            tol_sse: 1e-9,
-            tol_step: 1e-8,
+            max_iter: 100,
+            tol_sse: 1e-10,
+            tol_step: 1e-9,
             central: false,
         }
     }
@@ -145,39 +184,47 @@ pub fn effective_n(r: &[f64]) -> f64 {
     (r.len() as f64 * (1.0 - rho) / (1.0 + rho)).max(1.0)
 }
 
-/// Minimises Σ r(p)² over the box of `specs` by projected Levenberg–Marquardt with a
-/// finite-difference Jacobian. `f(p, r)` fills the `n` residuals; non-finite residuals count as
-/// a failed step. Returns the fit with covariance-based intervals.
+fn sse_of(r: &[f64]) -> f64 {
+    let s: f64 = r.iter().map(|v| v * v).sum();
+    if s.is_finite() {
+        s
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Minimises Σ r(p)² over the box of `specs` by projected Levenberg–Marquardt (Nielsen's damping
+/// update) with a finite-difference Jacobian. `f(p, r)` fills the `n` residuals; non-finite
+/// residuals count as a failed step. Returns the fit with covariance-based intervals.
 pub fn levenberg_marquardt(
     f: &mut dyn FnMut(&[f64], &mut [f64]),
     n: usize,
     specs: &[ParamSpec],
     opts: LmOptions,
 ) -> Fit {
+    levenberg_marquardt_clustered(f, n, specs, opts, None)
+}
+
+/// [`levenberg_marquardt`] with residual clusters (one id per residual, e.g. the engagement
+/// block it belongs to) for cluster-robust intervals.
+pub fn levenberg_marquardt_clustered(
+    f: &mut dyn FnMut(&[f64], &mut [f64]),
+    n: usize,
+    specs: &[ParamSpec],
+    opts: LmOptions,
+    clusters: Option<&[usize]>,
+) -> Fit {
     let k = specs.len();
-    let scale: Vec<f64> = specs.iter().map(|s| s.scale).collect();
-    let to_p = |z: &[f64]| -> Vec<f64> {
-        z.iter()
-            .zip(specs)
-            .map(|(z, s)| (z * s.scale).clamp(s.lo, s.hi))
-            .collect()
-    };
-    let mut z: Vec<f64> = specs.iter().map(|s| s.init / s.scale).collect();
+    let to_p = |z: &[f64]| -> Vec<f64> { z.iter().zip(specs).map(|(z, s)| s.to_p(*z)).collect() };
+    let zb: Vec<(f64, f64)> = specs.iter().map(|s| s.z_bounds()).collect();
+    let mut z: Vec<f64> = specs.iter().map(|s| s.to_z(s.init)).collect();
     let mut r = vec![0.0; n];
-    let sse_of = |r: &[f64]| -> f64 {
-        let s: f64 = r.iter().map(|v| v * v).sum();
-        if s.is_finite() {
-            s
-        } else {
-            f64::INFINITY
-        }
-    };
     f(&to_p(&z), &mut r);
     let mut sse = sse_of(&r);
     let mut jac = DMatrix::<f64>::zeros(n, k);
     let mut rp = vec![0.0; n];
     let mut rm = vec![0.0; n];
-    let mut mu = 1e-3;
+    let mut rn = vec![0.0; n];
     let mut iterations = 0;
     let mut converged = false;
     let jacobian = |f: &mut dyn FnMut(&[f64], &mut [f64]),
@@ -187,83 +234,95 @@ pub fn levenberg_marquardt(
                     rp: &mut [f64],
                     rm: &mut [f64]| {
         for j in 0..k {
-            let s = &specs[j];
             let h = 1e-6 * z[j].abs().max(1.0);
+            let up_ok = z[j] + h <= zb[j].1;
+            let hs = if up_ok { h } else { -h };
             let mut zp = z.to_vec();
-            // Step inward at a bound so the probe stays feasible.
-            let up_ok = (zp[j] + h) * s.scale <= s.hi;
-            zp[j] += if up_ok { h } else { -h };
+            zp[j] += hs;
             f(&to_p(&zp), rp);
-            if opts.central {
+            if opts.central && z[j] - hs >= zb[j].0 && z[j] - hs <= zb[j].1 {
                 let mut zm = z.to_vec();
-                zm[j] -= if up_ok { h } else { -h };
+                zm[j] -= hs;
                 f(&to_p(&zm), rm);
-                let d = if up_ok { 2.0 * h } else { -2.0 * h };
                 for i in 0..n {
-                    jac[(i, j)] = (rp[i] - rm[i]) / d;
+                    jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * hs);
                 }
             } else {
-                let d = if up_ok { h } else { -h };
                 for i in 0..n {
-                    jac[(i, j)] = (rp[i] - r[i]) / d;
+                    jac[(i, j)] = (rp[i] - r[i]) / hs;
                 }
             }
         }
     };
     if k > 0 && sse.is_finite() {
         jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+        let mut mu: f64 = -1.0;
+        let mut nu = 2.0;
+        let mut small = 0;
         while iterations < opts.max_iter {
             iterations += 1;
             let a = jac.tr_mul(&jac);
             let g = jac.tr_mul(&DVector::from_column_slice(&r));
-            let mut accepted = false;
-            for _ in 0..12 {
-                let mut m = a.clone();
-                for j in 0..k {
-                    m[(j, j)] += mu * a[(j, j)].max(1e-12) + 1e-15;
-                }
-                let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
-                    mu *= 10.0;
-                    continue;
-                };
-                let znew: Vec<f64> = (0..k)
-                    .map(|j| {
-                        let s = &specs[j];
-                        (z[j] + step[j]).clamp(s.lo / s.scale, s.hi / s.scale)
-                    })
-                    .collect();
-                let moved: f64 = (0..k)
-                    .map(|j| (znew[j] - z[j]).abs() / z[j].abs().max(1.0))
-                    .fold(0.0, f64::max);
-                let mut rn = vec![0.0; n];
-                f(&to_p(&znew), &mut rn);
-                let sn = sse_of(&rn);
-                if sn < sse {
-                    let rel = (sse - sn) / sse.max(1e-300);
-                    z = znew;
-                    r = rn;
-                    sse = sn;
-                    mu = (mu / 3.0).max(1e-12);
-                    accepted = true;
-                    if rel < opts.tol_sse || moved < opts.tol_step {
+            if mu < 0.0 {
+                mu = 1e-3;
+            }
+            // Marquardt scaling: damping proportional to the diagonal of JᵀJ (floored so that a
+            // parameter the data do not see still gets a finite step).
+            let dmax = (0..k).map(|j| a[(j, j)]).fold(0.0, f64::max).max(1e-300);
+            let mut m = a.clone();
+            for j in 0..k {
+                m[(j, j)] += mu * a[(j, j)].max(1e-12 * dmax);
+            }
+            let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
+                mu *= nu;
+                nu *= 2.0;
+                continue;
+            };
+            let znew: Vec<f64> = (0..k)
+                .map(|j| (z[j] + step[j]).clamp(zb[j].0, zb[j].1))
+                .collect();
+            let dz: Vec<f64> = (0..k).map(|j| znew[j] - z[j]).collect();
+            let moved = dz
+                .iter()
+                .zip(&z)
+                .map(|(d, z)| d.abs() / z.abs().max(1.0))
+                .fold(0.0, f64::max);
+            f(&to_p(&znew), &mut rn);
+            let sn = sse_of(&rn);
+            // Predicted decrease of ½SSE for the (projected) step: −gᵀδ − ½δᵀAδ.
+            let dzv = DVector::from_column_slice(&dz);
+            let pred = -(g.dot(&dzv)) - 0.5 * dzv.dot(&(&a * &dzv));
+            let actual = 0.5 * (sse - sn);
+            if sn < sse {
+                let rho = if pred > 0.0 { actual / pred } else { 1.0 };
+                let rel = (sse - sn) / sse.max(1e-300);
+                z = znew;
+                std::mem::swap(&mut r, &mut rn);
+                sse = sn;
+                mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
+                nu = 2.0;
+                if rel < opts.tol_sse || moved < opts.tol_step {
+                    small += 1;
+                    if small >= 3 {
                         converged = true;
+                        break;
                     }
-                    break;
+                } else {
+                    small = 0;
                 }
+                jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+            } else {
                 if moved < opts.tol_step {
+                    converged = true;
                     break;
                 }
-                mu *= 4.0;
+                mu *= nu;
+                nu *= 2.0;
+                if !mu.is_finite() || mu > 1e300 {
+                    converged = true;
+                    break;
+                }
             }
-            if !accepted {
-                // No descent left at this resolution: a (local) minimum.
-                converged = true;
-                break;
-            }
-            if converged {
-                break;
-            }
-            jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
         }
         // Jacobian at the solution for the covariance.
         jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
@@ -272,8 +331,13 @@ pub fn levenberg_marquardt(
     let n_eff = effective_n(&r);
     let dof = (n as f64 - k as f64).max(1.0);
     let sigma2 = sse / dof * (n as f64 / n_eff).max(1.0);
-    let (std_z, corr) = covariance(&jac, sigma2);
-    let std_err: Vec<f64> = std_z.iter().zip(&scale).map(|(s, c)| s * c).collect();
+    let (std_z, corr) = covariance(&jac, sigma2, &r, clusters);
+    let std_err: Vec<f64> = std_z
+        .iter()
+        .zip(specs)
+        .zip(&p)
+        .map(|((s, sp), p)| s * sp.dp_dz(*p))
+        .collect();
     let ci95 = p
         .iter()
         .zip(&std_err)
@@ -302,16 +366,11 @@ pub fn levenberg_marquardt(
     }
 }
 
-/// Standard errors and correlations from a Jacobian: cov = σ²(JᵀJ)⁺ by SVD; directions with a
-/// singular value below 1e-10 of the largest give infinite standard errors for the parameters
-/// that load on them.
-fn covariance(jac: &DMatrix<f64>, sigma2: f64) -> (Vec<f64>, Vec<f64>) {
+/// Pseudo-inverse of JᵀJ by SVD of the equilibrated matrix, and the parameters that load on a
+/// direction with a singular value below 1e-10 of the largest (not identifiable).
+fn pinv_normal(jac: &DMatrix<f64>) -> (DMatrix<f64>, Vec<bool>) {
     let k = jac.ncols();
-    if k == 0 {
-        return (vec![], vec![]);
-    }
     let a = jac.tr_mul(jac);
-    // Equilibrate so that the relative threshold is meaningful.
     let d: Vec<f64> = (0..k)
         .map(|j| {
             let v = a[(j, j)];
@@ -328,18 +387,18 @@ fn covariance(jac: &DMatrix<f64>, sigma2: f64) -> (Vec<f64>, Vec<f64>) {
             b[(i, j)] *= d[i] * d[j];
         }
     }
-    let svd = b.clone().svd(true, true);
+    let svd = b.svd(true, true);
     let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
-        return (vec![f64::INFINITY; k], vec![f64::NAN; k * k]);
-    };
     let mut inv = DMatrix::<f64>::zeros(k, k);
     let mut bad = vec![false; k];
-    for (m, &s) in svd.singular_values.iter().enumerate() {
-        if s > 1e-10 * smax && s > 0.0 {
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return (inv, vec![true; k]);
+    };
+    for (m, &sv) in svd.singular_values.iter().enumerate() {
+        if sv > 1e-10 * smax && sv > 0.0 {
             for i in 0..k {
                 for j in 0..k {
-                    inv[(i, j)] += vt[(m, i)] * u[(j, m)] / s;
+                    inv[(i, j)] += vt[(m, i)] * u[(j, m)] / sv * d[i] * d[j];
                 }
             }
         } else {
@@ -350,19 +409,88 @@ fn covariance(jac: &DMatrix<f64>, sigma2: f64) -> (Vec<f64>, Vec<f64>) {
             }
         }
     }
+    for i in 0..k {
+        if a[(i, i)] <= 0.0 {
+            bad[i] = true;
+        }
+    }
+    (inv, bad)
+}
+
+/// Standard errors and correlations: σ²(JᵀJ)⁺, and when residual clusters are given (events:
+/// residuals inside one engagement are correlated) also the cluster-robust sandwich
+/// (JᵀJ)⁺ [Σ_g (J_gᵀr_g)(J_gᵀr_g)ᵀ · G/(G−1)] (JᵀJ)⁺; each variance is the larger of the two.
+fn covariance(
+    jac: &DMatrix<f64>,
+    sigma2: f64,
+    r: &[f64],
+    clusters: Option<&[usize]>,
+) -> (Vec<f64>, Vec<f64>) {
+    let k = jac.ncols();
+    if k == 0 {
+        return (vec![], vec![]);
+    }
+    let (inv, bad) = pinv_normal(jac);
+    let mut cov = &inv * sigma2;
+    if let Some(cl) = clusters.filter(|c| c.len() == jac.nrows()) {
+        let g_max = cl.iter().copied().max().unwrap_or(0) + 1;
+        let mut scores = DMatrix::<f64>::zeros(g_max, k);
+        for (i, &g) in cl.iter().enumerate() {
+            for j in 0..k {
+                scores[(g, j)] += jac[(i, j)] * r[i];
+            }
+        }
+        let used: Vec<usize> = (0..g_max)
+            .filter(|&g| (0..k).any(|j| scores[(g, j)] != 0.0))
+            .collect();
+        let gn = used.len();
+        if gn >= 5 {
+            let mut meat = DMatrix::<f64>::zeros(k, k);
+            for &g in &used {
+                for a in 0..k {
+                    for b in 0..k {
+                        meat[(a, b)] += scores[(g, a)] * scores[(g, b)];
+                    }
+                }
+            }
+            meat *= gn as f64 / (gn as f64 - 1.0);
+            let sand = &inv * meat * &inv;
+            // Elementwise: keep the larger variance; rescale the covariances accordingly.
+            let mut out = cov.clone();
+            let scale: Vec<f64> = (0..k)
+                .map(|i| {
+                    if cov[(i, i)] > 0.0 && sand[(i, i)] > cov[(i, i)] {
+                        (sand[(i, i)] / cov[(i, i)]).sqrt()
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            for i in 0..k {
+                for j in 0..k {
+                    out[(i, j)] = cov[(i, j)] * scale[i] * scale[j];
+                }
+            }
+            // Correlations from the sandwich when it dominates everywhere.
+            if (0..k).all(|i| sand[(i, i)] >= cov[(i, i)]) {
+                out = sand;
+            }
+            cov = out;
+        }
+    }
     let mut std = vec![0.0; k];
     for i in 0..k {
-        std[i] = if bad[i] || a[(i, i)] <= 0.0 {
+        std[i] = if bad[i] || cov[(i, i)] <= 0.0 {
             f64::INFINITY
         } else {
-            (sigma2 * inv[(i, i)]).sqrt() * d[i]
+            cov[(i, i)].sqrt()
         };
     }
     let mut corr = vec![f64::NAN; k * k];
     for i in 0..k {
         for j in 0..k {
-            if !bad[i] && !bad[j] && inv[(i, i)] > 0.0 && inv[(j, j)] > 0.0 {
-                corr[i * k + j] = inv[(i, j)] / (inv[(i, i)] * inv[(j, j)]).sqrt();
+            if !bad[i] && !bad[j] && cov[(i, i)] > 0.0 && cov[(j, j)] > 0.0 {
+                corr[i * k + j] = cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt();
             }
         }
     }
@@ -396,7 +524,7 @@ pub fn linear_lsq(x: &[f64], y: &[f64], k: usize) -> Option<LinearFit> {
     let sse = rv.iter().map(|v| v * v).sum::<f64>();
     let n_eff = effective_n(&rv);
     let sigma2 = sse / (n as f64 - k as f64).max(1.0) * (n as f64 / n_eff).max(1.0);
-    let (std, _) = covariance(&xm, sigma2);
+    let (std, _) = covariance(&xm, sigma2, &rv, None);
     let b: Vec<f64> = beta.iter().copied().collect();
     let ci95 = b
         .iter()

@@ -6,6 +6,8 @@
 
 pub mod dataset;
 pub mod events;
+pub mod identify;
+pub mod keys;
 pub mod lsq;
 pub mod replay;
 pub mod stats;

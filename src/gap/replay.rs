@@ -62,33 +62,43 @@ impl Measured {
         let n = d.len();
         let slip = [d.slip(0), d.slip(1)];
         let torque = [d.req(Col::T1).to_vec(), d.req(Col::T2).to_vec()];
-        let power: [Vec<f64>; 2] =
-            [0, 1].map(|i| (0..n).map(|k| torque[i][k] * slip[i][k]).collect::<Vec<f64>>());
+        let power: [Vec<f64>; 2] = [0, 1].map(|i| {
+            (0..n)
+                .map(|k| torque[i][k] * slip[i][k])
+                .collect::<Vec<f64>>()
+        });
         let e_cum = [0, 1].map(|i| {
             let mut e = e0[i];
             let mut v = Vec::with_capacity(n);
             for k in 0..n {
                 v.push(e);
                 if k + 1 < n {
-                    e += 0.5 * (power[i][k] + power[i][k + 1]).max(0.0) * d.dt;
+                    e += 0.5 * (power[i][k] + power[i][k + 1]) * d.dt;
                 }
             }
             v
         });
         let x = [d.req(Col::X1).to_vec(), d.req(Col::X2).to_vec()];
-        let theta_max = d
-            .req(Col::Pp1)
-            .iter()
-            .chain(d.req(Col::Pp2))
-            .chain(d.req(Col::Cd))
-            .fold(f64::NEG_INFINITY, |m, v| m.max(*v));
-        let x_gate = (0..=20)
-            .map(|j| clutch::x_isp(&p.clutch, p.clutch.theta_a_c + j as f64 * (theta_max + 80.0 - p.clutch.theta_a_c) / 20.0))
-            .fold(f64::INFINITY, f64::min)
-            - 0.4;
+        // Samples near or past the kiss point: x_to above x_ISP at a temperature well above the
+        // hottest measured neighbour of the disk (the disk may run hotter than its plates), or
+        // with measurable torque.
+        let pp = [d.req(Col::Pp1), d.req(Col::Pp2)];
+        let cdm = d.req(Col::Cd);
         let torque_idx = [0, 1].map(|i| {
             (0..n)
-                .filter(|&k| d.valid[k] && (x[i][k] >= x_gate || torque[i][k].abs() > 1.5))
+                .filter(|&k| {
+                    let hot = pp[i][k].max(cdm[k]) + 80.0;
+                    let gate = (0..=8)
+                        .map(|j| {
+                            clutch::x_isp(
+                                &p.clutch,
+                                p.clutch.theta_a_c + j as f64 * (hot - p.clutch.theta_a_c) / 8.0,
+                            )
+                        })
+                        .fold(f64::INFINITY, f64::min)
+                        - 0.4;
+                    d.valid[k] && (x[i][k] >= gate || torque[i][k].abs() > 1.5)
+                })
                 .collect::<Vec<usize>>()
         });
         let x_req = match (d.get(Col::X1Req), d.get(Col::X2Req)) {
@@ -136,9 +146,25 @@ impl Measured {
     }
 
     /// Measured temperatures at sample k as a (16) state, the disks at the mean of their
-    /// neighbours (they are not measured).
+    /// neighbours (they are not measured). At the first sample the temperatures are averaged
+    /// over the open lead-in (up to 2 s before the first engagement) against sensor noise.
     pub fn thermal_at(&self, k: usize) -> Thermal5State {
-        let (p1, p2, cd) = (self.pp[0][k], self.pp[1][k], self.cd[k]);
+        let avg = |v: &[f64]| -> f64 {
+            if k != 0 {
+                return v[k];
+            }
+            let first = self
+                .seg
+                .events
+                .iter()
+                .filter(|e| e.clutch.is_some())
+                .map(|e| e.start)
+                .min()
+                .unwrap_or(self.n);
+            let m = first.min((2.0 / self.dt) as usize).max(1).min(self.n);
+            v[..m].iter().sum::<f64>() / m as f64
+        };
+        let (p1, p2, cd) = (avg(&self.pp[0]), avg(&self.pp[1]), avg(&self.cd));
         Thermal5State {
             pp1: p1,
             pp2: p2,
@@ -181,7 +207,8 @@ pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
         let th = mid(&m.th);
         let cd = mid(&m.cd);
         let pp = [mid(&m.pp[0]), mid(&m.pp[1])];
-        let pw = [mid(&m.power[0]).max(0.0), mid(&m.power[1]).max(0.0)];
+        // Not clamped at zero: sensor noise on an open clutch must average out, not heat.
+        let pw = [mid(&m.power[0]), mid(&m.power[1])];
         let beta = [0, 1].map(|i| h.clutch_beta(&p.clutch, &m.context(i, k, c[i])));
         let state = Thermal5State {
             pp1: pp[0],
@@ -221,7 +248,14 @@ pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
 
 /// Equation-error torque of clutch `i` at sample `k` (N·m).
 #[inline]
-pub fn torque_eq(p: &Params, h: &dyn Hooks, m: &Measured, theta_c: &[Vec<f64>; 2], i: usize, k: usize) -> f64 {
+pub fn torque_eq(
+    p: &Params,
+    h: &dyn Hooks,
+    m: &Measured,
+    theta_c: &[Vec<f64>; 2],
+    i: usize,
+    k: usize,
+) -> f64 {
     h.clutch_torque(&p.clutch, &m.context(i, k, theta_c[i][k]))
 }
 
@@ -264,7 +298,7 @@ pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5St
             break;
         }
         let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
-        let pw = [mid(&m.power[0]).max(0.0), mid(&m.power[1]).max(0.0)];
+        let pw = [mid(&m.power[0]), mid(&m.power[1])];
         let th = mid(&m.th);
         let ctx = [m.context(0, k, s.c1), m.context(1, k, s.c2)];
         let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, ctx, pw, th);
@@ -446,7 +480,11 @@ mod tests {
         // Disk estimate tracks the (hidden) true disk temperature.
         let c = disk_estimate(&p, &Nominal, &m);
         let worst = (0..m.n)
-            .map(|k| (c[0][k] - truth[k][0]).abs().max((c[1][k] - truth[k][1]).abs()))
+            .map(|k| {
+                (c[0][k] - truth[k][0])
+                    .abs()
+                    .max((c[1][k] - truth[k][1]).abs())
+            })
             .fold(0.0, f64::max);
         assert!(worst < 1.0, "disk estimate off by {worst} °C");
         // Thermal replay follows the measured plates within a fraction of a degree.
@@ -478,7 +516,9 @@ mod tests {
         // Actuator replay from the request.
         let xr = m.x_req.as_ref().unwrap();
         let xs = actuator_replay(&p.actuator, &xr[0], m.x[0][0], m.dt);
-        let worst = (0..m.n).map(|k| (xs[k] - m.x[0][k]).abs()).fold(0.0, f64::max);
+        let worst = (0..m.n)
+            .map(|k| (xs[k] - m.x[0][k]).abs())
+            .fold(0.0, f64::max);
         assert!(worst < 0.03, "actuator replay off by {worst} mm");
     }
 }
