@@ -223,7 +223,8 @@ pub struct LoadStats {
     pub ignored_truth: usize,
     /// Unknown CSV columns, ignored.
     pub ignored_columns: Vec<String>,
-    /// Grid points without a fresh sample of every required signal.
+    /// Grid points without a fresh sample of every required signal, or with a bench signal
+    /// clipped at its DBC range limit.
     pub invalid_points: usize,
 }
 
@@ -615,6 +616,18 @@ impl Series {
     }
 }
 
+/// A bench measurement sitting at its DBC range limit is clipped, not measured: NaN (the grid
+/// points around it become invalid).
+fn unsaturated(def: &crate::can::codec::MessageDef, si: usize, v: f64) -> f64 {
+    let s = &def.signals[si];
+    let half = 0.5 * s.factor.abs();
+    if v >= s.max - half || v <= s.min + half {
+        f64::NAN
+    } else {
+        v
+    }
+}
+
 #[derive(Debug, Default)]
 struct CandumpColumns {
     s: Vec<Series>,
@@ -650,13 +663,20 @@ impl CandumpColumns {
                     .push(t, f64::from(a.gear_even_act as u8));
             }
             Message::BenchTorque(b) => {
-                self.col(Col::T1).push(t, b.clutch1_torque);
-                self.col(Col::T2).push(t, b.clutch2_torque);
+                let d = crate::can::messages::BenchTorque::def();
+                self.col(Col::T1)
+                    .push(t, unsaturated(d, 0, b.clutch1_torque));
+                self.col(Col::T2)
+                    .push(t, unsaturated(d, 1, b.clutch2_torque));
             }
             Message::BenchTemps(b) => {
-                self.col(Col::Pp1).push(t, b.pressure_plate1_temp);
-                self.col(Col::Pp2).push(t, b.pressure_plate2_temp);
-                self.col(Col::Cd).push(t, b.central_disk_temp);
+                let d = crate::can::messages::BenchTemps::def();
+                self.col(Col::Pp1)
+                    .push(t, unsaturated(d, 0, b.pressure_plate1_temp));
+                self.col(Col::Pp2)
+                    .push(t, unsaturated(d, 1, b.pressure_plate2_temp));
+                self.col(Col::Cd)
+                    .push(t, unsaturated(d, 2, b.central_disk_temp));
             }
             Message::TcuClutchCmd(c) => {
                 self.col(Col::X1Req).push(t, c.clutch1_pos_req);
@@ -768,9 +788,15 @@ fn resample(
                 };
                 (v, tb - ta <= hold)
             };
-            if !fresh && c.required() {
+            if (!fresh || !v.is_finite()) && c.required() {
                 valid[k] = false;
             }
+            // A clipped (NaN) sample holds the last finite value of the column.
+            let v = if v.is_finite() {
+                v
+            } else {
+                out.last().copied().unwrap_or(0.0)
+            };
             out.push(v);
         }
         cols[c.idx()] = Some(out);

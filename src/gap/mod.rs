@@ -1,14 +1,24 @@
 //! Sim-to-real gap diagnosis (DESIGN.md §6, issue 7): bench datasets ([`dataset`]), event
-//! segmentation ([`events`]), least squares ([`lsq`]) and statistics ([`stats`]), synthetic rig
-//! data with known parameters ([`synth`]).
+//! segmentation ([`events`]), the model replayed on measured data per subsystem ([`replay`]),
+//! the paper's identification procedure ([`identify`]), the effect library as fit candidates
+//! ([`candidates`]), where the gap lies ([`where_`]), the black-box discrepancy ([`blackbox`]),
+//! the diagnosis itself ([`diagnose`]), in-process bench experiments on the plant core
+//! ([`experiment`]), least squares ([`lsq`]) and statistics ([`stats`]), synthetic rig data with
+//! known parameters ([`synth`]).
 //!
 //! Pure: nothing here reads a clock, touches a socket or uses tokio.
 
+pub mod blackbox;
+pub mod blind;
+pub mod candidates;
 pub mod dataset;
+pub mod diagnose;
 pub mod events;
+pub mod experiment;
 pub mod identify;
 pub mod keys;
 pub mod lsq;
 pub mod replay;
 pub mod stats;
 pub mod synth;
+pub mod where_;

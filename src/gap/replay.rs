@@ -49,6 +49,8 @@ pub struct Measured {
     pub w_out: Option<Vec<f64>>,
     pub gears: Option<[Vec<f64>; 2]>,
     pub valid: Vec<bool>,
+    /// A test-rig record (input held by a dyno, output braked): the engine report is the dyno's.
+    pub rig: bool,
     pub seg: Segmentation,
     /// Samples that inform the torque characteristic of each clutch (near or past the kiss
     /// point, or with measurable torque), valid only.
@@ -109,7 +111,18 @@ impl Measured {
             (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
             _ => None,
         };
+        let w_f = d.req(Col::Wf);
+        let rig = match d.get(Col::Wout) {
+            Some(wo) => wo.iter().filter(|w| w.abs() < 1.0).count() as f64 >= 0.99 * n as f64,
+            None => {
+                let mut v = w_f.to_vec();
+                v.sort_by(f64::total_cmp);
+                let med = v[n / 2];
+                w_f.iter().filter(|w| (*w - med).abs() < 2.0).count() as f64 >= 0.99 * n as f64
+            }
+        };
         Measured {
+            rig,
             source: d.source.clone(),
             n,
             dt: d.dt,
@@ -373,6 +386,9 @@ pub fn full_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Replay {
 /// request into the one the lag sees (identity for the nominal actuator; effects such as a dead
 /// time or backlash are applied by the caller through it).
 pub fn actuator_replay(a: &ActuatorParams, x_req: &[f64], x0: f64, dt: f64) -> Vec<f64> {
+    // Ten RK4 substeps per sample: the plant integrates at 1 ms and the rate limit is a kink.
+    const SUB: usize = 10;
+    let h = dt / SUB as f64;
     let mut x = x0;
     let mut out = Vec::with_capacity(x_req.len());
     for (k, &r) in x_req.iter().enumerate() {
@@ -381,11 +397,18 @@ pub fn actuator_replay(a: &ActuatorParams, x_req: &[f64], x0: f64, dt: f64) -> V
             break;
         }
         let f = |x: f64| actuator::derivative(a, x, r);
-        let k1 = f(x);
-        let k2 = f(x + 0.5 * dt * k1);
-        let k3 = f(x + 0.5 * dt * k2);
-        let k4 = f(x + dt * k3);
-        x += dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        for _ in 0..SUB {
+            let k1 = f(x);
+            let k2 = f(x + 0.5 * h * k1);
+            let k3 = f(x + 0.5 * h * k2);
+            let k4 = f(x + h * k3);
+            x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        }
+        // Settled: snap to the request (the exponential approach would otherwise run into
+        // subnormal numbers, which are two orders of magnitude slower).
+        if (x - r).abs() < 1e-9 {
+            x = r;
+        }
     }
     out
 }

@@ -1,0 +1,337 @@
+//! The diagnosis' view of the model: a [`Model`] is the nominal physics with a parameter set and
+//! an effect set from the effect library (`model::effects`, the same functions the plant uses as
+//! truth), evaluated on measured data channel by channel ([`Channel`]) exactly as in
+//! [`super::replay`]: torque in equation-error form at the measured x_to and slip with the disk
+//! temperature estimated from measured temperatures, plate/central-disk temperatures by thermal
+//! replay from the measured friction power, bearing positions by actuator replay from the
+//! requests, the engine torque report from the flywheel balance (18a).
+//!
+//! This module is the thin adapter between the library and the diagnosis: [`SetHooks`] exposes an
+//! effect set as powertrain hooks (β and extra heat for the replays), [`bearing_sequence`] runs
+//! the backlash play over the measured actuator positions, [`delayed_requests`] applies a dead
+//! time to logged requests.
+
+use super::replay::{self, Measured};
+use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
+use crate::model::params::{ClutchParams, Params};
+use crate::model::powertrain::{ClutchContext, Hooks};
+use crate::model::thermal::{Thermal5State, ThermalInputs};
+
+/// An effect set as powertrain hooks (no backlash state: the replays see the measured position).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SetHooks(pub EffectSet);
+
+fn torque_context(c: &ClutchContext) -> TorqueContext {
+    TorqueContext {
+        x_to_mm: c.x_to_mm,
+        slip_radps: c.slip_radps,
+        theta_c: c.theta_c,
+        theta_pp: c.theta_pp,
+        theta_cd: c.theta_cd,
+        e_fric_j: c.e_fric_j,
+        theta_surface_c: c.theta_c,
+        slip_accel_radps2: 0.0,
+    }
+}
+
+impl Hooks for SetHooks {
+    fn clutch_torque(&self, p: &ClutchParams, c: &ClutchContext) -> f64 {
+        effects::torque(p, &self.0, &torque_context(c))
+    }
+    fn clutch_capacity(&self, p: &ClutchParams, c: &ClutchContext) -> f64 {
+        effects::capacity(p, &self.0, &torque_context(c))
+    }
+    fn clutch_beta(&self, p: &ClutchParams, c: &ClutchContext) -> f64 {
+        effects::beta(p, &self.0, &torque_context(c))
+    }
+    fn engine_command(&self, nominal_nm: f64, _w_f_radps: f64) -> f64 {
+        effects::engine_real_torque(&self.0, nominal_nm)
+    }
+    fn extra_heat(&self, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
+        effects::thermal5_extra(&self.0, s, u)
+    }
+}
+
+/// A candidate model: parameters and effects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Model {
+    pub p: Params,
+    pub set: EffectSet,
+}
+
+impl Model {
+    pub fn nominal(p: Params) -> Self {
+        Model {
+            p,
+            set: EffectSet::nominal(),
+        }
+    }
+}
+
+/// An output the diagnosis compares with a measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum Channel {
+    /// Clutch torque of clutch 0/1 (equation error, slipping samples).
+    Torque(usize),
+    /// Temperatures: 0 = θ_pp1, 1 = θ_pp2, 2 = θ_cd (thermal replay).
+    Temp(usize),
+    /// Bearing position of clutch 0/1 (actuator replay from the requests).
+    Pos(usize),
+    /// ENG_Status torque report against the flywheel balance (18a), as means over windows of
+    /// [`ENGINE_WINDOW`] samples (integral form: no differentiation of the speed).
+    Engine,
+}
+
+impl Channel {
+    pub const ALL: [Channel; 8] = [
+        Channel::Torque(0),
+        Channel::Torque(1),
+        Channel::Temp(0),
+        Channel::Temp(1),
+        Channel::Temp(2),
+        Channel::Pos(0),
+        Channel::Pos(1),
+        Channel::Engine,
+    ];
+
+    /// Output name (the CSV column).
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::Torque(0) => "T_c1_Nm",
+            Channel::Torque(_) => "T_c2_Nm",
+            Channel::Temp(0) => "th_pp1_C",
+            Channel::Temp(1) => "th_pp2_C",
+            Channel::Temp(_) => "th_cd_C",
+            Channel::Pos(0) => "x_to1_mm",
+            Channel::Pos(_) => "x_to2_mm",
+            Channel::Engine => "T_e_Nm",
+        }
+    }
+
+    /// The subsystem whose equation this channel's residual checks.
+    pub fn subsystem(self) -> Subsystem {
+        match self {
+            Channel::Torque(_) => Subsystem::TorqueCharacteristic,
+            Channel::Temp(_) => Subsystem::Thermal,
+            Channel::Pos(_) => Subsystem::Actuator,
+            Channel::Engine => Subsystem::Engine,
+        }
+    }
+
+    pub fn index(self) -> usize {
+        Channel::ALL.iter().position(|c| *c == self).unwrap_or(0)
+    }
+}
+
+/// Samples per window of the engine balance (0.1 s at 10 ms).
+pub const ENGINE_WINDOW: usize = 10;
+
+/// Samples of a file used for each channel.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Samples {
+    /// Per channel (indexed like [`Channel::ALL`]).
+    pub idx: Vec<Vec<usize>>,
+}
+
+impl Samples {
+    /// The samples of every channel the file can check: slipping clutch samples near or past the
+    /// kiss point (torque), every `temp_stride`-th valid sample (temperatures), every valid sample
+    /// when the requests are logged (positions), samples where the engine transmits through a
+    /// clutch (engine). `torque_stride` thins the torque samples (for fitting).
+    pub fn new(m: &Measured, torque_stride: usize, temp_stride: usize) -> Samples {
+        let mut idx = vec![Vec::new(); Channel::ALL.len()];
+        for i in 0..2 {
+            idx[Channel::Torque(i).index()] = m.torque_idx[i]
+                .iter()
+                .copied()
+                .filter(|&k| m.slip[i][k].abs() >= 0.5)
+                .step_by(torque_stride.max(1))
+                .collect();
+        }
+        let temps: Vec<usize> = (0..m.n)
+            .step_by(temp_stride.max(1))
+            .filter(|&k| m.valid[k])
+            .collect();
+        for j in 0..3 {
+            idx[Channel::Temp(j).index()] = temps.clone();
+        }
+        if m.x_req.is_some() {
+            for i in 0..2 {
+                idx[Channel::Pos(i).index()] = (0..m.n).filter(|&k| m.valid[k]).collect();
+            }
+        }
+        if let Some(te) = m.t_e.as_ref().filter(|_| !m.rig) {
+            // The flywheel balance is informative where the engine drives a slipping or locked
+            // clutch with a real torque; on the rig the dyno replaces the engine (the report then
+            // is the dyno torque and every model agrees). One sample per window start.
+            let w = ENGINE_WINDOW;
+            idx[Channel::Engine.index()] = (0..m.n.saturating_sub(w + 1))
+                .step_by(w)
+                .filter(|&k| {
+                    (k..=k + w).all(|j| m.valid[j] && te[j].abs() > 10.0 && m.w_f[j] > 50.0)
+                })
+                .collect();
+        }
+        Samples { idx }
+    }
+
+    pub fn get(&self, c: Channel) -> &[usize] {
+        &self.idx[c.index()]
+    }
+
+    /// Total number of samples of a channel set.
+    pub fn count(&self, chans: &[Channel]) -> usize {
+        chans.iter().map(|c| self.get(*c).len()).sum()
+    }
+}
+
+/// Bearing positions behind the backlash of `set` for the measured actuator positions (the
+/// measured positions themselves without backlash).
+pub fn bearing_sequence(set: &EffectSet, m: &Measured) -> Option<[Vec<f64>; 2]> {
+    let b = set.get(EffectId::ActuatorBacklash)?[0];
+    if b <= 0.0 {
+        return None;
+    }
+    Some([0, 1].map(|i| {
+        let mut out = Vec::with_capacity(m.n);
+        let mut bear = m.x[i][0];
+        for k in 0..m.n {
+            bear = effects::backlash(b, bear, m.x[i][k]);
+            out.push(bear);
+        }
+        out
+    }))
+}
+
+/// Logged requests delayed by the set's dead time (linear interpolation between samples).
+pub fn delayed_requests(set: &EffectSet, xr: &[f64], dt: f64) -> Vec<f64> {
+    let d = effects::dead_time_s(set);
+    if d <= 0.0 {
+        return xr.to_vec();
+    }
+    (0..xr.len())
+        .map(|k| effects::delayed_sample(xr, k, dt, d))
+        .collect()
+}
+
+/// Predictions of one model on one file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Predictions {
+    /// Per channel, the prediction at every sample of the file (NaN where not evaluated).
+    pub y: Vec<Vec<f64>>,
+    /// The disk temperatures used for the torque (°C).
+    pub disk: Option<[Vec<f64>; 2]>,
+}
+
+/// Measured value of a channel at sample k.
+#[inline]
+pub fn measured(m: &Measured, c: Channel, k: usize) -> f64 {
+    match c {
+        Channel::Torque(i) => m.torque[i][k],
+        Channel::Temp(0) => m.pp[0][k],
+        Channel::Temp(1) => m.pp[1][k],
+        Channel::Temp(_) => m.cd[k],
+        Channel::Pos(i) => m.x[i][k],
+        Channel::Engine => m.t_e.as_ref().map_or(f64::NAN, |v| window_mean(v, k)),
+    }
+}
+
+/// Trapezoidal mean of a signal over the engine window starting at k.
+#[inline]
+fn window_mean(v: &[f64], k: usize) -> f64 {
+    let w = ENGINE_WINDOW;
+    if k + w >= v.len() {
+        return f64::NAN;
+    }
+    let s: f64 = (k..k + w).map(|j| 0.5 * (v[j] + v[j + 1])).sum();
+    s / w as f64
+}
+
+/// Evaluates `model` on the channels `chans` of file `m` at the samples `s` (the others NaN).
+pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> Predictions {
+    let p = &model.p;
+    let h = SetHooks(model.set);
+    let mut y = vec![Vec::new(); Channel::ALL.len()];
+    let want = |c: Channel| chans.contains(&c) && !s.get(c).is_empty();
+    let mut disk = None;
+    if want(Channel::Torque(0)) || want(Channel::Torque(1)) {
+        let dk = replay::disk_estimate(p, &h, m);
+        let bearing = bearing_sequence(&model.set, m);
+        for i in 0..2 {
+            let c = Channel::Torque(i);
+            if !want(c) {
+                continue;
+            }
+            let mut v = vec![f64::NAN; m.n];
+            for &k in s.get(c) {
+                let mut ctx = m.context(i, k, dk[i][k]);
+                if let Some(b) = &bearing {
+                    ctx.x_to_mm = b[i][k];
+                }
+                v[k] = effects::torque(&p.clutch, &model.set, &torque_context(&ctx));
+            }
+            y[c.index()] = v;
+        }
+        disk = Some(dk);
+    }
+    if (0..3).any(|j| want(Channel::Temp(j))) {
+        let tr = replay::thermal_replay(p, &h, m);
+        for j in 0..3 {
+            let c = Channel::Temp(j);
+            if !want(c) {
+                continue;
+            }
+            let mut v = vec![f64::NAN; m.n];
+            for &k in s.get(c) {
+                v[k] = [tr[k].pp1, tr[k].pp2, tr[k].cd][j];
+            }
+            y[c.index()] = v;
+        }
+    }
+    if let Some(xr) = &m.x_req {
+        for i in 0..2 {
+            let c = Channel::Pos(i);
+            if !want(c) {
+                continue;
+            }
+            let req = delayed_requests(&model.set, &xr[i], m.dt);
+            let xs = replay::actuator_replay(&p.actuator, &req, m.x[i][0], m.dt);
+            let mut v = vec![f64::NAN; m.n];
+            for &k in s.get(c) {
+                v[k] = xs[k];
+            }
+            y[c.index()] = v;
+        }
+    }
+    if want(Channel::Engine) {
+        let c = Channel::Engine;
+        let w = ENGINE_WINDOW;
+        let mut v = vec![f64::NAN; m.n];
+        for &k in s.get(c) {
+            // Mean real engine torque over the window: J_eq·Δω_f/Δt + mean clutch torques.
+            let dw = m.w_f[k + w] - m.w_f[k];
+            let real = p.driveline.j_eq_kgm2 * dw / (w as f64 * m.dt)
+                + window_mean(&m.torque[0], k)
+                + window_mean(&m.torque[1], k);
+            v[k] = effects::engine_map_estimate(&model.set, real);
+        }
+        y[c.index()] = v;
+    }
+    Predictions { y, disk }
+}
+
+/// Residuals (measured − predicted) of the channels at their samples, in channel order.
+pub fn residuals(
+    m: &Measured,
+    s: &Samples,
+    pred: &Predictions,
+    chans: &[Channel],
+    out: &mut Vec<f64>,
+) {
+    for &c in chans {
+        let y = &pred.y[c.index()];
+        for &k in s.get(c) {
+            out.push(measured(m, c, k) - y[k]);
+        }
+    }
+}

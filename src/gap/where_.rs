@@ -1,0 +1,314 @@
+//! Where the gap lies (DESIGN.md §6 step 3): which subsystems' residuals exceed their noise
+//! floor, bias maps of the torque-characteristic residual over clutch temperature × slip × x_to
+//! bins (mean residual per bin, z test with an autocorrelation-corrected sample size, false
+//! discovery rate controlled by Benjamini–Hochberg), and flagged time segments (event blocks whose
+//! standardized residual exceeds the noise, also under BH).
+
+use super::candidates::{self, Channel, Model, Predictions, Samples};
+use super::lsq;
+use super::replay::Measured;
+use super::stats;
+
+/// Bin edges of the bias maps.
+pub const THETA_EDGES: [f64; 7] = [
+    f64::NEG_INFINITY,
+    50.0,
+    100.0,
+    150.0,
+    200.0,
+    250.0,
+    f64::INFINITY,
+];
+pub const SLIP_EDGES: [f64; 5] = [0.0, 5.0, 50.0, 150.0, f64::INFINITY];
+pub const X_EDGES: [f64; 6] = [f64::NEG_INFINITY, 4.5, 5.0, 5.5, 6.0, f64::INFINITY];
+
+/// Residual evidence of one subsystem.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ResidualSubsystem {
+    pub subsystem: String,
+    /// Mean squared standardized residual minus 1, in % (0 = sensor noise).
+    pub excess_pct: f64,
+    /// z statistic of the excess (autocorrelation-corrected).
+    pub z: f64,
+    pub significant: bool,
+    /// (output, RMSE, noise floor).
+    pub outputs: Vec<(String, f64, f64)>,
+}
+
+/// One bin of a bias map.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BiasCell {
+    pub theta_c: (f64, f64),
+    pub slip_radps: (f64, f64),
+    pub x_to_mm: (f64, f64),
+    pub n: usize,
+    /// Mean residual (N·m).
+    pub mean: f64,
+    pub z: f64,
+    pub p: f64,
+    pub flagged: bool,
+}
+
+/// A bias map of an output's residual.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BiasMap {
+    pub output: String,
+    pub model: String,
+    pub cells: Vec<BiasCell>,
+    pub tested: usize,
+    pub flagged: usize,
+}
+
+/// A flagged time segment.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Segment {
+    pub file: String,
+    pub t_start_s: f64,
+    pub t_end_s: f64,
+    /// Mean squared standardized residual over the checkable outputs.
+    pub ms_std: f64,
+    /// Output contributing most.
+    pub output: String,
+    pub p: f64,
+}
+
+/// Where the gap lies.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, Default)]
+pub struct Where {
+    /// By decreasing excess.
+    pub residual_subsystems: Vec<ResidualSubsystem>,
+    /// Bias maps of the recalibrated model's torque residual.
+    pub bias_maps: Vec<BiasMap>,
+    /// Flagged segments of the validation records (BH-controlled), largest first (at most 30).
+    pub flagged_segments: Vec<Segment>,
+    /// Segments tested.
+    pub segments_tested: usize,
+}
+
+fn bin(edges: &[f64], v: f64) -> Option<usize> {
+    (0..edges.len() - 1).find(|&j| v >= edges[j] && v < edges[j + 1])
+}
+
+/// Bias map of the torque residual of `preds` (one per file) over θ_c × slip × x_to.
+pub fn bias_map(
+    files: &[&Measured],
+    samples: &[&Samples],
+    preds: &[Predictions],
+    label: &str,
+    q: f64,
+) -> BiasMap {
+    let nb = (THETA_EDGES.len() - 1) * (SLIP_EDGES.len() - 1) * (X_EDGES.len() - 1);
+    let mut sums = vec![(0usize, 0.0f64, 0.0f64); nb];
+    let mut all = Vec::new();
+    for ((m, s), pr) in files.iter().zip(samples).zip(preds) {
+        let Some(disk) = &pr.disk else { continue };
+        for i in 0..2 {
+            let c = Channel::Torque(i);
+            let y = &pr.y[c.index()];
+            if y.is_empty() {
+                continue;
+            }
+            for &k in s.get(c) {
+                let r = m.torque[i][k] - y[k];
+                if !r.is_finite() {
+                    continue;
+                }
+                all.push(r);
+                let (Some(a), Some(b), Some(d)) = (
+                    bin(&THETA_EDGES, disk[i][k]),
+                    bin(&SLIP_EDGES, m.slip[i][k].abs()),
+                    bin(&X_EDGES, m.x[i][k]),
+                ) else {
+                    continue;
+                };
+                let j = (a * (SLIP_EDGES.len() - 1) + b) * (X_EDGES.len() - 1) + d;
+                sums[j].0 += 1;
+                sums[j].1 += r;
+                sums[j].2 += r * r;
+            }
+        }
+    }
+    let rho = lsq::lag1_autocorrelation(&all).clamp(0.0, 0.999);
+    let infl = (1.0 - rho) / (1.0 + rho);
+    let mut cells = Vec::new();
+    let mut ps = Vec::new();
+    for a in 0..THETA_EDGES.len() - 1 {
+        for b in 0..SLIP_EDGES.len() - 1 {
+            for d in 0..X_EDGES.len() - 1 {
+                let j = (a * (SLIP_EDGES.len() - 1) + b) * (X_EDGES.len() - 1) + d;
+                let (n, s, s2) = sums[j];
+                if n < 10 {
+                    continue;
+                }
+                let mean = s / n as f64;
+                let var = (s2 / n as f64 - mean * mean).max(1e-12);
+                let neff = (n as f64 * infl).max(2.0);
+                let z = mean / (var / neff).sqrt();
+                let p = stats::p_two_sided(z);
+                ps.push(p);
+                cells.push(BiasCell {
+                    theta_c: (THETA_EDGES[a], THETA_EDGES[a + 1]),
+                    slip_radps: (SLIP_EDGES[b], SLIP_EDGES[b + 1]),
+                    x_to_mm: (X_EDGES[d], X_EDGES[d + 1]),
+                    n,
+                    mean,
+                    z,
+                    p,
+                    flagged: false,
+                });
+            }
+        }
+    }
+    let rej = stats::benjamini_hochberg(&ps, q);
+    for (c, r) in cells.iter_mut().zip(&rej) {
+        c.flagged = *r;
+    }
+    BiasMap {
+        output: "T_c (both clutches)".into(),
+        model: label.into(),
+        tested: cells.len(),
+        flagged: cells.iter().filter(|c| c.flagged).count(),
+        cells,
+    }
+}
+
+/// Residual subsystems, bias maps and flagged segments of the recalibrated model.
+pub fn locate(
+    _model: &Model,
+    files: &[&Measured],
+    samples: &[&Samples],
+    preds: &[Predictions],
+    sigmas: &[&[f64]],
+    chans: &[Channel],
+    q: f64,
+) -> Where {
+    // Subsystems.
+    let mut subs: Vec<ResidualSubsystem> = Vec::new();
+    let subsystem_names = ["torque_characteristic", "thermal", "actuator", "engine"];
+    for name in subsystem_names {
+        let cs: Vec<Channel> = chans
+            .iter()
+            .copied()
+            .filter(|c| c.subsystem().as_str() == name)
+            .collect();
+        if cs.is_empty() {
+            continue;
+        }
+        let mut s_std = 0.0;
+        let mut n = 0.0;
+        let mut neff = 0.0;
+        let mut outputs = Vec::new();
+        for c in &cs {
+            let mut r = Vec::new();
+            let mut z2 = 0.0;
+            let mut s2 = 0.0;
+            for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
+                let y = &pr.y[c.index()];
+                if y.is_empty() {
+                    continue;
+                }
+                let sig = sg[c.index()];
+                for &k in s.get(*c) {
+                    let e = candidates::measured(m, *c, k) - y[k];
+                    if e.is_finite() {
+                        r.push(e);
+                        z2 += e * e / (sig * sig);
+                        s2 += sig * sig;
+                    }
+                }
+            }
+            if r.is_empty() {
+                continue;
+            }
+            let mse = r.iter().map(|e| e * e).sum::<f64>() / r.len() as f64;
+            s_std += z2;
+            n += r.len() as f64;
+            neff += lsq::effective_n(&r);
+            outputs.push((
+                c.name().to_string(),
+                mse.sqrt(),
+                (s2 / r.len() as f64).sqrt(),
+            ));
+        }
+        if n == 0.0 {
+            continue;
+        }
+        let excess = s_std / n - 1.0;
+        // Under noise only, the mean of n_eff independent χ²₁ has sd √(2/n_eff).
+        let z = excess / (2.0 / neff.max(1.0)).sqrt();
+        subs.push(ResidualSubsystem {
+            subsystem: name.to_string(),
+            excess_pct: 100.0 * excess,
+            z,
+            significant: z > 4.0 && excess > 0.05,
+            outputs,
+        });
+    }
+    subs.sort_by(|a, b| b.excess_pct.total_cmp(&a.excess_pct));
+    // Segments: blocks of every file.
+    let mut segs = Vec::new();
+    let mut ps = Vec::new();
+    for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
+        for &(a, b) in &m.seg.blocks {
+            let mut s_std = 0.0;
+            let mut n = 0.0;
+            let mut worst = (0.0, "");
+            for c in chans {
+                let y = &pr.y[c.index()];
+                if y.is_empty() {
+                    continue;
+                }
+                let sig = sg[c.index()];
+                let idx = s.get(*c);
+                let lo = idx.partition_point(|&k| k < a);
+                let hi = idx.partition_point(|&k| k < b);
+                let mut sc = 0.0;
+                for &k in &idx[lo..hi] {
+                    let e = (candidates::measured(m, *c, k) - y[k]) / sig;
+                    if e.is_finite() {
+                        sc += e * e;
+                        n += 1.0;
+                    }
+                }
+                s_std += sc;
+                if sc > worst.0 {
+                    worst = (sc, c.name());
+                }
+            }
+            if n < 20.0 {
+                continue;
+            }
+            let ms = s_std / n;
+            // Residual samples inside a block are correlated: count at most one independent
+            // sample per 10 (0.1 s).
+            let neff = (n / 10.0).max(2.0);
+            let z = (ms - 1.0) / (2.0 / neff).sqrt();
+            let p = 1.0 - stats::normal_cdf(z);
+            ps.push(p);
+            segs.push(Segment {
+                file: m.source.clone(),
+                t_start_s: m.time[a],
+                t_end_s: m.time[b.saturating_sub(1)],
+                ms_std: ms,
+                output: worst.1.to_string(),
+                p,
+            });
+        }
+    }
+    let rej = stats::benjamini_hochberg(&ps, q);
+    let tested = segs.len();
+    let mut flagged: Vec<Segment> = segs
+        .into_iter()
+        .zip(rej)
+        .filter(|(s, r)| *r && s.ms_std > 1.2)
+        .map(|(s, _)| s)
+        .collect();
+    flagged.sort_by(|a, b| b.ms_std.total_cmp(&a.ms_std));
+    flagged.truncate(30);
+    Where {
+        residual_subsystems: subs,
+        bias_maps: vec![bias_map(files, samples, preds, "recalibrated", q)],
+        flagged_segments: flagged,
+        segments_tested: tested,
+    }
+}
