@@ -12,6 +12,7 @@ use super::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use super::experiment::{self, Launch, LaunchPlan};
 use super::stats::{self, Rng};
 use super::synth::RigExperiment;
+use crate::can::candump::LogRecord;
 use crate::model::effects::{EffectId, EffectSet};
 use crate::model::params::Params;
 use crate::plant::PlantConfig;
@@ -181,29 +182,41 @@ fn launches(pedals: &[f64], x_end: &[f64], ramp: f64, theta0: f64) -> LaunchPlan
     }
 }
 
-/// Generates the experiments of a trial with the plant carrying `truth`.
-pub fn experiments(truth: &Truth, seed: u64) -> Experiments {
-    let mut cfg = PlantConfig::default();
-    cfg.effects = truth.set();
-    cfg.seed = seed;
-    let ds = |name: &str, recs: Vec<crate::can::candump::LogRecord>| {
-        Dataset::from_records(name, recs.into_iter().map(Ok), DEFAULT_DT_S)
-            .expect("plant records decode")
+/// The records of a trial's experiments, named `train_*` and `validate_*`, with the plant
+/// carrying `truth` (the frames a candump of the bench would hold, SIM_Truth included).
+pub fn experiment_records(truth: &Truth, seed: u64) -> Vec<(String, Vec<LogRecord>)> {
+    let mut c = PlantConfig::default();
+    c.effects = truth.set();
+    // On the rig the dyno holds the input speed and the brake the output: the sliding
+    // acceleration is zero, so `sliding_acceleration_friction` cannot act there. The plant's rig
+    // mode feeds the free flywheel acceleration of its integration step into the effect instead
+    // (the dyno resets the speed afterwards), which turns it into a ±g torque jitter; the rig
+    // runs of this truth therefore leave it out (reported to the plant's owner).
+    let mut rig_cfg = c.clone();
+    rig_cfg
+        .effects
+        .remove(EffectId::SlidingAccelerationFriction);
+    let mut out = Vec::new();
+    let mut k = 0u64;
+    let mut next_seed = |c: &mut PlantConfig| {
+        k += 1;
+        c.seed = seed.wrapping_mul(7).wrapping_add(k);
     };
-    let mut c = cfg.clone();
-    c.seed = seed.wrapping_mul(3) + 1;
-    let a = ds(
-        "train_rig",
-        experiment::rig(c.clone(), &train_rig()).expect("valid rig"),
-    );
-    c.seed = seed.wrapping_mul(3) + 2;
-    let b = ds(
-        "train_low_slip",
-        experiment::rig(c.clone(), &train_low_slip()).expect("valid rig"),
-    );
-    c.seed = seed.wrapping_mul(3) + 3;
-    let l = ds(
-        "train_launches",
+    next_seed(&mut c);
+    rig_cfg.seed = c.seed;
+    out.push((
+        "train_rig".to_string(),
+        experiment::rig(rig_cfg.clone(), &train_rig()).expect("valid rig"),
+    ));
+    next_seed(&mut c);
+    rig_cfg.seed = c.seed;
+    out.push((
+        "train_low_slip".to_string(),
+        experiment::rig(rig_cfg.clone(), &train_low_slip()).expect("valid rig"),
+    ));
+    next_seed(&mut c);
+    out.push((
+        "train_launches".to_string(),
         experiment::launches(
             c.clone(),
             &launches(
@@ -213,29 +226,44 @@ pub fn experiments(truth: &Truth, seed: u64) -> Experiments {
                 120.0,
             ),
         ),
-    );
-    c.seed = seed.wrapping_mul(3) + 4;
-    let v = ds(
-        "validate_rig",
-        experiment::rig(c.clone(), &validate_rig()).expect("valid rig"),
-    );
-    c.seed = seed.wrapping_mul(3) + 5;
-    let vs = ds(
-        "validate_low_slip",
-        experiment::rig(c.clone(), &validate_low_slip()).expect("valid rig"),
-    );
-    c.seed = seed.wrapping_mul(3) + 6;
-    let vl = ds(
-        "validate_launches",
+    ));
+    next_seed(&mut c);
+    rig_cfg.seed = c.seed;
+    out.push((
+        "validate_rig".to_string(),
+        experiment::rig(rig_cfg.clone(), &validate_rig()).expect("valid rig"),
+    ));
+    next_seed(&mut c);
+    rig_cfg.seed = c.seed;
+    out.push((
+        "validate_low_slip".to_string(),
+        experiment::rig(rig_cfg.clone(), &validate_low_slip()).expect("valid rig"),
+    ));
+    next_seed(&mut c);
+    out.push((
+        "validate_launches".to_string(),
         experiment::launches(
             c,
             &launches(&[30.0, 50.0, 38.0, 27.0], &[5.6, 5.9, 5.5, 5.2], 1.5, 150.0),
         ),
-    );
-    Experiments {
-        train: vec![a, b, l],
-        validate: vec![v, vs, vl],
+    ));
+    out
+}
+
+/// Generates the experiments of a trial with the plant carrying `truth`, decoded.
+pub fn experiments(truth: &Truth, seed: u64) -> Experiments {
+    let mut train = Vec::new();
+    let mut validate = Vec::new();
+    for (name, recs) in experiment_records(truth, seed) {
+        let d = Dataset::from_records(&name, recs.into_iter().map(Ok), DEFAULT_DT_S)
+            .expect("plant records decode");
+        if name.starts_with("train") {
+            train.push(d);
+        } else {
+            validate.push(d);
+        }
     }
+    Experiments { train, validate }
 }
 
 /// The score of one trial.

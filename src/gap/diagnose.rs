@@ -844,10 +844,17 @@ pub fn diagnose(
             };
             (fit.p[j] - ps.nominal).abs() >= o.min_effect_fraction * smallest
         });
+        // Physical plausibility: within the documented plausible range widened by its width on
+        // each side (a spring that stiffens with temperature, say, is not that effect).
+        let plausible_ok = id.params().iter().enumerate().all(|(j, ps)| {
+            let w = (ps.plausible.1 - ps.plausible.0).abs();
+            fit.p[j] >= ps.plausible.0 - w && fit.p[j] <= ps.plausible.1 + w
+        });
         let credited = delta_bic < o.bic_threshold
             && improvement_significant
             && share >= o.min_gap_reduction
-            && magnitude_ok;
+            && magnitude_ok
+            && plausible_ok;
         let mut parameters = BTreeMap::new();
         let mut parameters_ci95 = BTreeMap::new();
         for (j, ps) in id.params().iter().enumerate() {
@@ -878,6 +885,9 @@ pub fn diagnose(
             }
             if !improvement_significant {
                 why.push("validation improvement not significant".to_string());
+            }
+            if !plausible_ok {
+                why.push("fitted value far outside the plausible range".to_string());
             }
             if !magnitude_ok {
                 why.push(format!(
@@ -1091,6 +1101,14 @@ pub fn diagnose(
 
     // --- how far.
     let sc_after = score(&model_after, &va, &chans, nunits_v, false);
+    let mut where_ = where_;
+    where_.bias_maps.push(where_::bias_map(
+        &va.iter().map(|f| &f.m).collect::<Vec<_>>(),
+        &va.iter().map(|f| &f.all).collect::<Vec<_>>(),
+        &sc_after.preds,
+        "after",
+        o.fdr_q,
+    ));
     let mut eq = Vec::new();
     for c in &chans {
         let i = c.index();

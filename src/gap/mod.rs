@@ -19,6 +19,7 @@ pub mod identify;
 pub mod keys;
 pub mod lsq;
 pub mod replay;
+pub mod report;
 pub mod stats;
 pub mod synth;
 pub mod where_;
