@@ -5,7 +5,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus, ManualClock};
-use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig, PlantReport};
+use ddct::daemon::plant::{run as run_plant, Lockstep, Pacing, PlantDaemonConfig, PlantReport};
 use ddct::daemon::wall_clock;
 use ddct::model::effects::EffectSet;
 use ddct::plant::{Mode, PlantConfig, RigProfile, Scenario};
@@ -39,6 +39,9 @@ pub struct PlantArgs {
     /// Rig mode: built-in x_to profile (config/rig/*.toml) instead of TCU_ClutchCmd from the bus.
     #[arg(long)]
     rig_profile: Option<PathBuf>,
+    /// Rig mode: dyno speed holding the input side (rpm); overrides the config and the profile.
+    #[arg(long)]
+    input_speed: Option<f64>,
     /// Reality effects file ([effects.<id>] tables); replaces the config's effects.
     #[arg(long)]
     effects: Option<PathBuf>,
@@ -56,6 +59,14 @@ pub struct PlantArgs {
     /// only on `--iface sim`, the default there).
     #[arg(long)]
     speed: Option<String>,
+    /// Lockstep with a controller: after each cycle wait for its answer (a frame of MESSAGE,
+    /// default TCU_ClutchCmd) before simulating the next, never faster than --speed; makes a fast
+    /// bus experiment independent of the host's scheduling.
+    #[arg(long, value_name = "MESSAGE", num_args = 0..=1, default_missing_value = "TCU_ClutchCmd")]
+    lockstep: Option<String>,
+    /// Lockstep: seconds of wall time to wait for an answer before simulating on without it.
+    #[arg(long, default_value_t = 1.0)]
+    lockstep_timeout: f64,
     /// Sensor-noise seed (default: the config's).
     #[arg(long)]
     seed: Option<u64>,
@@ -89,6 +100,18 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
             bail!("--rig-profile is for rig mode (add --mode rig)");
         }
         cfg.rig_profile = Some(RigProfile::load(p)?);
+    }
+    if let Some(rpm) = a.input_speed {
+        if cfg.mode != Mode::Rig {
+            bail!("--input-speed is for rig mode (add --mode rig)");
+        }
+        if !(rpm.is_finite() && (0.0..=6000.0).contains(&rpm)) {
+            bail!("--input-speed {rpm}: must be in 0 ..= 6000 rpm");
+        }
+        cfg.rig.input_speed_rpm = rpm;
+        if let Some(p) = cfg.rig_profile.as_mut() {
+            p.input_speed_rpm = rpm;
+        }
     }
     if a.iface == "sim" && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
         cfg.scenario = Some(Scenario::builtin());
@@ -136,6 +159,26 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    let lockstep = match &a.lockstep {
+        None => None,
+        Some(name) => {
+            let def = ddct::can::messages::message_by_name(name)
+                .with_context(|| format!("--lockstep {name}: not a message of the contract"))?;
+            if sim && speed.is_none() {
+                bail!("--lockstep needs real-time pacing (--speed K)");
+            }
+            if !(a.lockstep_timeout.is_finite() && a.lockstep_timeout > 0.0) {
+                bail!(
+                    "--lockstep-timeout {}: must be a positive number of seconds",
+                    a.lockstep_timeout
+                );
+            }
+            Some(Lockstep {
+                message: def.id,
+                timeout: Duration::from_secs_f64(a.lockstep_timeout),
+            })
+        }
+    };
     let rt = runtime()?;
     let report: PlantReport = rt.block_on(async {
         if sim {
@@ -153,6 +196,7 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 pacing,
                 duration,
                 log: a.log.clone(),
+                lockstep,
             };
             anyhow::Ok(run_plant(ep, shutdown_signal(), c).await?)
         } else {
@@ -165,6 +209,7 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 },
                 duration,
                 log: a.log.clone(),
+                lockstep,
             };
             anyhow::Ok(run_plant(bus, shutdown_signal(), c).await?)
         }
