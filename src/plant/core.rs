@@ -732,6 +732,11 @@ impl Plant {
                 s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
             ),
         };
+        // The driver at this instant (the last step used the one of its start).
+        let driver = match (&self.cfg.mode, &self.cfg.scenario) {
+            (Mode::Vehicle, Some(sc)) => sc.sample(t.as_secs_f64()),
+            _ => self.driver,
+        };
         let vehicle = BenchVehicle {
             vehicle_speed: sat(ids::BENCH_VEHICLE, 0, o.vehicle_speed_mps * 3.6),
             vehicle_accel: sat(
@@ -739,7 +744,7 @@ impl Plant {
                 1,
                 o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
             ),
-            road_grade: sat(ids::BENCH_VEHICLE, 2, self.driver.grade * 100.0),
+            road_grade: sat(ids::BENCH_VEHICLE, 2, driver.grade * 100.0),
         };
         let truth = SimTruth {
             clutch1_temp_true: sat(ids::SIM_TRUTH, 0, s.thermal.c1),
@@ -747,9 +752,9 @@ impl Plant {
         };
         let pedal =
             (self.cfg.mode == Mode::Vehicle && self.cfg.scenario.is_some()).then(|| DrvPedal {
-                accel_pedal: sat(ids::DRV_PEDAL, 0, self.driver.pedal * 100.0),
-                brake_switch: self.driver.brake > 0.0,
-                gear_lever: self.driver.lever,
+                accel_pedal: sat(ids::DRV_PEDAL, 0, driver.pedal * 100.0),
+                brake_switch: driver.brake > 0.0,
+                gear_lever: driver.lever,
                 ..Default::default()
             });
         let mut msgs = CycleMessages {
