@@ -221,6 +221,22 @@ def start_candump(iface: str, raw_path: Path):
     return p
 
 
+def wait_quiet(path: Path, quiet_s: float = 1.0, limit_s: float = 60.0) -> None:
+    """Waits until `path` has not grown for `quiet_s` seconds (at most `limit_s`)."""
+    deadline = time.monotonic() + limit_s
+    size, since = -1, time.monotonic()
+    while time.monotonic() < deadline:
+        try:
+            now = path.stat().st_size
+        except OSError:
+            return
+        if now != size:
+            size, since = now, time.monotonic()
+        elif time.monotonic() - since >= quiet_s:
+            return
+        time.sleep(0.1)
+
+
 def stop(p, sig=signal.SIGINT, timeout=20.0) -> str:
     if p is None:
         return ""
@@ -342,7 +358,8 @@ def run(args) -> int:
     finally:
         bus.shutdown()
         plant_err = stop(plant)
-        time.sleep(0.2)  # let candump read the last frames
+        if recorder is not None:
+            wait_quiet(raw)  # candump may still be reading what the plant sent last
         rec_err = stop(recorder)
         if plant_err and not args.quiet:
             sys.stderr.write(plant_err)
