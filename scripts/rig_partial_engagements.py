@@ -6,32 +6,36 @@ script plays the rig controller. It commands the throwout-bearing position of th
 TCU_ClutchCmd following a rig profile file (config/rig/identification.toml, validation.toml): a
 number of partial engagements of one clutch, all with the same periodic x_to signal -- the clutch
 heats up, its kiss point moves and the torque of the same x_to grows (the paper's Fig. 6) -- then
-a cooling phase with both clutches open. It records every frame into a candump -l log and prints,
-per engagement, the peak clutch torque (BENCH_Torque) and the central-disk temperature
-(BENCH_Temps).
+a cooling phase with both clutches open. It records every frame on the bus into a candump -l log
+(through `candump -L`) and prints, per engagement, the peak clutch torque (BENCH_Torque) and the
+central-disk temperature (BENCH_Temps), and the paper's Fig. 6 check: the first engagement whose
+central disk exceeds 200 C against the first engagement.
 
-The plant must run in rig mode on the same interface (`ddct plant --iface vcan0 --mode rig
---config config/plant_rig.toml --speed K`); with --spawn-plant the script starts it itself, after
-its own socket listens, so that it sees the plant's first cycle. Everything about the frames comes
-from dbc/ddct.dbc through scripts/ddct_can.py (cantools): no CAN id, scale or offset here.
+The plant must run in rig mode on the same interface with the profile's dyno speed
+(`ddct plant --iface vcan0 --mode rig --config config/plant_rig.toml --input-speed RPM`), started
+after this script listens; with --spawn-plant DDCT the script starts it itself, with the right
+arguments, once its own socket and candump listen. Everything about the frames comes from
+dbc/ddct.dbc through scripts/ddct_can.py (cantools): no CAN id, scale or offset here.
 
-Timing. The plant sends its frames every 10 ms of simulated time (10/K ms of wall time at
---speed K) and reads its inputs at the start of each cycle. The script counts the plant's
-ENG_Status frames to know the simulated time: on ENG_Status of cycle n it sends the command for
-cycle n+1, i.e. the profile sampled at (n+1)*10 ms -- exactly what the plant's built-in profile
-(`ddct plant --rig-profile FILE`) applies at that cycle, so the same experiment gives the same
-signals over the bus and in process (a command that arrives late acts one cycle later). Log
-timestamps are on the simulated time axis (--timestamps sim, default): frames of plant cycle n at
-start + n*10 ms (+ 10 us per frame within the cycle), the command answering cycle n at
-start + n*10 ms + 5 ms; --timestamps wall records start + K*(wall time - start) instead.
+Timing. The plant sends its frames every 10 ms of simulated time and reads its inputs at the
+start of each cycle. The script counts the plant's ENG_Status frames (a kernel filter gives it
+only those) to know the simulated time: on ENG_Status of cycle n it sends the command for cycle
+n+1, the profile sampled at (n+1)*10 ms -- exactly what the plant's built-in profile
+(`ddct plant --rig-profile FILE`) applies at that cycle. With --spawn-plant the plant runs in
+lockstep (`--lockstep`): it waits for each answer before simulating the next cycle, never faster
+than --speed, so the experiment gives the same frames over the bus as in process however loaded
+the machine is (--free-running: the plant keeps its own deadlines; a late answer then acts a
+cycle or more later, and a controller that fell behind answers only the newest cycle).
 
-The profile files are evaluated with the same rules as the Rust plant (src/plant/profile.rs):
-x_to is linear between the points of one period, held outside them, and both clutches are open
-before the first and after the last engagement.
+Log timestamps are on the simulated time axis (--timestamps sim, default): a frame after the
+plant's n-th ENG_Status at start + n*10 ms + 10 us per frame within the cycle; --timestamps wall
+records start + K*(wall time - start) instead. The profile files are evaluated with the same
+rules as the Rust plant (src/plant/profile.rs): x_to is linear between the points of one period,
+held outside them, both clutches are open before the first and after the last engagement.
 
-Usage:
-    scripts/vcan-run .venv/bin/python scripts/rig_partial_engagements.py --iface vcan0 \\
-        --profile config/rig/identification.toml --out rig.log --speed 8 \\
+Usage (a 385 s experiment at --speed 8 takes about a minute in User-Mode Linux):
+    scripts/vcan-run .venv/bin/python scripts/rig_partial_engagements.py --iface vcan0 \
+        --profile config/rig/identification.toml --out rig.log --speed 8 \
         --spawn-plant target/release/ddct
 """
 

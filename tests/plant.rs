@@ -1355,3 +1355,51 @@ async fn daemon_lockstep_matches_the_in_process_profile_run() {
         "lockstep over a bus = built-in profile in process"
     );
 }
+
+// --------------------------------------------------------------------------------------- docs
+
+#[test]
+fn docs_document_every_effect_and_fault() {
+    let doc = std::fs::read_to_string("docs/plant.md").unwrap();
+    for id in EffectId::ALL {
+        let s = id.spec();
+        assert!(
+            doc.contains(&format!("**`{id}`**")),
+            "{id} has no paragraph"
+        );
+        for p in s.params {
+            // Table rows: the first cell names the effect, continuation rows leave it empty.
+            let mut current = String::new();
+            let row = doc
+                .lines()
+                .filter(|l| l.starts_with("| "))
+                .find(|l| {
+                    let first = l.split('|').nth(1).unwrap_or("").trim().to_string();
+                    if !first.is_empty() {
+                        current = first;
+                    }
+                    current == format!("`{id}`") && l.contains(&format!("| `{}` |", p.name))
+                })
+                .unwrap_or_else(|| panic!("{id}.{} has no table row", p.name));
+            for needle in [
+                format!("| {} |", p.unit),
+                format!("{} … {}", p.plausible.0, p.plausible.1),
+                format!("{} … {} |", p.bounds.0, p.bounds.1),
+                format!("| {} |", p.typical),
+            ] {
+                assert!(
+                    row.contains(&needle),
+                    "{id}.{}: `{needle}` not in `{row}`",
+                    p.name
+                );
+            }
+        }
+    }
+    for k in FaultKind::ALL {
+        assert!(
+            doc.contains(&format!("| `{}` |", k.as_str())),
+            "fault {} undocumented",
+            k.as_str()
+        );
+    }
+}

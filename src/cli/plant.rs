@@ -23,8 +23,12 @@ pub enum ModeArg {
 #[derive(Debug, Args)]
 pub struct PlantArgs {
     /// CAN interface (e.g. vcan0), or `sim` for the in-process bus.
+    #[arg(long, required_unless_present = "list_effects")]
+    iface: Option<String>,
+    /// Print the reality-effect library (identifiers, subsystems, equations, parameters with
+    /// units, plausible ranges and bounds) as a Markdown table, or JSON with --json, and exit.
     #[arg(long)]
-    iface: String,
+    list_effects: bool,
     /// Plant configuration (default: the built-in config/plant.toml).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -113,7 +117,7 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
             p.input_speed_rpm = rpm;
         }
     }
-    if a.iface == "sim" && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
+    if a.iface.as_deref() == Some("sim") && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
         cfg.scenario = Some(Scenario::builtin());
     }
     if let Some(p) = &a.effects {
@@ -127,9 +131,73 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
     Ok(cfg)
 }
 
+fn list_effects(json: bool) -> anyhow::Result<ExitCode> {
+    use ddct::model::effects::EffectId;
+    if json {
+        let v: Vec<_> = EffectId::ALL
+            .iter()
+            .map(|id| {
+                let s = id.spec();
+                serde_json::json!({
+                    "id": id.as_str(),
+                    "subsystem": s.subsystem.as_str(),
+                    "in_library": s.in_library,
+                    "equation": s.equation,
+                    "description": s.description,
+                    "params": s.params.iter().map(|p| serde_json::json!({
+                        "name": p.name, "unit": p.unit, "nominal": p.nominal, "typical": p.typical,
+                        "plausible": [p.plausible.0, p.plausible.1], "min_effect": p.min_effect,
+                        "bounds": [p.bounds.0, p.bounds.1], "doc": p.doc,
+                    })).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "| id | subsystem | library | parameter | unit | nominal | typical | plausible | bounds |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for id in EffectId::ALL {
+        let s = id.spec();
+        for (i, p) in s.params.iter().enumerate() {
+            let (idc, sub, lib) = if i == 0 {
+                (
+                    format!("`{id}`"),
+                    s.subsystem.as_str().to_string(),
+                    if s.in_library { "yes" } else { "no (outside)" }.to_string(),
+                )
+            } else {
+                (String::new(), String::new(), String::new())
+            };
+            let plaus = if p.min_effect > 0.0 {
+                format!(
+                    "{} … {}, except {} … {}",
+                    p.plausible.0,
+                    p.plausible.1,
+                    p.nominal - p.min_effect,
+                    p.nominal + p.min_effect
+                )
+            } else {
+                format!("{} … {}", p.plausible.0, p.plausible.1)
+            };
+            println!(
+                "| {idc} | {sub} | {lib} | `{}` | {} | {} | {} | {plaus} | {} … {} |",
+                p.name, p.unit, p.nominal, p.typical, p.bounds.0, p.bounds.1
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
+    if a.list_effects {
+        return list_effects(a.json);
+    }
     let cfg = build_config(&a)?;
-    let sim = a.iface == "sim";
+    let iface = a.iface.clone().unwrap_or_default();
+    let sim = iface == "sim";
     let speed: Option<f64> = match a.speed.as_deref() {
         None if sim => None,
         None => Some(1.0),
@@ -200,8 +268,8 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             };
             anyhow::Ok(run_plant(ep, shutdown_signal(), c).await?)
         } else {
-            let bus = SocketCanBus::open(&a.iface, false)
-                .with_context(|| format!("opening CAN interface {}", a.iface))?;
+            let bus = SocketCanBus::open(&iface, false)
+                .with_context(|| format!("opening CAN interface {iface}"))?;
             let c = PlantDaemonConfig {
                 plant: cfg,
                 pacing: Pacing::RealTime {
