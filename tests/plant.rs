@@ -4,6 +4,8 @@
 //! sensors, inputs, modes and the daemon loop. Expectations are independent: analytic solutions,
 //! the paper's equations evaluated with `model::clutch` directly, and nominal runs.
 
+#![allow(clippy::field_reassign_with_default)]
+
 use ddct::can::e2e::{counter_of, e2e_crc, CRC_BYTE};
 use ddct::can::messages::{
     ids, message_def, BenchTemps, BenchTorque, DctActuators, DctSensors, DrvPedal, EngStatus,

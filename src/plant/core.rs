@@ -817,9 +817,7 @@ impl Plant {
     /// protected messages.
     fn send(&mut self, slot: usize, t: Duration, mut data: [u8; 8]) -> Option<(u8, u8)> {
         let id = self.sent[slot];
-        let Some(def) = message_def(u32::from(id)) else {
-            return None;
-        };
+        let def = message_def(u32::from(id))?;
         let active: Vec<(usize, Fault)> = self
             .cfg
             .faults
