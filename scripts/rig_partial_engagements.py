@@ -206,7 +206,7 @@ def start_candump(iface: str, raw_path: Path):
     """`candump -L` into raw_path; returns once its socket is registered (so no frame is missed)."""
     before = can_receivers(iface)
     f = open(raw_path, "w", encoding="ascii")
-    p = subprocess.Popen(["candump", "-L", "-r", str(8 << 20), iface], stdout=f,
+    p = subprocess.Popen(["candump", "-L", "-r", str(64 << 20), iface], stdout=f,
                          stdin=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     f.close()
     deadline = time.monotonic() + 10.0
@@ -363,7 +363,7 @@ def run(args) -> int:
         bus.shutdown()
         plant_err = stop(plant)
         if recorder is not None:
-            wait_quiet(raw)  # candump may still be reading what the plant sent last
+            wait_quiet(raw, quiet_s=5.0)  # candump may still be reading what the plant sent last
         rec_err = stop(recorder)
         if plant_err and not args.quiet:
             sys.stderr.write(plant_err)
