@@ -121,6 +121,13 @@ impl Col {
         matches!(self, Col::GearOdd | Col::GearEven)
     }
 
+    /// Commands (requests) take effect at the first cycle at or after their timestamp: they are
+    /// resampled by zero-order hold (a request logged after a cycle's sensor frames counts from
+    /// the next cycle, as the plant latches it).
+    pub fn command(self) -> bool {
+        matches!(self, Col::X1Req | Col::X2Req | Col::Pedal)
+    }
+
     fn idx(self) -> usize {
         self as usize
     }
@@ -528,7 +535,7 @@ impl Dataset {
         steps.sort_by(f64::total_cmp);
         let dt = steps[steps.len() / 2];
         let hold = (dt * 5.5).max(MAX_HOLD_S);
-        resample(file, series, dt, hold, stats)
+        resample(file, series, dt, hold, stats, false)
     }
 
     /// Decodes a candump log with the contract and resamples it at `dt` seconds.
@@ -731,17 +738,24 @@ impl CandumpColumns {
             .into_iter()
             .map(|s| (s.t.len() >= 2).then_some(s))
             .collect();
-        resample(file, series, dt, MAX_HOLD_S, stats)
+        resample(file, series, dt, MAX_HOLD_S, stats, true)
     }
 }
 
 /// Resamples every present series onto a uniform grid over the common span of the required ones.
+///
+/// `cycles` (bus logs): the grid is anchored at the plant's cycle clock (ENG_Status times) and a
+/// sensor value at a grid point is the sample of the same cycle (the nearest within half a step;
+/// linear interpolation only across a missing cycle), so frames sent a few microseconds apart
+/// within one cycle are one sample; commands use zero-order hold. Otherwise (CSV rows) values
+/// are interpolated linearly.
 fn resample(
     file: &str,
     series: Vec<Option<Series>>,
     dt: f64,
     hold: f64,
     mut stats: LoadStats,
+    cycles: bool,
 ) -> Result<Dataset, DatasetError> {
     let mut t_start = f64::NEG_INFINITY;
     let mut t_end = f64::INFINITY;
@@ -749,6 +763,14 @@ fn resample(
         let s = series[c.idx()].as_ref().expect("required series present");
         t_start = t_start.max(s.t[0]);
         t_end = t_end.min(*s.t.last().expect("non-empty"));
+    }
+    if cycles {
+        let clock = &series[Col::Wf.idx()].as_ref().expect("required series present").t;
+        let half = 0.5 * dt;
+        if let Some(&a) = clock.iter().find(|&&t| t >= t_start - half) {
+            t_start = a;
+        }
+        t_end += half;
     }
     if !(t_end > t_start) {
         return Err(DatasetError::NoOverlap { file: file.into() });
@@ -775,17 +797,24 @@ fn resample(
                 j += 1;
             }
             // s.t[j] <= t < s.t[j+1] (or t before the first / after the last sample).
-            let (v, fresh) = if t <= s.t[0] {
+            let nearest = cycles && !c.command() && !c.discrete();
+            let (v, fresh) = if nearest && {
+                let d0 = (s.t[j] - t).abs();
+                let d1 = s.t.get(j + 1).map_or(f64::INFINITY, |&tb| (tb - t).abs());
+                d0.min(d1) <= 0.5 * dt
+            } {
+                // The sample of this cycle.
+                let d0 = (s.t[j] - t).abs();
+                let d1 = s.t.get(j + 1).map_or(f64::INFINITY, |&tb| (tb - t).abs());
+                (if d1 < d0 { s.v[j + 1] } else { s.v[j] }, true)
+            } else if t < s.t[0] {
                 (s.v[0], s.t[0] - t <= hold)
-            } else if j + 1 >= s.t.len() {
-                (s.v[j], t - s.t[j] <= hold)
+            } else if j + 1 >= s.t.len() || c.discrete() || (cycles && c.command()) {
+                let next = s.t.get(j + 1).copied().unwrap_or(f64::INFINITY);
+                (s.v[j], next - s.t[j] <= hold || t - s.t[j] <= hold)
             } else {
                 let (ta, tb) = (s.t[j], s.t[j + 1]);
-                let v = if c.discrete() {
-                    s.v[j]
-                } else {
-                    s.v[j] + (s.v[j + 1] - s.v[j]) * (t - ta) / (tb - ta)
-                };
+                let v = s.v[j] + (s.v[j + 1] - s.v[j]) * (t - ta) / (tb - ta);
                 (v, tb - ta <= hold)
             };
             if (!fresh || !v.is_finite()) && c.required() {
