@@ -765,7 +765,10 @@ fn resample(
         t_end = t_end.min(*s.t.last().expect("non-empty"));
     }
     if cycles {
-        let clock = &series[Col::Wf.idx()].as_ref().expect("required series present").t;
+        let clock = &series[Col::Wf.idx()]
+            .as_ref()
+            .expect("required series present")
+            .t;
         let half = 0.5 * dt;
         if let Some(&a) = clock.iter().find(|&&t| t >= t_start - half) {
             t_start = a;

@@ -485,7 +485,7 @@ pub struct OutputGap {
     /// 100·(1 − RMSE_after/RMSE_nominal) with its 95 % event-bootstrap interval.
     pub reduction_pct: f64,
     pub reduction_ci95: (f64, f64),
-    /// The same on the gap above the noise floor, √max(MSE − σ², 0).
+    /// The same on the gap above each record's noise floor, √max(mean((r/σ)²) − 1, 0).
     pub gap_reduction_pct: f64,
 }
 
@@ -1145,8 +1145,11 @@ pub fn diagnose(
                 f64::NAN
             }
         });
-        let s2 = sigma[i] * sigma[i];
-        let gap = |rm: f64| (rm * rm - s2).max(0.0).sqrt();
+        // Gap above the noise floor of each record: √max(mean standardized square − 1, 0).
+        let zn = sc_nom_v.std_sse[i] / n as f64;
+        let za = sc_after.std_sse[i] / sc_after.n[i].max(1) as f64;
+        let gap_n = (zn - 1.0).max(0.0).sqrt();
+        let gap_a = (za - 1.0).max(0.0).sqrt();
         eq.push(OutputGap {
             output: c.name().to_string(),
             subsystem: c.subsystem().as_str().to_string(),
@@ -1159,8 +1162,8 @@ pub fn diagnose(
             fit_pct_after: fitp(ra),
             reduction_pct: 100.0 * (1.0 - ra / rn.max(1e-300)),
             reduction_ci95: ci,
-            gap_reduction_pct: if gap(rn) > 0.0 {
-                100.0 * (1.0 - gap(ra) / gap(rn))
+            gap_reduction_pct: if gap_n > 0.0 {
+                100.0 * (1.0 - gap_a / gap_n)
             } else {
                 0.0
             },
