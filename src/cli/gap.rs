@@ -185,14 +185,16 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
         );
     }
     if !id.validation.is_empty() {
-        println!("\nvalidation fit % = 100·(1 − NRMSE):");
+        println!(
+            "\nvalidation fit % = 100·(1 − NRMSE) (n/a: output not excited by the experiment):"
+        );
         println!(
             "{:<22} {:<10} {:<16} {:>10} {:>8}",
             "file", "output", "mode", "RMSE", "fit %"
         );
         for f in &id.validation {
             println!(
-                "{:<22} {:<10} {:<16} {:>10.4} {:>8.2}",
+                "{:<22} {:<10} {:<16} {:>10.4} {:>8}",
                 Path::new(&f.file)
                     .file_name()
                     .map(|s| s.to_string_lossy().to_string())
@@ -200,7 +202,11 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
                 f.output,
                 f.mode,
                 f.rmse,
-                f.fit_pct
+                if f.fit_pct.is_finite() {
+                    format!("{:.2}", f.fit_pct)
+                } else {
+                    "n/a".to_string()
+                }
             );
         }
     }

@@ -125,6 +125,9 @@ impl Design {
         for (m, s0, s1, tq, disk, off, sg) in items {
             let ex = extra(m, disk);
             for (i, s) in [(0usize, *s0), (1usize, *s1)] {
+                if tq[i].len() != m.n {
+                    continue;
+                }
                 for &k in s {
                     let t = tq[i][k];
                     if !t.is_finite() {

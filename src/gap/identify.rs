@@ -116,7 +116,8 @@ pub struct OutputFit {
     pub n: usize,
     pub rmse: f64,
     pub nrmse: f64,
-    /// 100·(1 − NRMSE).
+    /// 100·(1 − NRMSE); NaN (`null` in JSON) for an output the experiment does not excite
+    /// (variance below 25 residual variances, e.g. a clutch never engaged).
     pub fit_pct: f64,
 }
 
@@ -153,7 +154,13 @@ pub fn fit_stats(y: &[f64], yhat: &[f64], mask: &[bool]) -> (usize, f64, f64, f6
         }
     }
     let rmse = (se / n as f64).sqrt();
-    let nrmse = if sv > 0.0 { (se / sv).sqrt() } else { f64::NAN };
+    // An output that does not move beyond its residual (a clutch never engaged) has no fit %.
+    let excited = sv / n as f64 > 25.0 * rmse * rmse;
+    let nrmse = if sv > 0.0 && excited {
+        (se / sv).sqrt()
+    } else {
+        f64::NAN
+    };
     (n, rmse, nrmse, 100.0 * (1.0 - nrmse))
 }
 
@@ -765,8 +772,16 @@ mod tests {
         let (n, rmse, nrmse, fit) = fit_stats(&y, &y, &[true; 3]);
         assert_eq!((n, rmse, nrmse, fit), (3, 0.0, 0.0, 100.0));
         // Predicting the mean gives 0 %.
-        let (_, _, nrmse, fit) = fit_stats(&y, &[2.0; 3], &[true; 3]);
-        assert!((nrmse - 1.0).abs() < 1e-12 && fit.abs() < 1e-9);
+        let y = [1.0, 20.0, 40.0];
+        let (_, _, nrmse, fit) = fit_stats(&y, &[20.0 + 1.0 / 3.0; 3], &[true; 3]);
+        assert!(
+            nrmse.is_nan() && fit.is_nan(),
+            "the mean predicts nothing: not excited"
+        );
+        let yhat = [1.5, 19.5, 40.5];
+        let (_, rmse, nrmse, fit) = fit_stats(&y, &yhat, &[true; 3]);
+        assert!((rmse - 0.5).abs() < 1e-12);
+        assert!((fit - 100.0 * (1.0 - nrmse)).abs() < 1e-12 && fit > 95.0);
         let (n, _, _, _) = fit_stats(&y, &y, &[true, false, true]);
         assert_eq!(n, 2);
     }
