@@ -125,7 +125,6 @@ mod loaders {
     use ddct::gap::synth::{rig_frames, RigExperiment, SensorNoise};
     use ddct::model::params::Params;
     use ddct::model::powertrain::Nominal;
-    use embedded_can::Frame as _;
 
     fn frames() -> Vec<LogRecord> {
         rig_frames(

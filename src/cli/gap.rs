@@ -305,7 +305,7 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
 
 fn progress(done: usize, total: usize, started: Instant, correct: usize) {
     let w = 30;
-    let filled = if total > 0 { done * w / total } else { w };
+    let filled = (done * w).checked_div(total).unwrap_or(w);
     let el = started.elapsed().as_secs_f64();
     let eta = if done > 0 {
         el / done as f64 * (total - done) as f64

@@ -93,6 +93,19 @@ fn features(v: &[f64; 6], keep: &[bool; 6], t_model: f64, out: &mut Vec<f64>) {
     }
 }
 
+/// One file's torque samples for [`Design::collect`]: (file, samples of clutch 1, samples of
+/// clutch 2, model torques, disk temperatures, first bootstrap unit, torque noise floor per
+/// clutch).
+pub type DesignItem<'a> = (
+    &'a Measured,
+    &'a [usize],
+    &'a [usize],
+    &'a [Vec<f64>; 2],
+    &'a [Vec<f64>; 2],
+    usize,
+    [f64; 2],
+);
+
 /// Training or validation design for the torque channels of a set of files: per sample the
 /// variables, the model torque and the residual, with the block (event) index.
 #[derive(Debug, Clone, Default)]
@@ -107,20 +120,7 @@ pub struct Design {
 
 impl Design {
     /// Collects the samples of `chans` (torque channels) with the recalibrated predictions.
-    pub fn collect(
-        p: &Params,
-        items: &[(
-            &Measured,
-            &[usize],
-            &[usize],
-            &[Vec<f64>; 2],
-            &[Vec<f64>; 2],
-            usize,
-            [f64; 2],
-        )],
-    ) -> Design {
-        // items: (file, samples of Torque(0), samples of Torque(1), model torques, disk, unit
-        // offset, torque noise floor per clutch)
+    pub fn collect(p: &Params, items: &[DesignItem<'_>]) -> Design {
         let mut d = Design::default();
         for (m, s0, s1, tq, disk, off, sg) in items {
             let ex = extra(m, disk);

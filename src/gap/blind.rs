@@ -185,8 +185,10 @@ fn launches(pedals: &[f64], x_end: &[f64], ramp: f64, theta0: f64) -> LaunchPlan
 /// The records of a trial's experiments, named `train_*` and `validate_*`, with the plant
 /// carrying `truth` (the frames a candump of the bench would hold, SIM_Truth included).
 pub fn experiment_records(truth: &Truth, seed: u64) -> Vec<(String, Vec<LogRecord>)> {
-    let mut c = PlantConfig::default();
-    c.effects = truth.set();
+    let mut c = PlantConfig {
+        effects: truth.set(),
+        ..PlantConfig::default()
+    };
     // On the rig the dyno holds the input speed and the brake the output: the sliding
     // acceleration is zero, so `sliding_acceleration_friction` cannot act there. The plant's rig
     // mode feeds the free flywheel acceleration of its integration step into the effect instead

@@ -11,6 +11,8 @@
 //! the backlash play over the measured actuator positions, [`delayed_requests`] applies a dead
 //! time to logged requests.
 
+#![allow(clippy::needless_range_loop)]
+
 use super::replay::{self, Measured};
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
 use crate::model::params::{ClutchParams, Params};

@@ -775,7 +775,7 @@ fn resample(
         }
         t_end += half;
     }
-    if !(t_end > t_start) {
+    if t_end.partial_cmp(&t_start) != Some(std::cmp::Ordering::Greater) {
         return Err(DatasetError::NoOverlap { file: file.into() });
     }
     let n = ((t_end - t_start) / dt + 1e-9).floor() as usize + 1;

@@ -7,6 +7,8 @@
 //! blocks, each holding one engagement with the open time around it (open stretches longer than
 //! `block_open_s` become blocks of their own), for splitting and the event bootstrap.
 
+#![allow(clippy::needless_range_loop)]
+
 use super::dataset::{Col, Dataset};
 
 /// Segmentation thresholds.

@@ -285,7 +285,8 @@ pub fn rig_frames<H: Hooks>(
             "profile, clutches and dyno_rpm must not be empty".into(),
         ));
     }
-    if exp.clutches.iter().any(|c| *c > 1) || !(exp.period_s > 0.0) || !(step_s > 0.0) {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if exp.clutches.iter().any(|c| *c > 1) || !positive(exp.period_s) || !positive(step_s) {
         return Err(SynthError::Experiment(
             "clutches are 0 or 1; period and step must be positive".into(),
         ));

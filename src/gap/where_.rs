@@ -4,6 +4,8 @@
 //! discovery rate controlled by Benjamini–Hochberg), and flagged time segments (event blocks whose
 //! standardized residual exceeds the noise, also under BH).
 
+#![allow(clippy::needless_range_loop)]
+
 use super::candidates::{self, Channel, Model, Predictions, Samples};
 use super::lsq;
 use super::replay::Measured;
