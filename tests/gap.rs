@@ -284,7 +284,7 @@ fn small_blind_run_scores_every_trial() {
                 if i >= trials {
                     break;
                 }
-                let r = blind::run_trial(seed, i, &p, &opts);
+                let r = blind::run_trial(seed, i, &p, &opts, 0.0);
                 results.lock().unwrap().push(r);
             });
         }

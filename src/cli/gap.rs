@@ -86,6 +86,11 @@ pub struct BlindArgs {
     /// Nominal parameter file given to the diagnosis and to the plant.
     #[arg(long, env = "DDCT_PARAMS")]
     params: Option<PathBuf>,
+    /// Detune the plant's recalibratable parameters (kiss-point law, convective and heating
+    /// terms, actuator lag) by up to this relative error per trial (e.g. 0.05), so that every
+    /// effect has to beat plain recalibration.
+    #[arg(long, default_value_t = 0.0)]
+    perturb: f64,
 }
 
 #[derive(Debug, Args)]
@@ -345,7 +350,10 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
                 if i >= a.trials {
                     break;
                 }
-                if tx.send(blind::run_trial(a.seed, i, p, opts)).is_err() {
+                if tx
+                    .send(blind::run_trial(a.seed, i, p, opts, a.perturb))
+                    .is_err()
+                {
                     break;
                 }
             });
@@ -448,8 +456,16 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         summary.median_reduction_pct, summary.median_gap_reduction_pct
     );
     println!(
-        "{} trials in {secs:.0} s on {threads} thread(s)",
-        results.len()
+        "{} trials in {secs:.0} s on {threads} thread(s){}",
+        results.len(),
+        if a.perturb > 0.0 {
+            format!(
+                ", plant parameters detuned by up to ±{:.0} %",
+                100.0 * a.perturb
+            )
+        } else {
+            String::new()
+        }
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -511,7 +527,7 @@ fn parse_truth(s: &str) -> anyhow::Result<blind::Truth> {
 fn run_experiment(a: ExperimentArgs) -> anyhow::Result<ExitCode> {
     let truth = parse_truth(&a.truth)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let recs = blind::experiment_records(&truth, a.seed);
+    let recs = blind::experiment_records(&truth, a.seed, &Params::default());
     for (name, records) in recs {
         let path = a.out.join(format!("{name}.log"));
         let file =

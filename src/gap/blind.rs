@@ -184,9 +184,14 @@ fn launches(pedals: &[f64], x_end: &[f64], ramp: f64, theta0: f64) -> LaunchPlan
 
 /// The records of a trial's experiments, named `train_*` and `validate_*`, with the plant
 /// carrying `truth` (the frames a candump of the bench would hold, SIM_Truth included).
-pub fn experiment_records(truth: &Truth, seed: u64) -> Vec<(String, Vec<LogRecord>)> {
+pub fn experiment_records(
+    truth: &Truth,
+    seed: u64,
+    plant_params: &Params,
+) -> Vec<(String, Vec<LogRecord>)> {
     let mut c = PlantConfig {
         effects: truth.set(),
+        params: *plant_params,
         ..PlantConfig::default()
     };
     // On the rig the dyno holds the input speed and the brake the output: the sliding
@@ -253,10 +258,10 @@ pub fn experiment_records(truth: &Truth, seed: u64) -> Vec<(String, Vec<LogRecor
 }
 
 /// Generates the experiments of a trial with the plant carrying `truth`, decoded.
-pub fn experiments(truth: &Truth, seed: u64) -> Experiments {
+pub fn experiments(truth: &Truth, seed: u64, plant_params: &Params) -> Experiments {
     let mut train = Vec::new();
     let mut validate = Vec::new();
-    for (name, recs) in experiment_records(truth, seed) {
+    for (name, recs) in experiment_records(truth, seed, plant_params) {
         let d = Dataset::from_records(&name, recs.into_iter().map(Ok), DEFAULT_DT_S)
             .expect("plant records decode");
         if name.starts_with("train") {
@@ -318,10 +323,52 @@ pub fn score(index: usize, truth: &Truth, d: &Diagnosis) -> TrialResult {
     }
 }
 
-/// Runs trial `index` of seed `seed`.
-pub fn run_trial(seed: u64, index: usize, params: &Params, opts: &DiagnoseOptions) -> TrialResult {
+/// The plant's parameters of a trial: the nominal ones, with every parameter plain
+/// recalibration may re-fit (λ0–λ2 of (9), α2, α3, α8, α9 of (16), the actuator lag) detuned by
+/// a uniform relative error of up to `perturb` (0.05 = ±5 %) — a real clutch is never exactly
+/// the nominal one, so an effect must beat recalibration.
+pub fn plant_params(nominal: &Params, seed: u64, index: usize, perturb: f64) -> Params {
+    let mut p = *nominal;
+    if perturb <= 0.0 {
+        return p;
+    }
+    let mut rng = Rng::new(seed.wrapping_mul(31).wrapping_add(index as u64) ^ 0xA5A5_5A5A);
+    for key in [
+        "clutch.x_isp0_mm",
+        "clutch.x_isp1_mm_per_c",
+        "clutch.x_isp2_mm_per_c2",
+        "thermal5.alpha2_per_s",
+        "thermal5.alpha3_k_per_j",
+        "thermal5.alpha8_per_s",
+        "thermal5.alpha9_k_per_j",
+        "actuator.tau_s",
+    ] {
+        if let Some(v) = super::keys::get(&p, key) {
+            super::keys::set(&mut p, key, v * (1.0 + perturb * rng.range(-1.0, 1.0)));
+        }
+    }
+    if p.validate().is_err() {
+        return *nominal;
+    }
+    p
+}
+
+/// Runs trial `index` of seed `seed`; the plant's parameters are `params` detuned by up to
+/// `perturb` ([`plant_params`]), the diagnosis is given `params`.
+pub fn run_trial(
+    seed: u64,
+    index: usize,
+    params: &Params,
+    opts: &DiagnoseOptions,
+    perturb: f64,
+) -> TrialResult {
     let truth = draw_truth(seed, index);
-    let ex = experiments(&truth, seed.wrapping_mul(1000).wrapping_add(index as u64));
+    let plant = plant_params(params, seed, index, perturb);
+    let ex = experiments(
+        &truth,
+        seed.wrapping_mul(1000).wrapping_add(index as u64),
+        &plant,
+    );
     match diagnose(&ex.train, &ex.validate, params, opts) {
         Ok(d) => score(index, &truth, &d),
         Err(e) => TrialResult {
