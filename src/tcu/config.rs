@@ -94,6 +94,7 @@ pub struct ControlCfg {
     pub lock_slip_radps: f64,
     pub lock_cycles: u32,
     pub lock_undershoot_radps: f64,
+    pub lock_hold_slip_radps: f64,
     pub clamp_margin: f64,
     pub clamp_offset_nm: f64,
     pub clamp_rate_nm_per_s: f64,
@@ -336,6 +337,12 @@ impl TcuConfig {
             k.lock_undershoot_radps,
             0.0,
             20.0,
+        )?;
+        range(
+            "control.lock_hold_slip_radps",
+            k.lock_hold_slip_radps,
+            0.0,
+            50.0,
         )?;
         range("control.clamp_margin", k.clamp_margin, 0.0, 5.0)?;
         range("control.clamp_offset_nm", k.clamp_offset_nm, 0.0, 500.0)?;

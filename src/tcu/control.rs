@@ -77,9 +77,16 @@ impl ClutchModel {
         self.position_for(torque_nm, 0.0, theta_est_c)
     }
 
-    /// Kiss point x_ISP at the temperature the inverse uses (mm).
+    /// Kiss point x_ISP at the estimated temperature (mm). Used for the standby position of an
+    /// open clutch and to decide whether a clutch is open; it is not part of the torque inverse, so
+    /// the compensation switches leave it alone (switching the inverse's temperature off must not
+    /// also make a hot clutch drag at standstill).
     pub fn kiss_point(&self, theta_est_c: f64) -> f64 {
-        let (_, th) = self.inverse_arguments(0.0, theta_est_c);
+        let th = if theta_est_c.is_finite() {
+            theta_est_c
+        } else {
+            self.comp.calibration_temp_c
+        };
         clutch::x_isp(&self.p, th)
     }
 

@@ -150,6 +150,9 @@ pub fn start_gear(lever: GearLever) -> Option<u8> {
     }
 }
 
+/// Largest rise of the creep torque (N·m/s).
+const CREEP_TORQUE_RATE_NM_PER_S: f64 = 80.0;
+
 fn shaft(gear: u8) -> usize {
     driveline::shaft_of(gear).unwrap_or(0)
 }
@@ -261,6 +264,8 @@ struct Shift {
     lock_count: u32,
     total_s: f64,
     t_e_req: f64,
+    /// Inertia phase: when the slip was released toward lock-up.
+    release: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -280,6 +285,8 @@ pub struct Strategy {
     pi_e: Pi,
     last: Command,
     since_shift_s: f64,
+    /// Previous engine feed-forward (for the lag compensation); `None` after a reset.
+    ff_prev: Option<f64>,
 }
 
 impl Strategy {
@@ -291,7 +298,13 @@ impl Strategy {
             pi_e: Pi::new(k.engine_kp_per_s, k.engine_ki_per_s2, 400.0),
             last: Command::default(),
             since_shift_s: 1e9,
+            ff_prev: None,
         }
+    }
+
+    fn reset_engine(&mut self) {
+        self.pi_e.reset(0.0);
+        self.ff_prev = None;
     }
 
     /// The last command.
@@ -303,7 +316,7 @@ impl Strategy {
     /// and the vehicle speed; integrators are cleared.
     pub fn restart(&mut self, ctx: &Ctx) {
         self.pi_c.iter_mut().for_each(|p| p.reset(0.0));
-        self.pi_e.reset(0.0);
+        self.reset_engine();
         self.mode = Self::initial_mode(ctx);
     }
 
@@ -411,12 +424,12 @@ impl Strategy {
         if ctx.pedal_on() && engaged {
             let l = Launch::new(ctx, a, c.gear);
             self.pi_c[a].reset(0.0);
-            self.pi_e.reset(0.0);
+            self.reset_engine();
             self.mode = Mode::Launch(l);
             return self.launch(ctx, l);
         }
-        let standstill = ctx.v_kmh().abs() < cfg.creep.standstill_kmh;
-        let hold = !engaged || (ctx.m.brake && standstill);
+        // The brake releases the creep torque (at standstill and while rolling).
+        let hold = !engaged || ctx.m.brake;
         let r = ctx.reduced();
         let k = ctx.k(c.gear);
         let mut t = 0.0;
@@ -441,11 +454,20 @@ impl Strategy {
             } else {
                 0.0
             };
+            // Half the launch gains: the creep torque sits near the kiss point, where the
+            // actuator lag matters most; the torque rises at most at the creep torque rate so
+            // the idle governor keeps up.
             let e = c.w_c_ref - ctx.m.w_c[a];
-            let w_dot_cmd = self.pi_c[a].output(w_dot_ref, e);
+            let pi = self.pi_c[a];
+            let w_dot_cmd = w_dot_ref + 0.5 * (pi.kp * e + pi.integral);
             let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
-            let hi = cfg.creep.max_torque_nm.min(ctx.t_max(a)) * ctx.stall_scale();
-            t = raw.clamp(0.0, hi);
+            let hi = cfg
+                .creep
+                .max_torque_nm
+                .min(ctx.t_max(a))
+                .min(c.t_ref + CREEP_TORQUE_RATE_NM_PER_S * ctx.dt)
+                * ctx.stall_scale();
+            t = raw.clamp(0.0, hi.max(0.0));
             self.pi_c[a].integrate(e, ctx.dt, raw >= hi, raw <= 0.0);
             c.t_ref = t;
             phase = "creep";
@@ -545,8 +567,16 @@ impl Strategy {
         if let Some(s) = l.sync.as_mut() {
             s.tau += ctx.dt;
             let u = (s.tau / s.duration).min(1.0);
-            let s_ref = (s.s0 + delta) * (1.0 - u) * (1.0 - u) - delta;
-            let ds = -2.0 * (s.s0 + delta) * (1.0 - u) / s.duration;
+            // After the profile, a slip still above zero is pulled down further at 5 rad/s²
+            // (up to 10 rad/s below zero) so that it crosses and the clutch locks.
+            let tail = (s.tau - s.duration).max(0.0);
+            let s_ref = (s.s0 + delta) * (1.0 - u) * (1.0 - u) - delta - (5.0 * tail).min(10.0);
+            let ds = -2.0 * (s.s0 + delta) * (1.0 - u) / s.duration
+                - if tail > 0.0 && 5.0 * tail < 10.0 {
+                    5.0
+                } else {
+                    0.0
+                };
             w_e_ref = w_c + s_ref;
             w_e_dot_ref = l.alpha + ds;
         }
@@ -558,13 +588,7 @@ impl Strategy {
         let t_a = raw.clamp(0.0, hi);
         self.pi_c[a].integrate(e_c, ctx.dt, raw >= hi, raw <= 0.0);
         // PI_e and (24).
-        let e_e = w_e_ref - ctx.m.w_e;
-        let v_e = r.j_eq * self.pi_e.output(w_e_dot_ref, e_e);
-        let t_e_raw = v_e + t_a;
-        let (lo, hi_e) = ctx.engine_limits();
-        let t_e = t_e_raw.clamp(lo, hi_e);
-        self.pi_e
-            .integrate(e_e, ctx.dt, t_e_raw >= hi_e, t_e_raw <= lo);
+        let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t_a);
         // Lock-up detection.
         if slip.abs() < cfg.control.lock_slip_radps && l.sync.is_some() {
             l.lock_count += 1;
@@ -720,7 +744,7 @@ impl Strategy {
     fn start_shift(&mut self, ctx: &Ctx, d: Drive, to: u8) {
         let up = to > d.gear;
         let t_tr = ctx.demand().max(0.0);
-        self.pi_e.reset(0.0);
+        self.reset_engine();
         self.pi_c[1 - d.a].reset(0.0);
         let mut s = Shift {
             up,
@@ -741,6 +765,7 @@ impl Strategy {
             lock_count: 0,
             total_s: 0.0,
             t_e_req: ctx.m.t_e,
+            release: None,
         };
         if !up {
             Self::begin_inertia(ctx, &mut s);
@@ -808,10 +833,25 @@ impl Strategy {
                 }
             }
             (true, ShiftPhase::Inertia) => {
-                // Off-going open; on-coming carries the demand; PI_e pulls the engine down.
+                // Off-going open; on-coming carries the demand; PI_e pulls the engine down along
+                // a smoothstep to a small positive slip, holds it until the engine torque is back
+                // near the on-coming clutch's torque (so lock-up does not drop the acceleration),
+                // then lets the slip cross zero.
                 t[o] = s.t_tr.min(ctx.t_max(o));
                 x[o] = ctx.x_slip(o, t[o]);
-                let (s_ref, ds) = smoothstep(s.s0, -delta, s.tau, s.duration);
+                let hold = k.lock_hold_slip_radps;
+                let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
+                if s.tau >= s.duration {
+                    let recovered = ctx.m.t_e >= t[o] - (0.1 * t[o]).max(8.0);
+                    if s.release.is_none() && (recovered || s.tau >= s.duration + 0.3) {
+                        s.release = Some(s.tau);
+                    }
+                    if let Some(t_rel) = s.release {
+                        let u = ((s.tau - t_rel) / 0.08).min(1.0);
+                        s_ref = hold - (hold + delta) * u;
+                        ds = if u < 1.0 { -(hold + delta) / 0.08 } else { 0.0 };
+                    }
+                }
                 w_e_ref = w_co + s_ref;
                 let w_e_dot_ref = alpha_co + ds;
                 let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t[o]);
@@ -902,7 +942,7 @@ impl Strategy {
             // The shift did not complete: engage the on-coming gear like a launch.
             self.since_shift_s = 0.0;
             self.pi_c[o].reset(0.0);
-            self.pi_e.reset(0.0);
+            self.reset_engine();
             self.mode = Mode::Launch(Launch::new(ctx, o, s.to));
         } else {
             self.mode = Mode::Shift(s);
@@ -910,10 +950,20 @@ impl Strategy {
         cmd
     }
 
-    /// PI_e and (24): T_e,ref = J_eq (ω̇_e,ref + kp e + ki ∫e) + ΣT_fc,ref, within the engine's range.
+    /// PI_e and (24): T_e,ref = J_eq (ω̇_e,ref + kp e + ki ∫e) + ΣT_fc,ref, within the engine's
+    /// range. The feed-forward part J_eq ω̇_e,ref + ΣT_fc,ref gets a lead τ_e·d/dt that cancels the
+    /// engine's first-order torque lag τ_e (the engine ECU's, from the parameter file).
     fn engine_law(&mut self, ctx: &Ctx, r: &Reduced, w_ref: f64, w_dot_ref: f64, t_c: f64) -> f64 {
         let e = w_ref - ctx.m.w_e;
-        let raw = r.j_eq * self.pi_e.output(w_dot_ref, e) + t_c;
+        let ff = r.j_eq * w_dot_ref + t_c;
+        let lead = match self.ff_prev {
+            Some(prev) if ctx.dt > 0.0 => {
+                ctx.cfg.physics.engine.torque_lag_s * (ff - prev) / ctx.dt
+            }
+            _ => 0.0,
+        };
+        self.ff_prev = Some(ff);
+        let raw = ff + lead + r.j_eq * self.pi_e.output(0.0, e);
         let (lo, hi) = ctx.engine_limits();
         let t = raw.clamp(lo, hi);
         self.pi_e.integrate(e, ctx.dt, raw >= hi, raw <= lo);
