@@ -11,7 +11,7 @@ use std::process::ExitCode;
 struct Cli {
     /// Log filter for diagnostics on stderr (tracing syntax, e.g. `info`, `ddct=debug`).
     #[arg(long, global = true, default_value = "warn", env = "DDCT_LOG")]
-    log: String,
+    log_level: String,
     #[command(subcommand)]
     command: Command,
 }
@@ -49,7 +49,7 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
-    cli::init_tracing(&cli.log);
+    cli::init_tracing(&cli.log_level);
     let result = match cli.command {
         Command::Log(c) => cli::log::run(c),
         Command::Dbc(c) => cli::dbc::run(c),

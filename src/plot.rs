@@ -37,6 +37,16 @@ pub fn ramp(n: usize) -> Vec<String> {
         .collect()
 }
 
+/// Where the legend box sits inside the axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LegendPos {
+    #[default]
+    TopLeft,
+    TopRight,
+    BottomLeft,
+    BottomRight,
+}
+
 /// Line style of a series.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Style {
@@ -94,6 +104,7 @@ pub struct Panel {
     pub legend: bool,
     /// Legend title, e.g. "θ_c".
     pub legend_title: String,
+    pub legend_pos: LegendPos,
 }
 
 impl Panel {
@@ -111,6 +122,7 @@ impl Panel {
             y_range: None,
             legend: true,
             legend_title: String::new(),
+            legend_pos: LegendPos::TopLeft,
         }
     }
     pub fn add(&mut self, s: Series) -> &mut Self {
@@ -123,6 +135,10 @@ impl Panel {
     }
     pub fn y_range(mut self, lo: f64, hi: f64) -> Self {
         self.y_range = Some((lo, hi));
+        self
+    }
+    pub fn legend_pos(mut self, pos: LegendPos) -> Self {
+        self.legend_pos = pos;
         self
     }
     pub fn legend_title(mut self, t: impl Into<String>) -> Self {
@@ -378,11 +394,17 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
                     .chain(std::iter::once(p.legend_title.chars().count()))
                     .max()
                     .unwrap_or(4) as f64;
-        let (lx, ly) = (px + 8.0, py + 8.0);
+        let lh = 8.0 + 16.0 * rows as f64;
+        let (lx, ly) = match p.legend_pos {
+            LegendPos::TopLeft => (px + 8.0, py + 8.0),
+            LegendPos::TopRight => (px + pw - 8.0 - lw, py + 8.0),
+            LegendPos::BottomLeft => (px + 8.0, py + ph - 8.0 - lh),
+            LegendPos::BottomRight => (px + pw - 8.0 - lw, py + ph - 8.0 - lh),
+        };
         let _ = writeln!(
             s,
             r##"<rect x="{lx:.2}" y="{ly:.2}" width="{lw:.2}" height="{:.2}" fill="white" fill-opacity="0.85" stroke="#999"/>"##,
-            8.0 + 16.0 * rows as f64
+            lh
         );
         let mut y = ly + 16.0;
         if !p.legend_title.is_empty() {

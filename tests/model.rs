@@ -553,3 +553,127 @@ fn actuator_is_rate_limited_first_order() {
     // The small move is a plain 20 ms lag: 0.4·(1 − e^{−2.5}).
     assert!((s.x2_mm - 0.4 * (1.0 - (-2.5f64).exp())).abs() < 1e-6);
 }
+
+#[test]
+fn thermal3_defaults_fit_the_5_state_model() {
+    // The α̃ of config/params.toml are the least-squares fit of (17) to (16) over the reference
+    // duty cycle (see the [thermal3] comments): perturbing any of them by ±3 % makes the fit
+    // worse, and the fit is much better than the plain lumping values.
+    use ddct::model::thermal::lumping_cost;
+    use ddct::model::ThermalParams3;
+    let p = Params::default();
+    let rms = |q: &ThermalParams3| {
+        let (c, n) = lumping_cost(&p.thermal5, q, 0.05);
+        (c / n as f64).sqrt()
+    };
+    let base = rms(&p.thermal3);
+    let lumped = ThermalParams3 {
+        alpha1_per_s: p.thermal5.alpha4_per_s + p.thermal5.alpha5_per_s,
+        alpha2_per_s: p.thermal5.alpha6_per_s,
+        alpha3_k_per_j: p.thermal5.alpha7_k_per_j,
+        alpha4_per_s: 7.2e-4,
+    };
+    println!(
+        "3-state fit RMS {base:.3} °C (lumping values {:.3} °C)",
+        rms(&lumped)
+    );
+    assert!(base < 1.3, "rms {base}");
+    assert!(rms(&lumped) > 3.0 * base);
+    for i in 0..4 {
+        for f in [0.97, 1.03] {
+            let mut q = p.thermal3;
+            match i {
+                0 => q.alpha1_per_s *= f,
+                1 => q.alpha2_per_s *= f,
+                2 => q.alpha3_k_per_j *= f,
+                _ => q.alpha4_per_s *= f,
+            }
+            assert!(rms(&q) > base, "alpha~{} x{f} improves the fit", i + 1);
+        }
+    }
+}
+
+// ---------------------------------------------------------------- `ddct model` CLI
+
+fn ddct(args: &[&str]) -> (bool, String, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_ddct"))
+        .args(args)
+        .env_remove("DDCT_PARAMS")
+        .output()
+        .expect("run ddct");
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn cli_torque_invert_and_plot() {
+    let (ok, out, _) = ddct(&[
+        "model", "torque", "--x-to", "4.8", "--slip", "50", "--temp", "240", "--json",
+    ]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    let t = v["torque_nm"].as_f64().unwrap();
+    assert!((t - 85.495).abs() < 0.01, "{t}");
+
+    let (ok, out, _) = ddct(&[
+        "model", "invert", "--torque", "85.495", "--slip", "50", "--temp", "240", "--json",
+    ]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert!((v["x_to_mm"].as_f64().unwrap() - 4.8).abs() < 1e-4);
+    assert_eq!(v["saturated"], false);
+    let (ok, out, _) = ddct(&[
+        "model", "invert", "--torque", "5000", "--slip", "50", "--temp", "25", "--json",
+    ]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["x_to_mm"].as_f64().unwrap(), 7.2);
+    assert_eq!(v["saturated"], true);
+
+    let dir = std::env::temp_dir().join(format!("ddct-model-plot-{}", std::process::id()));
+    let (ok, out, _) = ddct(&["model", "plot", "--out", dir.to_str().unwrap()]);
+    assert!(ok);
+    for name in [
+        "fig4_r_mu.svg",
+        "fig5a_u_fs.svg",
+        "fig5b_spring_load.svg",
+        "fig5c_force_x_to.svg",
+        "fig7a_torque_x_slip.svg",
+        "fig7b_torque_x_temp.svg",
+    ] {
+        assert!(out.contains(name));
+        let svg = std::fs::read_to_string(dir.join(name)).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn cli_rejects_bad_parameter_file() {
+    let dir = std::env::temp_dir().join(format!("ddct-model-params-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bad.toml");
+    let text = ddct::model::params::DEFAULT_TOML.replace("x_to_max_mm = 7.2", "x_to_max_mm = 99");
+    std::fs::write(&path, text).unwrap();
+    let (ok, _, err) = ddct(&[
+        "model",
+        "torque",
+        "--x-to",
+        "5",
+        "--slip",
+        "1",
+        "--temp",
+        "25",
+        "--params",
+        path.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("clutch.x_to_max_mm") && err.contains("50"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

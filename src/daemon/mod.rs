@@ -3,6 +3,8 @@
 //! frame a daemon sends or receives (flushed on shutdown). This is the only place that reads the
 //! clock; the cores (`plant`, `tcu`) get `now` as an argument.
 
+pub mod plant;
+
 use crate::can::candump::{LogRecord, LogWriter};
 use crate::can::{CanFrame, Received};
 use std::fs::File;

@@ -271,8 +271,8 @@ mod tests {
     #[test]
     fn gauss_legendre_integrates_degree_15_exactly() {
         // ∫_{-1}^{1} x^k dx for even k = 2/(k+1).
-        for k in (0..=14).step_by(2) {
-            let s: f64 = (0..4).map(|i| 2.0 * GL_W[i] * GL_X[i].powi(k as i32)).sum();
+        for k in (0..=14i32).step_by(2) {
+            let s: f64 = (0..4).map(|i| 2.0 * GL_W[i] * GL_X[i].powi(k)).sum();
             assert!((s - 2.0 / (k as f64 + 1.0)).abs() < 1e-14, "k={k}");
         }
     }

@@ -7,7 +7,7 @@
 
 use super::clutch;
 use super::params::Params;
-use crate::plot::{ramp, Figure, Panel, Series};
+use crate::plot::{ramp, Figure, LegendPos, Panel, Series};
 use std::path::{Path, PathBuf};
 
 const TEMPS: [f64; 6] = [25.0, 70.0, 110.0, 150.0, 200.0, 240.0];
@@ -25,10 +25,12 @@ pub fn figures(p: &Params) -> Vec<(&'static str, String)> {
     let mut out = Vec::new();
 
     // Fig. 4: R_mu over slip (two ranges) and over temperature.
-    let mut a =
-        Panel::new("(a) R_μ over slip", "slip ω_fc (rad/s)", "R_μ (mm)").legend_title("θ_fp");
-    let mut b =
-        Panel::new("(b) low slip detail", "slip ω_fc (rad/s)", "R_μ (mm)").legend_title("θ_fp");
+    let mut a = Panel::new("(a) R_μ over slip", "slip ω_fc (rad/s)", "R_μ (mm)")
+        .legend_title("θ_fp")
+        .legend_pos(LegendPos::BottomRight);
+    let mut b = Panel::new("(b) low slip detail", "slip ω_fc (rad/s)", "R_μ (mm)")
+        .legend_title("θ_fp")
+        .legend_pos(LegendPos::BottomRight);
     for (k, &th) in TEMPS.iter().enumerate() {
         let pts = linspace(0.0, 100.0, 201)
             .into_iter()
@@ -43,8 +45,9 @@ pub fn figures(p: &Params) -> Vec<(&'static str, String)> {
     }
     let slips = [0.0, 0.1, 1.0, 10.0, 100.0];
     let sc = ramp(slips.len());
-    let mut cpanel =
-        Panel::new("(c) R_μ over temperature", "θ_fp (°C)", "R_μ (mm)").legend_title("ω_fc");
+    let mut cpanel = Panel::new("(c) R_μ over temperature", "θ_fp (°C)", "R_μ (mm)")
+        .legend_title("ω_fc")
+        .legend_pos(LegendPos::BottomLeft);
     for (k, &w) in slips.iter().enumerate() {
         let pts = linspace(0.0, 300.0, 151)
             .into_iter()
@@ -125,7 +128,7 @@ pub fn figures(p: &Params) -> Vec<(&'static str, String)> {
         let mut pnl = Panel::new(format!("θ_c = {th:.0} °C"), "x_to (mm)", "T_fc (N·m)")
             .legend_title("ω_fc")
             .x_range(2.5, 7.5)
-            .y_range(0.0, 450.0);
+            .y_range(0.0, 700.0);
         for (k, &w) in slips7.iter().enumerate() {
             let pts = linspace(2.5, 7.5, 401)
                 .into_iter()
@@ -146,7 +149,7 @@ pub fn figures(p: &Params) -> Vec<(&'static str, String)> {
         let mut pnl = Panel::new(format!("ω_fc = {w} rad/s"), "x_to (mm)", "T_fc (N·m)")
             .legend_title("θ_c")
             .x_range(2.5, 7.5)
-            .y_range(0.0, 450.0);
+            .y_range(0.0, 700.0);
         for (k, &th) in TEMPS.iter().enumerate() {
             let pts = linspace(2.5, 7.5, 401)
                 .into_iter()

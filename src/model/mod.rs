@@ -7,6 +7,7 @@
 pub mod actuator;
 pub mod clutch;
 pub mod driveline;
+pub mod effects;
 pub mod engine;
 pub mod figures;
 pub mod integrator;

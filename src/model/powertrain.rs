@@ -11,6 +11,7 @@
 //!   conserving momentum (the tiny kinetic energy lost is booked as friction heat);
 //! - a locked clutch breaks away at the start of a step when the torque it has to carry exceeds
 //!   that capacity.
+//!
 //! Because μ_d(θ) > μ_s over the whole range, the slipping torque grows with the slip, so a clutch
 //! that broke away settles at a small slip instead of re-locking at once: no chattering.
 //!

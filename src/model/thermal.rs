@@ -17,6 +17,7 @@
 //! the conductive heat terms in (16c) and (16d)" describes.
 
 use super::clutch;
+use super::integrator::{rk4_step, OdeState, OdeSystem};
 use super::params::{ClutchParams, ThermalParams3, ThermalParams5};
 use serde::{Deserialize, Serialize};
 
@@ -182,31 +183,177 @@ impl Thermal3 {
 
     /// One RK4 step of length `dt` with inputs held constant (the estimator's update).
     pub fn step(&self, s: &Thermal3State, u: &ThermalInputs, dt: f64) -> Thermal3State {
-        let k1 = self.derivative(s, u);
-        let k2 = self.derivative(&s.axpy(0.5 * dt, &k1), u);
-        let k3 = self.derivative(&s.axpy(0.5 * dt, &k2), u);
-        let k4 = self.derivative(&s.axpy(dt, &k3), u);
-        let mut out = *s;
-        out = out.axpy(dt / 6.0, &k1);
-        out = out.axpy(dt / 3.0, &k2);
-        out = out.axpy(dt / 3.0, &k3);
-        out.axpy(dt / 6.0, &k4)
+        rk4_step(self, s, u, dt)
     }
 }
 
 impl Thermal5 {
     /// One RK4 step of length `dt` with inputs held constant.
     pub fn step(&self, s: &Thermal5State, u: &ThermalInputs, dt: f64) -> Thermal5State {
-        let k1 = self.derivative(s, u);
-        let k2 = self.derivative(&s.axpy(0.5 * dt, &k1), u);
-        let k3 = self.derivative(&s.axpy(0.5 * dt, &k2), u);
-        let k4 = self.derivative(&s.axpy(dt, &k3), u);
-        let mut out = *s;
-        out = out.axpy(dt / 6.0, &k1);
-        out = out.axpy(dt / 3.0, &k2);
-        out = out.axpy(dt / 3.0, &k3);
-        out.axpy(dt / 6.0, &k4)
+        rk4_step(self, s, u, dt)
     }
+}
+
+impl OdeState for Thermal5State {
+    fn axpy(&self, k: f64, d: &Self) -> Self {
+        Thermal5State::axpy(self, k, d)
+    }
+}
+
+impl OdeState for Thermal3State {
+    fn axpy(&self, k: f64, d: &Self) -> Self {
+        Thermal3State::axpy(self, k, d)
+    }
+}
+
+impl OdeSystem for Thermal5 {
+    type State = Thermal5State;
+    type Input = ThermalInputs;
+    fn derivative(&self, x: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
+        Thermal5::derivative(self, x, u)
+    }
+}
+
+impl OdeSystem for Thermal3 {
+    type State = Thermal3State;
+    type Input = ThermalInputs;
+    fn derivative(&self, x: &Thermal3State, u: &ThermalInputs) -> Thermal3State {
+        Thermal3::derivative(self, x, u)
+    }
+}
+
+/// Inputs of the reference duty cycle used to derive the 3-state parameters from the 5-state
+/// model at time `t_s`: 20 cycles of 60 s (a 2 s launch on clutch 1 with 20 kW falling to zero,
+/// locked driving, a 1 s shift to clutch 2 with 8 kW falling to zero, driving on clutch 2, 10 s
+/// stop with both clutches open), then 1800 s of cooling with both clutches open; housing 40 °C.
+pub fn reference_duty_cycle(t_s: f64) -> ThermalInputs {
+    let mut u = ThermalInputs {
+        theta_h_c: 40.0,
+        ..Default::default()
+    };
+    if t_s >= 1200.0 {
+        return u;
+    }
+    let t = t_s % 60.0;
+    if t < 2.0 {
+        u.beta1 = 1.0;
+        u.p_fric1_w = 20_000.0 * (1.0 - t / 2.0);
+    } else if t < 25.0 {
+        u.beta1 = 1.0;
+    } else if t < 26.0 {
+        u.beta1 = 1.0;
+        u.beta2 = 1.0;
+        u.p_fric2_w = 8_000.0 * (1.0 - (t - 25.0));
+    } else if t < 50.0 {
+        u.beta2 = 1.0;
+    }
+    u
+}
+
+/// Sum of squared differences (°C²) between the 3-state model with `p3` and the 5-state model
+/// with `p5` over the reference duty cycle (3000 s, RK4 at `dt`, sampled every second): clutch
+/// temperatures against θ_c1, θ_c2 and the body against the mean of θ_pp1, θ_pp2, θ_cd (the
+/// paper's definition of the measured body temperature). Returns (cost, samples).
+pub fn lumping_cost(p5: &ThermalParams5, p3: &ThermalParams3, dt: f64) -> (f64, usize) {
+    let (m5, m3) = (Thermal5::new(*p5), Thermal3::new(*p3));
+    let mut s5 = Thermal5State::uniform(40.0);
+    let mut s3 = Thermal3State::uniform(40.0);
+    let per_s = (1.0 / dt).round() as usize;
+    let mut cost = 0.0;
+    let mut n = 0;
+    for k in 0..3000 * per_s {
+        let u = reference_duty_cycle(k as f64 * dt);
+        s5 = m5.step(&s5, &u, dt);
+        s3 = m3.step(&s3, &u, dt);
+        if (k + 1) % per_s == 0 {
+            cost +=
+                (s3.c1 - s5.c1).powi(2) + (s3.c2 - s5.c2).powi(2) + (s3.body - s5.body()).powi(2);
+            n += 3;
+        }
+    }
+    (cost, n)
+}
+
+/// Least-squares fit of the 3-state parameters (17) to the 5-state model (16) over the reference
+/// duty cycle: Nelder–Mead on the logarithms of α̃1..α̃4 from `start`, at most `max_evals` cost
+/// evaluations. Returns the parameters and the RMS error (°C).
+pub fn fit_thermal3(
+    p5: &ThermalParams5,
+    start: &ThermalParams3,
+    dt: f64,
+    max_evals: usize,
+) -> (ThermalParams3, f64) {
+    let to_p = |v: &[f64; 4]| ThermalParams3 {
+        alpha1_per_s: v[0].exp(),
+        alpha2_per_s: v[1].exp(),
+        alpha3_k_per_j: v[2].exp(),
+        alpha4_per_s: v[3].exp(),
+    };
+    let f = |v: &[f64; 4]| lumping_cost(p5, &to_p(v), dt).0;
+    let x0 = [
+        start.alpha1_per_s.ln(),
+        start.alpha2_per_s.ln(),
+        start.alpha3_k_per_j.ln(),
+        start.alpha4_per_s.ln(),
+    ];
+    let mut simplex: Vec<([f64; 4], f64)> = Vec::with_capacity(5);
+    simplex.push((x0, f(&x0)));
+    for i in 0..4 {
+        let mut x = x0;
+        x[i] += 0.2;
+        simplex.push((x, f(&x)));
+    }
+    let mut evals = 5;
+    while evals < max_evals {
+        simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+        if (simplex[4].1 - simplex[0].1).abs() <= 1e-10 * simplex[0].1.max(1e-30) {
+            break;
+        }
+        let mut c = [0.0; 4];
+        for (x, _) in &simplex[..4] {
+            for i in 0..4 {
+                c[i] += x[i] / 4.0;
+            }
+        }
+        let lerp = |t: f64| {
+            let mut y = [0.0; 4];
+            for i in 0..4 {
+                y[i] = c[i] + t * (simplex[4].0[i] - c[i]);
+            }
+            y
+        };
+        let xr = lerp(-1.0);
+        let fr = f(&xr);
+        evals += 1;
+        if fr < simplex[0].1 {
+            let xe = lerp(-2.0);
+            let fe = f(&xe);
+            evals += 1;
+            simplex[4] = if fe < fr { (xe, fe) } else { (xr, fr) };
+        } else if fr < simplex[3].1 {
+            simplex[4] = (xr, fr);
+        } else {
+            let xc = lerp(0.5);
+            let fc = f(&xc);
+            evals += 1;
+            if fc < simplex[4].1 {
+                simplex[4] = (xc, fc);
+            } else {
+                let best = simplex[0].0;
+                for item in simplex.iter_mut().skip(1) {
+                    for i in 0..4 {
+                        item.0[i] = best[i] + 0.5 * (item.0[i] - best[i]);
+                    }
+                    item.1 = f(&item.0);
+                    evals += 1;
+                }
+            }
+        }
+    }
+    simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let p = to_p(&simplex[0].0);
+    let (cost, n) = lumping_cost(p5, &p, dt);
+    (p, (cost / n as f64).sqrt())
 }
 
 #[cfg(test)]

@@ -1,0 +1,176 @@
+//! Benchmark of the physics core against a python/numpy peer run by the same bench
+//! (`cargo bench --bench model`): cost of torque() (13), invert() and one full plant derivative
+//! evaluation, reported in ns/call and as python/rust ratios. The peer is
+//! `benches/model_peer.py`, run with `$DDCT_PYTHON`, else `.venv/bin/python`, else `python3`;
+//! both sides evaluate the same points and the bench checks that their values agree.
+
+use ddct::model::clutch;
+use ddct::model::driveline::{self, GearShaft};
+use ddct::model::powertrain::{Inputs, Powertrain, State};
+use ddct::model::thermal::Thermal5State;
+use ddct::model::Params;
+use std::hint::black_box;
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+/// Best-of-5 mean time per call (ns).
+fn time_ns(n: usize, mut f: impl FnMut()) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t0 = Instant::now();
+        for _ in 0..n {
+            f();
+        }
+        best = best.min(t0.elapsed().as_nanos() as f64 / n as f64);
+    }
+    best
+}
+
+fn peer(root: &Path) -> Option<serde_json::Value> {
+    let script = root.join("benches/model_peer.py");
+    let venv = root.join(".venv/bin/python");
+    let python = std::env::var("DDCT_PYTHON").ok().unwrap_or_else(|| {
+        if venv.exists() {
+            venv.display().to_string()
+        } else {
+            "python3".into()
+        }
+    });
+    let out = Command::new(&python).arg(&script).arg("20000").output();
+    match out {
+        Ok(o) if o.status.success() => serde_json::from_slice(&o.stdout).ok(),
+        Ok(o) => {
+            eprintln!(
+                "python peer failed ({python}): {}",
+                String::from_utf8_lossy(&o.stderr)
+                    .lines()
+                    .last()
+                    .unwrap_or("")
+            );
+            None
+        }
+        Err(e) => {
+            eprintln!("python peer not runnable ({python}): {e}");
+            None
+        }
+    }
+}
+
+fn main() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let p = Params::load(root.join("config/params.toml")).expect("config/params.toml");
+    let c = p.clutch;
+
+    let torque_ns = time_ns(2_000_000, || {
+        black_box(clutch::torque(
+            &c,
+            black_box(5.5),
+            black_box(37.0),
+            black_box(140.0),
+        ));
+    });
+    let inverse_ns = time_ns(2_000_000, || {
+        black_box(clutch::invert(&c, black_box(120.0), black_box(37.0), black_box(140.0)).ok());
+    });
+
+    let pt = Powertrain::new(p);
+    let k1 = driveline::overall_ratio(&p.driveline, 1).unwrap();
+    let mut s = State::at_rest(0.0, 25.0);
+    s.w_f = 250.0;
+    s.w_c1 = 250.0;
+    s.w_c2 = 120.0;
+    s.w_out = 250.0 / k1;
+    s.x1_mm = 6.5;
+    s.x2_mm = 4.6;
+    s.engine_torque_nm = 80.0;
+    s.lock1 = true;
+    s.gear_odd = GearShaft::engaged(1);
+    s.thermal = Thermal5State {
+        pp1: 90.0,
+        pp2: 80.0,
+        c1: 120.0,
+        c2: 110.0,
+        cd: 95.0,
+    };
+    let u = Inputs {
+        x1_ref_mm: 6.5,
+        x2_ref_mm: 4.7,
+        gear_odd_req: 1,
+        pedal: 0.4,
+        grade: 0.05,
+        theta_h_c: 40.0,
+        ..Default::default()
+    };
+    let derivative_ns = time_ns(500_000, || {
+        black_box(pt.derivative(black_box(&s), black_box(&u)));
+    });
+    let step_ns = time_ns(100_000, || {
+        let mut x = s;
+        black_box(pt.step(&mut x, black_box(&u), 1e-3));
+    });
+    // Per-element cost over many random points (numpy's vectorised best case).
+    let m = 200_000;
+    let pts: Vec<(f64, f64, f64)> = (0..m)
+        .map(|i| {
+            let a = (i as f64 * 0.618_033_988_7).fract();
+            let b = (i as f64 * 0.414_213_562_3).fract();
+            let d = (i as f64 * 0.732_050_807_5).fract();
+            (3.0 + 4.2 * a, -200.0 + 400.0 * b, 20.0 + 230.0 * d)
+        })
+        .collect();
+    let torque_vec_ns = time_ns(3, || {
+        let mut acc = 0.0;
+        for &(x, w, th) in &pts {
+            acc += clutch::torque(&c, x, w, th);
+        }
+        black_box(acc);
+    }) / m as f64;
+
+    let o = pt.outputs(&s, &u);
+    println!("ddct model bench (release build; best of 5)");
+    println!(
+        "{:<34} {:>12} {:>12} {:>10}",
+        "function", "rust ns", "python ns", "py/rust"
+    );
+    let rows = [
+        ("torque() (13)", torque_ns, "torque_ns"),
+        ("invert() of (13)", inverse_ns, "inverse_ns"),
+        (
+            "plant derivative (full powertrain)",
+            derivative_ns,
+            "derivative_ns",
+        ),
+        (
+            "torque per element, vectorised",
+            torque_vec_ns,
+            "torque_vec_ns",
+        ),
+    ];
+    let py = peer(root);
+    for (name, rust, key) in rows {
+        match py.as_ref().and_then(|v| v[key].as_f64()) {
+            Some(pyns) => println!("{name:<34} {rust:>12.1} {pyns:>12.1} {:>10.1}", pyns / rust),
+            None => println!("{name:<34} {rust:>12.1} {:>12} {:>10}", "n/a", "n/a"),
+        }
+    }
+    println!(
+        "{:<34} {step_ns:>12.1}",
+        "powertrain step (RK4 1 ms + events)"
+    );
+    if let Some(v) = &py {
+        let chk = &v["check"];
+        let t_rs = clutch::torque(&c, 4.8, 50.0, 240.0);
+        let x_rs = clutch::invert(&c, 120.0, 37.0, 140.0).unwrap().x_to_mm;
+        let agree =
+            |a: f64, b: Option<f64>| b.is_some_and(|b| (a - b).abs() <= 1e-6 * a.abs().max(1.0));
+        println!(
+            "peer agreement: torque {} inverse {} dω_f/dt {} T_fc1 {} (vectorised = scalar: {})",
+            agree(t_rs, chk["torque_4.8_50_240"].as_f64()),
+            agree(x_rs, chk["inverse_120_37_140"].as_f64()),
+            agree(o.acc[0], chk["derivative_w_f"].as_f64()),
+            agree(o.t_fc1_nm, chk["derivative_t_fc1"].as_f64()),
+            chk["vec_matches_scalar"]
+        );
+    }
+}

@@ -1,0 +1,477 @@
+//! The plant daemon loop: the pure [`Plant`] core on a [`Bus`], in real time or faster.
+//!
+//! - [`Pacing::RealTime`]: one plant cycle (10 ms of simulated time) per `10 ms / speed` of wall
+//!   time, on absolute deadlines (`Periodic`, no drift); late wake-ups are counted as deadline
+//!   misses, cycles whose work did not finish before the next deadline as overruns, and skipped
+//!   cycles are integrated (the core catches up to the simulated time of the deadline) but their
+//!   frames are sent late rather than dropped. Received frames are applied at their (scaled)
+//!   receive time; frames a fault delays are sent at their due time.
+//! - [`Pacing::Virtual`]: as fast as possible in simulated time (the in-process bus's
+//!   `ManualClock`, if given, follows the simulated time), yielding to other tasks every cycle.
+//!
+//! Time mapping: simulated time = (wall time − start) · speed. The candump tap (`log`) records
+//! every frame sent and received with timestamps on the same scale (start + simulated time), so a
+//! log of a run at `speed` 10 has the time axis of the simulation. The loop ends when `shutdown`
+//! resolves (SIGINT/SIGTERM in the CLI) or after `duration` of simulated time; the log is flushed
+//! either way.
+
+use super::{wall_clock, LogTap, LoopStats, Periodic};
+use crate::can::{Bus, BusError, ManualClock, Received};
+use crate::model::effects::EffectSet;
+use crate::plant::core::CYCLE;
+use crate::plant::{OutFrame, Plant, PlantConfig, PlantStats};
+use serde::Serialize;
+use std::future::Future;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::time::Instant;
+
+/// How simulated time relates to wall time.
+#[derive(Debug, Clone)]
+pub enum Pacing {
+    /// Simulated time runs `speed` times faster than wall time (1: real time).
+    RealTime { speed: f64 },
+    /// As fast as possible; `clock` (the in-process bus's) is set to start + simulated time.
+    Virtual { clock: Option<Arc<ManualClock>> },
+}
+
+/// Daemon configuration.
+#[derive(Debug, Clone)]
+pub struct PlantDaemonConfig {
+    pub plant: PlantConfig,
+    pub pacing: Pacing,
+    /// Stop after this much simulated time.
+    pub duration: Option<Duration>,
+    /// candump -l tap of every frame sent and received.
+    pub log: Option<PathBuf>,
+}
+
+/// Errors that stop the daemon.
+#[derive(Debug, thiserror::Error)]
+pub enum PlantDaemonError {
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    #[error("log {path}: {source}")]
+    Log {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("speed {speed} must be a finite number > 0")]
+    Speed { speed: f64 },
+    #[error("{failures} consecutive send failures on {iface}: {last}")]
+    Send {
+        iface: String,
+        failures: u64,
+        last: String,
+    },
+}
+
+/// What the daemon did, reported at exit.
+#[derive(Debug, Clone, Serialize)]
+pub struct PlantReport {
+    pub iface: String,
+    pub mode: &'static str,
+    /// "real_time" or "virtual".
+    pub pacing: &'static str,
+    pub speed: Option<f64>,
+    /// "duration" or "shutdown".
+    pub stopped_by: &'static str,
+    pub sim_time_s: f64,
+    pub wall_time_s: f64,
+    pub cycles: u64,
+    pub deadline_misses: u64,
+    pub overruns: u64,
+    pub lateness_p50_us: Option<f64>,
+    pub lateness_p99_us: Option<f64>,
+    pub lateness_max_us: Option<f64>,
+    pub frames_sent: u64,
+    pub send_errors: u64,
+    pub frames_received: u64,
+    pub receive_errors: u64,
+    pub log: Option<PathBuf>,
+    pub log_frames: Option<u64>,
+    pub effects: EffectSet,
+    pub faults: usize,
+    pub plant: PlantStats,
+}
+
+impl PlantReport {
+    /// A human-readable summary (several lines).
+    pub fn summary(&self) -> String {
+        let mut s = format!(
+            "plant on {} ({} mode, {}{}): stopped by {} after {:.3} s simulated in {:.3} s\n",
+            self.iface,
+            self.mode,
+            self.pacing,
+            self.speed.map_or(String::new(), |k| format!(" x{k}")),
+            self.stopped_by,
+            self.sim_time_s,
+            self.wall_time_s
+        );
+        s.push_str(&format!(
+            "cycles {} deadline_misses {} overruns {} lateness p50 {} us p99 {} us max {} us\n",
+            self.cycles,
+            self.deadline_misses,
+            self.overruns,
+            fmt_opt(self.lateness_p50_us),
+            fmt_opt(self.lateness_p99_us),
+            fmt_opt(self.lateness_max_us)
+        ));
+        s.push_str(&format!(
+            "frames sent {} (send errors {}), received {} (receive errors {}), rx accepted {:?}, rx errors {:?}, input timeouts {:?}\n",
+            self.frames_sent,
+            self.send_errors,
+            self.frames_received,
+            self.receive_errors,
+            self.plant.rx_accepted,
+            self.plant.rx_errors,
+            self.plant.input_timeouts
+        ));
+        if !self.plant.faults_applied.is_empty() {
+            s.push_str(&format!("faults applied {:?}\n", self.plant.faults_applied));
+        }
+        if !self.effects.is_nominal() {
+            s.push_str(&format!("effects {:?}\n", self.effects.to_map()));
+        }
+        if let (Some(p), Some(n)) = (&self.log, self.log_frames) {
+            s.push_str(&format!("log {} ({n} frames)\n", p.display()));
+        }
+        s
+    }
+}
+
+fn fmt_opt(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.0}"))
+}
+
+struct Shell<B: Bus> {
+    bus: B,
+    plant: Plant,
+    tap: Option<LogTap>,
+    log_path: Option<PathBuf>,
+    start_wall: Duration,
+    speed: f64,
+    sent: u64,
+    send_errors: u64,
+    consecutive_send_errors: u64,
+    received: u64,
+    receive_errors: u64,
+    pending: Vec<Received>,
+}
+
+impl<B: Bus> Shell<B> {
+    /// Simulated time of a wall timestamp (since the Unix epoch).
+    fn to_sim(&self, wall: Duration) -> Duration {
+        wall.saturating_sub(self.start_wall).mul_f64(self.speed)
+    }
+
+    /// Log timestamp (start + simulated time) of a wall timestamp.
+    fn log_time(&self, wall: Duration) -> Duration {
+        self.start_wall + self.to_sim(wall)
+    }
+
+    fn tap_err(&self, source: std::io::Error) -> PlantDaemonError {
+        PlantDaemonError::Log {
+            path: self.log_path.clone().unwrap_or_default(),
+            source,
+        }
+    }
+
+    fn on_receive(
+        &mut self,
+        rx: Received,
+        sim_time: Duration,
+        log_time: Duration,
+    ) -> Result<(), PlantDaemonError> {
+        self.received += 1;
+        if let Some(tap) = self.tap.as_mut() {
+            let r = Received {
+                frame: rx.frame,
+                timestamp: log_time,
+            };
+            if let Err(e) = tap.received(&r) {
+                return Err(self.tap_err(e));
+            }
+        }
+        self.pending.push(Received {
+            frame: rx.frame,
+            timestamp: sim_time,
+        });
+        Ok(())
+    }
+
+    async fn send(&mut self, f: &OutFrame, log_time: Duration) -> Result<(), PlantDaemonError> {
+        match self.bus.send(f.frame).await {
+            Ok(()) => {
+                self.sent += 1;
+                self.consecutive_send_errors = 0;
+                if let Some(tap) = self.tap.as_mut() {
+                    if let Err(e) = tap.sent(f.frame, log_time) {
+                        return Err(self.tap_err(e));
+                    }
+                }
+                Ok(())
+            }
+            Err(e) => {
+                self.send_errors += 1;
+                self.consecutive_send_errors += 1;
+                tracing::warn!("send {}: {e}", f.message);
+                if self.consecutive_send_errors >= 1000 {
+                    return Err(PlantDaemonError::Send {
+                        iface: self.bus.iface().to_string(),
+                        failures: self.consecutive_send_errors,
+                        last: e.to_string(),
+                    });
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn recv_error(&mut self, e: BusError) -> Result<(), PlantDaemonError> {
+        match e {
+            BusError::ErrorFrame { .. } | BusError::Unsupported { .. } => {
+                self.receive_errors += 1;
+                tracing::debug!("receive: {e}");
+                Ok(())
+            }
+            other => Err(other.into()),
+        }
+    }
+}
+
+/// Runs the plant on `bus` until `shutdown` resolves or `config.duration` of simulated time has
+/// passed.
+pub async fn run<B: Bus, S: Future<Output = ()>>(
+    bus: B,
+    shutdown: S,
+    config: PlantDaemonConfig,
+) -> Result<PlantReport, PlantDaemonError> {
+    let speed = match &config.pacing {
+        Pacing::RealTime { speed } => {
+            if !(speed.is_finite() && *speed > 0.0) {
+                return Err(PlantDaemonError::Speed { speed: *speed });
+            }
+            *speed
+        }
+        Pacing::Virtual { .. } => 1.0,
+    };
+    let iface = bus.iface().to_string();
+    let tap = match &config.log {
+        Some(p) => Some(
+            LogTap::create(p, &iface).map_err(|source| PlantDaemonError::Log {
+                path: p.clone(),
+                source,
+            })?,
+        ),
+        None => None,
+    };
+    let mode = config.plant.mode.as_str();
+    let effects = config.plant.effects;
+    let faults = config.plant.faults.len();
+    let mut shell = Shell {
+        bus,
+        plant: Plant::new(config.plant),
+        tap,
+        log_path: config.log.clone(),
+        start_wall: wall_clock(),
+        speed,
+        sent: 0,
+        send_errors: 0,
+        consecutive_send_errors: 0,
+        received: 0,
+        receive_errors: 0,
+        pending: Vec::new(),
+    };
+    let wall0 = std::time::Instant::now();
+    let mut stats = LoopStats::default();
+    tokio::pin!(shutdown);
+    let stopped_by = match &config.pacing {
+        Pacing::RealTime { .. } => {
+            run_real_time(&mut shell, &mut shutdown, config.duration, &mut stats).await?
+        }
+        Pacing::Virtual { clock } => {
+            run_virtual(
+                &mut shell,
+                &mut shutdown,
+                config.duration,
+                clock.clone(),
+                &mut stats,
+            )
+            .await?
+        }
+    };
+    let log_frames = match shell.tap.as_mut() {
+        Some(tap) => {
+            tap.flush().map_err(|source| PlantDaemonError::Log {
+                path: config.log.clone().unwrap_or_default(),
+                source,
+            })?;
+            Some(tap.frames())
+        }
+        None => None,
+    };
+    let (pacing, speed_out) = match config.pacing {
+        Pacing::RealTime { speed } => ("real_time", Some(speed)),
+        Pacing::Virtual { .. } => ("virtual", None),
+    };
+    Ok(PlantReport {
+        iface,
+        mode,
+        pacing,
+        speed: speed_out,
+        stopped_by,
+        sim_time_s: shell.plant.time().as_secs_f64(),
+        wall_time_s: wall0.elapsed().as_secs_f64(),
+        cycles: stats.cycles,
+        deadline_misses: stats.deadline_misses,
+        overruns: stats.overruns,
+        lateness_p50_us: stats.lateness_percentile_us(0.5),
+        lateness_p99_us: stats.lateness_percentile_us(0.99),
+        lateness_max_us: stats.lateness_percentile_us(1.0),
+        frames_sent: shell.sent,
+        send_errors: shell.send_errors,
+        frames_received: shell.received,
+        receive_errors: shell.receive_errors,
+        log: config.log,
+        log_frames,
+        effects,
+        faults,
+        plant: shell.plant.stats().clone(),
+    })
+}
+
+async fn run_real_time<B: Bus, S: Future<Output = ()>>(
+    shell: &mut Shell<B>,
+    shutdown: &mut std::pin::Pin<&mut S>,
+    duration: Option<Duration>,
+    stats: &mut LoopStats,
+) -> Result<&'static str, PlantDaemonError> {
+    let period = CYCLE.div_f64(shell.speed);
+    let start = Instant::now();
+    shell.start_wall = wall_clock();
+    let mut timer = Periodic::new(start, period);
+    // Frames a fault delays past their cycle, sorted by due time.
+    let mut later: Vec<OutFrame> = Vec::new();
+    let speed = shell.speed;
+    let wall_of = move |sim: Duration| start + sim.div_f64(speed);
+    loop {
+        let next_tx = later.first().map(|f| wall_of(f.due));
+        tokio::select! {
+            biased;
+            _ = shutdown.as_mut() => return Ok("shutdown"),
+            _ = tokio::time::sleep_until(timer.next_deadline()) => {
+                let tick = timer.fire(Instant::now());
+                stats.record(&tick, period);
+                let sim_now = CYCLE * u32::try_from(tick.cycle).unwrap_or(u32::MAX);
+                if duration.is_some_and(|d| sim_now > d) {
+                    return Ok("duration");
+                }
+                // Frames that are already waiting (received before this deadline).
+                loop {
+                    match shell.bus.try_recv() {
+                        Ok(Some(rx)) => {
+                            let (st, lt) = (shell.to_sim(rx.timestamp), shell.log_time(rx.timestamp));
+                            shell.on_receive(rx, st, lt)?;
+                        }
+                        Ok(None) => break,
+                        Err(e) => { shell.recv_error(e)?; break; }
+                    }
+                }
+                let rx = std::mem::take(&mut shell.pending);
+                let out = shell.plant.step(sim_now, &rx);
+                for f in out.frames {
+                    if f.due <= sim_now {
+                        let lt = shell.log_time(wall_clock());
+                        shell.send(&f, lt).await?;
+                    } else {
+                        let pos = later.partition_point(|g| g.due <= f.due);
+                        later.insert(pos, f);
+                    }
+                }
+                if Instant::now() >= timer.next_deadline() {
+                    stats.overruns += 1;
+                }
+                if tick.cycle % 100 == 0 {
+                    if let Some(tap) = shell.tap.as_mut() {
+                        if let Err(e) = tap.flush() {
+                            return Err(shell.tap_err(e));
+                        }
+                    }
+                }
+            }
+            _ = async { if let Some(w) = next_tx { tokio::time::sleep_until(w).await } }, if next_tx.is_some() => {
+                let now_sim = Instant::now().saturating_duration_since(start).mul_f64(speed);
+                while later.first().is_some_and(|f| f.due <= now_sim) {
+                    let f = later.remove(0);
+                    let lt = shell.log_time(wall_clock());
+                    shell.send(&f, lt).await?;
+                }
+            }
+            rx = shell.bus.recv() => {
+                match rx {
+                    Ok(rx) => {
+                        let (st, lt) = (shell.to_sim(rx.timestamp), shell.log_time(rx.timestamp));
+                        shell.on_receive(rx, st, lt)?;
+                    }
+                    Err(e) => shell.recv_error(e)?,
+                }
+            }
+        }
+    }
+}
+
+async fn run_virtual<B: Bus, S: Future<Output = ()>>(
+    shell: &mut Shell<B>,
+    shutdown: &mut std::pin::Pin<&mut S>,
+    duration: Option<Duration>,
+    clock: Option<Arc<ManualClock>>,
+    stats: &mut LoopStats,
+) -> Result<&'static str, PlantDaemonError> {
+    use crate::can::Clock;
+    let base = clock.as_ref().map_or_else(wall_clock, |c| c.now());
+    shell.start_wall = base;
+    let set_clock = |sim: Duration| {
+        if let Some(c) = &clock {
+            c.set(base + sim);
+        }
+    };
+    let mut cycle: u64 = 0;
+    loop {
+        let sim_now = CYCLE * u32::try_from(cycle).unwrap_or(u32::MAX);
+        if duration.is_some_and(|d| sim_now > d) {
+            return Ok("duration");
+        }
+        set_clock(sim_now);
+        loop {
+            match shell.bus.try_recv() {
+                Ok(Some(rx)) => {
+                    // Frames of other nodes are stamped by the shared clock: base + sim time.
+                    let st = rx.timestamp.saturating_sub(base).min(sim_now);
+                    shell.on_receive(rx, st, base + st)?;
+                }
+                Ok(None) => break,
+                Err(e) => {
+                    shell.recv_error(e)?;
+                    break;
+                }
+            }
+        }
+        let rx = std::mem::take(&mut shell.pending);
+        let out = shell.plant.step(sim_now, &rx);
+        stats.cycles += 1;
+        for f in out.frames {
+            let due = f.due.max(sim_now);
+            set_clock(due);
+            shell.send(&f, base + due).await?;
+        }
+        cycle += 1;
+        tokio::select! {
+            biased;
+            _ = shutdown.as_mut() => return Ok("shutdown"),
+            _ = tokio::task::yield_now() => {}
+        }
+    }
+}

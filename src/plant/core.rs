@@ -1,0 +1,886 @@
+//! The plant core: [`Plant::step`] integrates the powertrain at its 1 ms step up to `now` and
+//! returns the frames due, with the received frames applied at their timestamps.
+//!
+//! Per 1 ms step, in order: received frames with a timestamp up to the step's start are checked
+//! (DLC, CRC, alive counter — a skipped counter is accepted, a repeated one is not — and the
+//! DBC ranges) and latched; the commands of this instant are formed (vehicle: TCU_ClutchCmd,
+//! TCU_EngineReq, TCU_GearCmd and the driver from DRV_Pedal or the built-in scenario; rig: the
+//! x_to profile or TCU_ClutchCmd, the dyno speed, fixed gears and the brake); an input silent for
+//! `inputs.timeout_cycles` cycles falls to its safe default (clutch requests 0 mm, engine request
+//! inactive, pedal 0, brake off; gear requests held); the clutch requests pass the dead-time line
+//! (`actuator_dead_time`); one `Powertrain::step` with the effect hooks; the effect states and the
+//! housing air advance. Every 10 ms the sensors are sampled (seeded noise, then the contract's
+//! saturation and quantisation by the generated encoders), the messages are encoded, E2E applied
+//! and the configured faults applied.
+//!
+//! Rig mode (paper Sect. 3.3): the dyno is an ideal speed source — the flywheel speed is set to
+//! the dyno speed at the start of each step and the engine torque state to the torque the
+//! clutches take (ENG_Status then reports the dyno torque); the output is held by the wheel
+//! brake with both rig gears engaged. A built-in x_to profile is sampled at the 10 ms cycle and
+//! held, as a TCU commanding over the bus would.
+
+use super::config::{Mode, PlantConfig};
+use super::faults::{Fault, FaultKind};
+use super::hooks::EffectHooks;
+use super::noise::gauss;
+use super::profile::DriverSample;
+use crate::can::e2e::{protect, E2eChecker, E2eConfig, E2eError, CRC_BYTE};
+use crate::can::messages::{
+    ids, message_def, BenchTemps, BenchTorque, BenchVehicle, DctActuators, DctSensors, DrvPedal,
+    EngStatus, GearEvenAct, GearLever, GearOddAct, SimTruth, TcuClutchCmd, TcuEngineReq,
+    TcuGearCmd,
+};
+use crate::can::{CanFrame, Received};
+use crate::model::driveline::{self, GearShaft};
+use crate::model::effects::{self, DelayLine};
+use crate::model::engine::RPM;
+use crate::model::powertrain::{Inputs, Outputs, Powertrain, State};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+/// The contract's cycle of every plant message.
+pub const CYCLE: Duration = Duration::from_millis(10);
+
+/// A frame to send at `due` (time since the start).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutFrame {
+    pub due: Duration,
+    pub frame: CanFrame,
+    pub message: &'static str,
+    /// The fault applied to this frame, if any (the last one when several).
+    pub fault: Option<FaultKind>,
+}
+
+/// The typed messages of one cycle as the sensors produced them (before faults), with the alive
+/// counter and CRC the clean frame carries.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CycleMessages {
+    pub t: Duration,
+    pub eng_status: EngStatus,
+    pub dct_sensors: DctSensors,
+    pub dct_actuators: DctActuators,
+    pub bench_torque: BenchTorque,
+    pub bench_temps: BenchTemps,
+    pub bench_vehicle: BenchVehicle,
+    pub sim_truth: SimTruth,
+    /// Only when the plant plays the driver.
+    pub drv_pedal: Option<DrvPedal>,
+}
+
+/// The simulation truth at the end of a [`Plant::step`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Truth {
+    pub t_s: f64,
+    pub state: State,
+    pub outputs: Outputs,
+    pub theta_h_c: f64,
+    /// Clutch position requests before the dead time (mm).
+    pub x_ref_mm: [f64; 2],
+    /// Requests after the dead time, what the actuators follow (mm).
+    pub x_ref_applied_mm: [f64; 2],
+    /// Throwout-bearing positions behind the backlash (mm).
+    pub x_bearing_mm: [f64; 2],
+    pub theta_surface_c: [f64; 2],
+    /// Engine torque the ECU reports (its map estimate; the dyno torque in rig mode) (N·m).
+    pub engine_torque_reported_nm: f64,
+    pub pedal: f64,
+    pub brake: f64,
+    pub grade: f64,
+}
+
+/// What one [`Plant::step`] produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    /// Frames due before the next cycle, sorted by `due`; send each at its `due`.
+    pub frames: Vec<OutFrame>,
+    /// Typed messages of the cycles sampled during this step.
+    pub cycles: Vec<CycleMessages>,
+    pub truth: Truth,
+}
+
+/// Counters of the plant core.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct PlantStats {
+    /// Integration steps.
+    pub steps: u64,
+    /// 10 ms cycles sampled.
+    pub cycles: u64,
+    /// Frames handed out for sending.
+    pub frames_out: u64,
+    /// Frames received (all ids).
+    pub rx_frames: u64,
+    /// Accepted frames per message.
+    pub rx_accepted: BTreeMap<String, u64>,
+    /// Rejected or suspicious frames per `message.kind` (bad_crc, counter_repeated,
+    /// counter_skipped (accepted), wrong_dlc, decode, second_driver).
+    pub rx_errors: BTreeMap<String, u64>,
+    /// Frames of ids the plant does not read.
+    pub rx_ignored: u64,
+    /// Onsets of input timeouts per message.
+    pub input_timeouts: BTreeMap<String, u64>,
+    /// Frames affected per `message.kind` of fault.
+    pub faults_applied: BTreeMap<String, u64>,
+    /// Messages that could not be encoded (never expected: values are saturated first).
+    pub encode_errors: u64,
+    /// Non-finite states met (the state is then reset to the last finite one).
+    pub nonfinite_states: u64,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Latched<T> {
+    msg: Option<T>,
+    at: Duration,
+    fresh: bool,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Latch {
+    clutch: Latched<TcuClutchCmd>,
+    engine: Latched<TcuEngineReq>,
+    gear: Latched<TcuGearCmd>,
+    pedal: Latched<DrvPedal>,
+}
+
+/// Noise channels (fixed numbering: the noise of a channel does not depend on the others).
+mod ch {
+    pub const ENG_SPEED: u32 = 0;
+    pub const ENG_TORQUE: u32 = 1;
+    pub const SHAFT1: u32 = 2;
+    pub const SHAFT2: u32 = 3;
+    pub const OUT: u32 = 4;
+    pub const HOUSING: u32 = 5;
+    pub const POS1: u32 = 6;
+    pub const POS2: u32 = 7;
+    pub const TORQUE1: u32 = 8;
+    pub const TORQUE2: u32 = 9;
+    pub const PP1: u32 = 10;
+    pub const PP2: u32 = 11;
+    pub const CD: u32 = 12;
+    pub const ACCEL: u32 = 13;
+}
+
+/// The simulated transmission (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct Plant {
+    cfg: PlantConfig,
+    pt: Powertrain<EffectHooks>,
+    s: State,
+    last_finite: State,
+    dt: f64,
+    steps: u64,
+    steps_per_cycle: u64,
+    next_cycle: u64,
+    theta_h: f64,
+    delay: [DelayLine; 2],
+    delay_steps: usize,
+    x_ref: [f64; 2],
+    x_ref_applied: [f64; 2],
+    driver: DriverSample,
+    latch: Latch,
+    checker: E2eChecker,
+    sent: Vec<u16>,
+    counters: Vec<u8>,
+    last_counter: Vec<Option<u8>>,
+    fault_hits: Vec<u64>,
+    queue: Vec<OutFrame>,
+    pending_rx: Vec<Received>,
+    last_out: Outputs,
+    rig_speed_radps: f64,
+    stats: PlantStats,
+}
+
+fn sat(def_id: u16, signal: usize, v: f64) -> f64 {
+    let Some(def) = message_def(u32::from(def_id)) else {
+        return 0.0;
+    };
+    let s = &def.signals[signal];
+    let v = if v.is_finite() { v } else { 0.0 };
+    v.clamp(s.min, s.max)
+}
+
+fn finite(s: &State) -> bool {
+    [
+        s.w_f,
+        s.w_c1,
+        s.w_c2,
+        s.w_out,
+        s.x1_mm,
+        s.x2_mm,
+        s.engine_torque_nm,
+    ]
+    .iter()
+    .chain(s.thermal.as_array().iter())
+    .all(|v| v.is_finite())
+}
+
+impl Plant {
+    /// A plant at its initial conditions.
+    pub fn new(cfg: PlantConfig) -> Self {
+        let p = cfg.params;
+        let i = cfg.initial;
+        let rig_rpm = cfg
+            .rig_profile
+            .as_ref()
+            .map_or(cfg.rig.input_speed_rpm, |r| r.input_speed_rpm);
+        let rpm = if cfg.mode == Mode::Rig {
+            rig_rpm
+        } else {
+            i.engine_rpm
+        };
+        let mut s = State::at_rest(rpm, i.temperature_c);
+        s.thermal.pp1 = i.pp1_c.unwrap_or(i.temperature_c);
+        s.thermal.pp2 = i.pp2_c.unwrap_or(i.temperature_c);
+        s.thermal.c1 = i.c1_c.unwrap_or(i.temperature_c);
+        s.thermal.c2 = i.c2_c.unwrap_or(i.temperature_c);
+        s.thermal.cd = i.cd_c.unwrap_or(i.temperature_c);
+        let (g_odd, g_even) = match cfg.mode {
+            Mode::Vehicle => (i.gear_odd, i.gear_even),
+            Mode::Rig => (cfg.rig.gear_odd, cfg.rig.gear_even),
+        };
+        s.gear_odd = GearShaft::engaged(g_odd);
+        s.gear_even = GearShaft::engaged(g_even);
+        if cfg.mode == Mode::Vehicle {
+            s.w_out = i.vehicle_kmh / 3.6 / p.driveline.wheel_radius_m;
+            s.w_c1 = driveline::overall_ratio(&p.driveline, g_odd).map_or(0.0, |k| k * s.w_out);
+            s.w_c2 = driveline::overall_ratio(&p.driveline, g_even).map_or(0.0, |k| k * s.w_out);
+        }
+        let hooks = EffectHooks::new(cfg.effects, &s);
+        let pt = Powertrain::with_hooks(p, hooks);
+        let dt = p.integrator.dt_s;
+        let steps_per_cycle = (CYCLE.as_secs_f64() / dt).round().max(1.0) as u64;
+        let delay_steps = effects::dead_time_steps(&cfg.effects, dt);
+        let sent = cfg.sent_ids();
+        let n = sent.len();
+        let e2e = E2eConfig {
+            timeout_cycles: cfg.inputs.timeout_cycles,
+        };
+        let checker = E2eChecker::for_ids(
+            e2e,
+            Duration::ZERO,
+            [
+                ids::TCU_CLUTCH_CMD,
+                ids::TCU_ENGINE_REQ,
+                ids::TCU_GEAR_CMD,
+                ids::DRV_PEDAL,
+            ],
+        );
+        let last_out = pt.outputs(&s, &Inputs::default());
+        let nf = cfg.faults.len();
+        Plant {
+            theta_h: i.housing_c,
+            rig_speed_radps: rig_rpm * RPM,
+            pt,
+            s,
+            last_finite: s,
+            dt,
+            steps: 0,
+            steps_per_cycle,
+            next_cycle: 0,
+            delay: [DelayLine::new(0.0), DelayLine::new(0.0)],
+            delay_steps,
+            x_ref: [0.0; 2],
+            x_ref_applied: [0.0; 2],
+            driver: DriverSample {
+                pedal: 0.0,
+                brake: 0.0,
+                lever: GearLever::P,
+                grade: 0.0,
+            },
+            latch: Latch::default(),
+            checker,
+            counters: vec![0; n],
+            last_counter: vec![None; n],
+            sent,
+            fault_hits: vec![0; nf],
+            queue: Vec::new(),
+            pending_rx: Vec::new(),
+            last_out,
+            stats: PlantStats::default(),
+            cfg,
+        }
+    }
+
+    pub fn config(&self) -> &PlantConfig {
+        &self.cfg
+    }
+
+    pub fn state(&self) -> &State {
+        &self.s
+    }
+
+    pub fn stats(&self) -> &PlantStats {
+        &self.stats
+    }
+
+    /// Simulated time integrated so far.
+    pub fn time(&self) -> Duration {
+        Duration::from_secs_f64(self.steps as f64 * self.dt)
+    }
+
+    /// Messages this plant sends, in sending order within a cycle.
+    pub fn sent_ids(&self) -> &[u16] {
+        &self.sent
+    }
+
+    /// The effect hooks (effect set and its states).
+    pub fn hooks(&self) -> &EffectHooks {
+        &self.pt.hooks
+    }
+
+    /// Integrates up to `now` (time since the start; not before the current time) applying the
+    /// frames `rx` at their timestamps (times since the start, like `now`), and returns the frames
+    /// due before the next cycle.
+    pub fn step(&mut self, now: Duration, rx: &[Received]) -> Output {
+        if !rx.is_empty() {
+            self.pending_rx.extend_from_slice(rx);
+            self.pending_rx.sort_by_key(|r| r.timestamp);
+        }
+        let target = (now.as_secs_f64() / self.dt + 1e-6).floor() as u64;
+        let mut cycles = Vec::new();
+        loop {
+            if self.steps == self.next_cycle * self.steps_per_cycle {
+                let t = self.time();
+                self.apply_rx_until(t);
+                cycles.push(self.emit_cycle(t));
+                self.next_cycle += 1;
+            }
+            if self.steps >= target {
+                break;
+            }
+            self.substep();
+        }
+        let horizon = now + CYCLE;
+        self.queue.sort_by_key(|f| f.due);
+        let n_due = self.queue.partition_point(|f| f.due < horizon);
+        let frames: Vec<OutFrame> = self.queue.drain(..n_due).collect();
+        self.stats.frames_out += frames.len() as u64;
+        Output {
+            frames,
+            cycles,
+            truth: self.truth(),
+        }
+    }
+
+    /// The truth at the current time.
+    pub fn truth(&self) -> Truth {
+        Truth {
+            t_s: self.steps as f64 * self.dt,
+            state: self.s,
+            outputs: self.last_out,
+            theta_h_c: self.theta_h,
+            x_ref_mm: self.x_ref,
+            x_ref_applied_mm: self.x_ref_applied,
+            x_bearing_mm: [
+                self.pt.hooks.bearing(0, self.s.x1_mm),
+                self.pt.hooks.bearing(1, self.s.x2_mm),
+            ],
+            theta_surface_c: if self
+                .cfg
+                .effects
+                .is_active(effects::EffectId::SurfaceTemperatureFriction)
+            {
+                self.pt.hooks.theta_surface_c
+            } else {
+                [self.s.thermal.c1, self.s.thermal.c2]
+            },
+            engine_torque_reported_nm: self.engine_reported(),
+            pedal: self.driver.pedal,
+            brake: self.driver.brake,
+            grade: self.driver.grade,
+        }
+    }
+
+    fn engine_reported(&self) -> f64 {
+        match self.cfg.mode {
+            Mode::Rig => self.s.engine_torque_nm,
+            Mode::Vehicle => {
+                effects::engine_map_estimate(&self.cfg.effects, self.s.engine_torque_nm)
+            }
+        }
+    }
+
+    fn apply_rx_until(&mut self, t: Duration) {
+        let n = self.pending_rx.partition_point(|r| r.timestamp <= t);
+        if n == 0 {
+            return;
+        }
+        let frames: Vec<Received> = self.pending_rx.drain(..n).collect();
+        for r in &frames {
+            self.receive(r);
+        }
+    }
+
+    fn count(map: &mut BTreeMap<String, u64>, key: String) {
+        *map.entry(key).or_default() += 1;
+    }
+
+    /// Checks and latches one received frame.
+    fn receive(&mut self, r: &Received) {
+        self.stats.rx_frames += 1;
+        let Some(id) = r.frame.standard_id() else {
+            self.stats.rx_ignored += 1;
+            return;
+        };
+        let plays_driver = self.cfg.scenario.is_some();
+        let reads = match self.cfg.mode {
+            Mode::Vehicle => {
+                matches!(
+                    id,
+                    ids::TCU_CLUTCH_CMD | ids::TCU_ENGINE_REQ | ids::TCU_GEAR_CMD
+                ) || (id == ids::DRV_PEDAL && !plays_driver)
+            }
+            Mode::Rig => id == ids::TCU_CLUTCH_CMD && self.cfg.rig_profile.is_none(),
+        };
+        let name = message_def(u32::from(id)).map_or("?", |d| d.name);
+        if !reads {
+            if id == ids::DRV_PEDAL && plays_driver && self.cfg.mode == Mode::Vehicle {
+                Self::count(&mut self.stats.rx_errors, format!("{name}.second_driver"));
+            } else {
+                self.stats.rx_ignored += 1;
+            }
+            return;
+        }
+        let data = r.frame.bytes();
+        match self.checker.check(r.timestamp, u32::from(id), data) {
+            Ok(()) => {}
+            Err(e @ E2eError::CounterSkipped { .. }) => {
+                Self::count(&mut self.stats.rx_errors, format!("{name}.{}", e.kind()));
+            }
+            Err(e) => {
+                Self::count(&mut self.stats.rx_errors, format!("{name}.{}", e.kind()));
+                return;
+            }
+        }
+        let at = r.timestamp;
+        let ok = match id {
+            ids::TCU_CLUTCH_CMD => TcuClutchCmd::decode(data)
+                .map(|m| {
+                    self.latch.clutch = Latched {
+                        msg: Some(m),
+                        at,
+                        fresh: true,
+                    }
+                })
+                .is_ok(),
+            ids::TCU_ENGINE_REQ => TcuEngineReq::decode(data)
+                .map(|m| {
+                    self.latch.engine = Latched {
+                        msg: Some(m),
+                        at,
+                        fresh: true,
+                    }
+                })
+                .is_ok(),
+            ids::TCU_GEAR_CMD => TcuGearCmd::decode(data)
+                .map(|m| {
+                    self.latch.gear = Latched {
+                        msg: Some(m),
+                        at,
+                        fresh: true,
+                    }
+                })
+                .is_ok(),
+            ids::DRV_PEDAL => DrvPedal::decode(data)
+                .map(|m| {
+                    self.latch.pedal = Latched {
+                        msg: Some(m),
+                        at,
+                        fresh: true,
+                    }
+                })
+                .is_ok(),
+            _ => false,
+        };
+        if ok {
+            Self::count(&mut self.stats.rx_accepted, name.to_string());
+        } else {
+            Self::count(&mut self.stats.rx_errors, format!("{name}.decode"));
+        }
+    }
+
+    /// Freshness of a latched input at `t` (counting the onset of a timeout).
+    fn fresh<T: Copy>(
+        l: &mut Latched<T>,
+        t: Duration,
+        limit: Duration,
+        name: &str,
+        stats: &mut PlantStats,
+    ) -> Option<T> {
+        let m = l.msg?;
+        let fresh = t.saturating_sub(l.at) < limit;
+        if l.fresh && !fresh {
+            Self::count(&mut stats.input_timeouts, name.to_string());
+        }
+        l.fresh = fresh;
+        fresh.then_some(m)
+    }
+
+    /// Powertrain inputs at time `t` (before the dead time) and the requested positions.
+    fn commands(&mut self, t: Duration) -> Inputs {
+        let limit = CYCLE * self.cfg.inputs.timeout_cycles;
+        let stats = &mut self.stats;
+        let mut u = Inputs {
+            theta_h_c: self.theta_h,
+            ..Inputs::default()
+        };
+        match self.cfg.mode {
+            Mode::Rig => {
+                self.x_ref = match &self.cfg.rig_profile {
+                    Some(prof) => {
+                        let tc = (t.as_nanos() / CYCLE.as_nanos()) as f64 * CYCLE.as_secs_f64();
+                        prof.x_ref(tc)
+                    }
+                    None => Self::fresh(&mut self.latch.clutch, t, limit, "TCU_ClutchCmd", stats)
+                        .map_or([0.0; 2], |m| [m.clutch1_pos_req, m.clutch2_pos_req]),
+                };
+                u.gear_odd_req = self.cfg.rig.gear_odd;
+                u.gear_even_req = self.cfg.rig.gear_even;
+                u.brake = self.cfg.rig.brake;
+                self.driver = DriverSample {
+                    pedal: 0.0,
+                    brake: self.cfg.rig.brake,
+                    lever: GearLever::N,
+                    grade: 0.0,
+                };
+            }
+            Mode::Vehicle => {
+                self.x_ref = Self::fresh(&mut self.latch.clutch, t, limit, "TCU_ClutchCmd", stats)
+                    .map_or([0.0; 2], |m| [m.clutch1_pos_req, m.clutch2_pos_req]);
+                u.engine_torque_request_nm =
+                    Self::fresh(&mut self.latch.engine, t, limit, "TCU_EngineReq", stats)
+                        .filter(|m| m.eng_torque_req_active)
+                        .map(|m| m.eng_torque_req);
+                // Gear requests are held after a timeout (a gear actuator keeps its position).
+                Self::fresh(&mut self.latch.gear, t, limit, "TCU_GearCmd", stats);
+                let (go, ge) = match self.latch.gear.msg {
+                    Some(m) => (m.gear_odd_req as u8, m.gear_even_req as u8),
+                    None => (self.cfg.initial.gear_odd, self.cfg.initial.gear_even),
+                };
+                u.gear_odd_req = go;
+                u.gear_even_req = ge;
+                self.driver = match &self.cfg.scenario {
+                    Some(sc) => sc.sample(t.as_secs_f64()),
+                    None => {
+                        let brake_frac = self.cfg.inputs.brake_switch_fraction;
+                        match Self::fresh(&mut self.latch.pedal, t, limit, "DRV_Pedal", stats) {
+                            Some(m) => DriverSample {
+                                pedal: m.accel_pedal / 100.0,
+                                brake: if m.brake_switch { brake_frac } else { 0.0 },
+                                lever: m.gear_lever,
+                                grade: 0.0,
+                            },
+                            None => DriverSample {
+                                pedal: 0.0,
+                                brake: 0.0,
+                                lever: self.driver.lever,
+                                grade: 0.0,
+                            },
+                        }
+                    }
+                };
+                u.pedal = self.driver.pedal;
+                u.brake = self.driver.brake;
+                u.grade = self.driver.grade;
+            }
+        }
+        u
+    }
+
+    /// One integration step.
+    fn substep(&mut self) {
+        let t = self.time();
+        self.apply_rx_until(t);
+        let mut u = self.commands(t);
+        let d = self.delay_steps;
+        self.x_ref_applied = [
+            self.delay[0].push(self.x_ref[0], d),
+            self.delay[1].push(self.x_ref[1], d),
+        ];
+        u.x1_ref_mm = self.x_ref_applied[0];
+        u.x2_ref_mm = self.x_ref_applied[1];
+        if self.cfg.mode == Mode::Rig {
+            // Ideal dyno: holds the input speed and supplies what the clutches take.
+            self.s.w_f = self.rig_speed_radps;
+            self.s.engine_torque_nm = self.last_out.t_fc1_nm + self.last_out.t_fc2_nm;
+            self.s.idle_int_nm = 0.0;
+        }
+        let rep = self.pt.step(&mut self.s, &u, self.dt);
+        if finite(&self.s) && rep.outputs.t_fc1_nm.is_finite() && rep.outputs.t_fc2_nm.is_finite() {
+            self.last_finite = self.s;
+            self.pt.hooks.advance(&self.s, &rep.outputs, self.dt);
+            self.last_out = rep.outputs;
+        } else {
+            self.stats.nonfinite_states += 1;
+            self.s = self.last_finite;
+            self.s.t_s += self.dt;
+        }
+        let h = &self.cfg.housing;
+        self.theta_h = h.target_c + (self.theta_h - h.target_c) * (-self.dt / h.tau_s).exp();
+        self.steps += 1;
+        self.stats.steps += 1;
+    }
+
+    fn noise(&self, cycle: u64, channel: u32, sigma: f64) -> f64 {
+        if sigma > 0.0 {
+            sigma * gauss(self.cfg.seed, cycle, channel)
+        } else {
+            0.0
+        }
+    }
+
+    /// Samples the sensors at cycle time `t`, encodes, protects, applies faults, queues.
+    fn emit_cycle(&mut self, t: Duration) -> CycleMessages {
+        let k = self.next_cycle;
+        self.stats.cycles += 1;
+        let s = self.s;
+        let o = self.last_out;
+        let n = self.cfg.sensors;
+        let rpm = |w: f64| w / RPM;
+        let eng = EngStatus {
+            eng_speed: sat(
+                ids::ENG_STATUS,
+                0,
+                rpm(s.w_f) + self.noise(k, ch::ENG_SPEED, n.speed_rpm),
+            ),
+            eng_torque_act: sat(
+                ids::ENG_STATUS,
+                1,
+                self.engine_reported() + self.noise(k, ch::ENG_TORQUE, n.engine_torque_nm),
+            ),
+            ..Default::default()
+        };
+        let sensors = DctSensors {
+            in_shaft1_speed: sat(
+                ids::DCT_SENSORS,
+                0,
+                rpm(s.w_c1) + self.noise(k, ch::SHAFT1, n.speed_rpm),
+            ),
+            in_shaft2_speed: sat(
+                ids::DCT_SENSORS,
+                1,
+                rpm(s.w_c2) + self.noise(k, ch::SHAFT2, n.speed_rpm),
+            ),
+            out_shaft_speed: sat(
+                ids::DCT_SENSORS,
+                2,
+                rpm(s.w_out) + self.noise(k, ch::OUT, n.speed_rpm),
+            ),
+            housing_temp: sat(
+                ids::DCT_SENSORS,
+                3,
+                self.theta_h + self.noise(k, ch::HOUSING, n.housing_c),
+            ),
+            ..Default::default()
+        };
+        let actuators = DctActuators {
+            clutch1_pos: sat(
+                ids::DCT_ACTUATORS,
+                0,
+                s.x1_mm + self.noise(k, ch::POS1, n.position_mm),
+            ),
+            clutch2_pos: sat(
+                ids::DCT_ACTUATORS,
+                1,
+                s.x2_mm + self.noise(k, ch::POS2, n.position_mm),
+            ),
+            gear_odd_act: GearOddAct::from_raw(u64::from(s.gear_odd.engaged)).unwrap_or_default(),
+            gear_even_act: GearEvenAct::from_raw(u64::from(s.gear_even.engaged))
+                .unwrap_or_default(),
+            ..Default::default()
+        };
+        let torque = BenchTorque {
+            clutch1_torque: sat(
+                ids::BENCH_TORQUE,
+                0,
+                o.t_fc1_nm + self.noise(k, ch::TORQUE1, n.torque_nm),
+            ),
+            clutch2_torque: sat(
+                ids::BENCH_TORQUE,
+                1,
+                o.t_fc2_nm + self.noise(k, ch::TORQUE2, n.torque_nm),
+            ),
+        };
+        let temps = BenchTemps {
+            pressure_plate1_temp: sat(
+                ids::BENCH_TEMPS,
+                0,
+                s.thermal.pp1 + self.noise(k, ch::PP1, n.temperature_c),
+            ),
+            pressure_plate2_temp: sat(
+                ids::BENCH_TEMPS,
+                1,
+                s.thermal.pp2 + self.noise(k, ch::PP2, n.temperature_c),
+            ),
+            central_disk_temp: sat(
+                ids::BENCH_TEMPS,
+                2,
+                s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
+            ),
+        };
+        let vehicle = BenchVehicle {
+            vehicle_speed: sat(ids::BENCH_VEHICLE, 0, o.vehicle_speed_mps * 3.6),
+            vehicle_accel: sat(
+                ids::BENCH_VEHICLE,
+                1,
+                o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
+            ),
+            road_grade: sat(ids::BENCH_VEHICLE, 2, self.driver.grade * 100.0),
+        };
+        let truth = SimTruth {
+            clutch1_temp_true: sat(ids::SIM_TRUTH, 0, s.thermal.c1),
+            clutch2_temp_true: sat(ids::SIM_TRUTH, 1, s.thermal.c2),
+        };
+        let pedal =
+            (self.cfg.mode == Mode::Vehicle && self.cfg.scenario.is_some()).then(|| DrvPedal {
+                accel_pedal: sat(ids::DRV_PEDAL, 0, self.driver.pedal * 100.0),
+                brake_switch: self.driver.brake > 0.0,
+                gear_lever: self.driver.lever,
+                ..Default::default()
+            });
+        let mut msgs = CycleMessages {
+            t,
+            eng_status: eng,
+            dct_sensors: sensors,
+            dct_actuators: actuators,
+            bench_torque: torque,
+            bench_temps: temps,
+            bench_vehicle: vehicle,
+            sim_truth: truth,
+            drv_pedal: pedal,
+        };
+        for slot in 0..self.sent.len() {
+            let id = self.sent[slot];
+            let encoded = match id {
+                ids::DRV_PEDAL => msgs.drv_pedal.map(|m| m.encode()),
+                ids::ENG_STATUS => Some(msgs.eng_status.encode()),
+                ids::DCT_SENSORS => Some(msgs.dct_sensors.encode()),
+                ids::DCT_ACTUATORS => Some(msgs.dct_actuators.encode()),
+                ids::BENCH_TORQUE => Some(msgs.bench_torque.encode()),
+                ids::BENCH_TEMPS => Some(msgs.bench_temps.encode()),
+                ids::BENCH_VEHICLE => Some(msgs.bench_vehicle.encode()),
+                ids::SIM_TRUTH => Some(msgs.sim_truth.encode()),
+                _ => None,
+            };
+            let data = match encoded {
+                Some(Ok(d)) => d,
+                Some(Err(_)) => {
+                    self.stats.encode_errors += 1;
+                    continue;
+                }
+                None => continue,
+            };
+            if let Some((counter, crc)) = self.send(slot, t, data) {
+                match id {
+                    ids::DRV_PEDAL => {
+                        if let Some(m) = msgs.drv_pedal.as_mut() {
+                            m.alive_counter = counter;
+                            m.crc = crc;
+                        }
+                    }
+                    ids::ENG_STATUS => {
+                        (msgs.eng_status.alive_counter, msgs.eng_status.crc) = (counter, crc)
+                    }
+                    ids::DCT_SENSORS => {
+                        (msgs.dct_sensors.alive_counter, msgs.dct_sensors.crc) = (counter, crc)
+                    }
+                    ids::DCT_ACTUATORS => {
+                        (msgs.dct_actuators.alive_counter, msgs.dct_actuators.crc) = (counter, crc)
+                    }
+                    _ => {}
+                }
+            }
+        }
+        msgs
+    }
+
+    /// Protects, faults and queues one message; returns the clean frame's (counter, CRC) for
+    /// protected messages.
+    fn send(&mut self, slot: usize, t: Duration, mut data: [u8; 8]) -> Option<(u8, u8)> {
+        let id = self.sent[slot];
+        let Some(def) = message_def(u32::from(id)) else {
+            return None;
+        };
+        let active: Vec<(usize, Fault)> = self
+            .cfg
+            .faults
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.message.id == id && f.active(t))
+            .map(|(i, f)| (i, *f))
+            .collect();
+        let has = |k: FaultKind| active.iter().find(|(_, f)| f.kind == k);
+        let mut applied: Option<FaultKind> = None;
+        let mut hit = |stats: &mut PlantStats, k: FaultKind| {
+            Self::count(
+                &mut stats.faults_applied,
+                format!("{}.{}", def.name, k.as_str()),
+            );
+            applied = Some(k);
+        };
+        if has(FaultKind::Stop).is_some() {
+            hit(&mut self.stats, FaultKind::Stop);
+            return None;
+        }
+        let mut clean = None;
+        if def.e2e {
+            let counter =
+                if has(FaultKind::FreezeCounter).is_some() && self.last_counter[slot].is_some() {
+                    hit(&mut self.stats, FaultKind::FreezeCounter);
+                    self.last_counter[slot].unwrap_or(0)
+                } else {
+                    let c = self.counters[slot];
+                    self.counters[slot] = (c + 1) % 16;
+                    c
+                };
+            let mut clean_data = data;
+            protect(id, &mut clean_data, counter);
+            clean = Some((counter, clean_data[CRC_BYTE]));
+            if let Some((_, f)) = has(FaultKind::Implausible) {
+                if let Some((si, raw)) = f.implausible_raw() {
+                    let mut payload = u64::from_le_bytes(data);
+                    def.signals[si].insert(&mut payload, raw);
+                    data = payload.to_le_bytes();
+                    hit(&mut self.stats, FaultKind::Implausible);
+                }
+            }
+            protect(id, &mut data, counter);
+            self.last_counter[slot] = Some(counter);
+            if has(FaultKind::CorruptCrc).is_some() {
+                data[CRC_BYTE] ^= 0x5A;
+                hit(&mut self.stats, FaultKind::CorruptCrc);
+            }
+        } else if let Some((_, f)) = has(FaultKind::Implausible) {
+            if let Some((si, raw)) = f.implausible_raw() {
+                let mut payload = u64::from_le_bytes(data);
+                def.signals[si].insert(&mut payload, raw);
+                data = payload.to_le_bytes();
+                hit(&mut self.stats, FaultKind::Implausible);
+            }
+        }
+        if let Some((i, f)) = has(FaultKind::Drop) {
+            let n = self.fault_hits[*i];
+            self.fault_hits[*i] += 1;
+            if n % u64::from(f.every) == 0 {
+                hit(&mut self.stats, FaultKind::Drop);
+                return clean;
+            }
+        }
+        let mut due = t;
+        if let Some((_, f)) = has(FaultKind::Delay) {
+            due = t + f.delay;
+            hit(&mut self.stats, FaultKind::Delay);
+        }
+        let Ok(frame) = CanFrame::standard(id, &data) else {
+            self.stats.encode_errors += 1;
+            return clean;
+        };
+        self.queue.push(OutFrame {
+            due,
+            frame,
+            message: def.name,
+            fault: applied,
+        });
+        clean
+    }
+}

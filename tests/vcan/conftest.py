@@ -1,0 +1,61 @@
+"""Fixtures of the vcan suites: they need an up vcan0 (scripts/vcan-run provides one).
+
+Missing vcan0 or tools fail the tests when DDCT_REQUIRE_VCAN=1 (always so under scripts/vcan-run);
+run by hand without it, they skip.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python"))
+
+import ddct_testlib as lib  # noqa: E402
+from vcan_helpers import IFACE  # noqa: E402
+
+ARPHRD_CAN = 280
+IFF_UP = 0x1
+
+
+@pytest.fixture(scope="session")
+def vcan0():
+    sysfs = Path("/sys/class/net") / IFACE
+    if not sysfs.exists():
+        lib.missing(f"{IFACE} does not exist", may_skip=True)
+    if int((sysfs / "type").read_text()) != ARPHRD_CAN:
+        lib.missing(f"{IFACE} is not a CAN interface", may_skip=True)
+    if not int((sysfs / "flags").read_text(), 16) & IFF_UP:
+        lib.missing(f"{IFACE} is down", may_skip=True)
+    return IFACE
+
+
+@pytest.fixture(scope="session")
+def ddct(vcan0):
+    return lib.ddct_bin(may_skip=True)
+
+
+@pytest.fixture(scope="session")
+def candump(vcan0):
+    return lib.tool("candump", may_skip=True)
+
+
+@pytest.fixture(scope="session")
+def cansend(vcan0):
+    return lib.tool("cansend", may_skip=True)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def report_where():
+    where = os.environ.get("DDCT_VCAN", "?")
+    kernel = os.environ.get("DDCT_VCAN_KERNEL", "?")
+    print(f"\nvcan suite: DDCT_VCAN={where} kernel={kernel}")
+    yield
+
+
+@pytest.fixture(scope="session")
+def db():
+    return lib.ddct_can.load_dbc()

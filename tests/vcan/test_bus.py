@@ -1,0 +1,201 @@
+"""ddct on a real SocketCAN bus (vcan0): the Rust sender and receiver against can-utils and
+python-can. Run through scripts/vcan-run."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from pathlib import Path
+
+import can
+import pytest
+
+import ddct_testlib as lib
+from vcan_helpers import IFACE, background, can_receivers, wait_receivers
+from ddct_testlib import ddct_can
+
+RCVBUF = 4 * 1024 * 1024
+
+
+def frame_list(reps: int) -> list[dict]:
+    """Every message at min/mid/max, `reps` times, with consecutive alive counters."""
+    frames = []
+    counters: dict[int, int] = {}
+    for _ in range(reps):
+        for fr in lib.sample_frames():
+            c = counters.get(fr["id"], 0)
+            counters[fr["id"]] = c + 1
+            frames.append(dict(fr, data=ddct_can.encode(fr["name"], fr["signals"], c)))
+    return frames
+
+
+class PythonCanReceiver(threading.Thread):
+    """python-can on vcan0, collecting frames until `count` arrived or the deadline passed."""
+
+    def __init__(self, count: int, timeout: float = 120.0):
+        super().__init__(daemon=True)
+        self.count, self.timeout = count, timeout
+        self.bus = can.Bus(interface="socketcan", channel=IFACE, receive_own_messages=False)
+        try:  # room for a burst sent as fast as the bus takes it (root may exceed rmem_max)
+            self.bus.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUFFORCE, RCVBUF)
+        except (OSError, AttributeError):
+            self.bus.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF)
+        self.msgs: list[can.Message] = []
+
+    def run(self):
+        deadline = time.monotonic() + self.timeout
+        try:
+            while len(self.msgs) < self.count and time.monotonic() < deadline:
+                m = self.bus.recv(0.5)
+                if m is not None and not m.is_error_frame:
+                    self.msgs.append(m)
+        finally:
+            self.bus.shutdown()
+
+
+def read_log(path: Path) -> list[tuple[int, bytes]]:
+    return [(fid, data) for (_, _, fid, _, data) in ddct_can.read_candump(path)]
+
+
+def test_vcan0_is_a_can_interface(vcan0):
+    assert Path(f"/sys/class/net/{vcan0}/type").read_text().strip() == "280"
+    with can.Bus(interface="socketcan", channel=vcan0) as a, can.Bus(interface="socketcan", channel=vcan0) as b:
+        a.send(can.Message(arbitration_id=1, data=b"\x01\x02", is_extended_id=False))
+        m = b.recv(10.0)
+        assert m is not None and bytes(m.data) == b"\x01\x02"
+
+
+def test_replay_seen_by_candump_and_python_can(ddct, candump, tmp_path):
+    frames = frame_list(reps=5)
+    log = tmp_path / "replay.log"
+    lib.write_candump(log, frames, iface=IFACE, dt=0.001)
+    n = len(frames)
+    dump_file = tmp_path / "candump.txt"
+    before = can_receivers()
+    rx = PythonCanReceiver(n)
+    rx.start()
+    with open(dump_file, "w") as out, background(
+        [candump, "-L", "-r", str(RCVBUF), "-n", str(n), IFACE], stdout=out, stderr=open(tmp_path / "candump.err", "w")
+    ) as dump:
+        wait_receivers(before, 2, procs=[dump])
+        lib.run([ddct, "log", "replay", log, "--iface", IFACE], timeout=120)
+        dump.wait(60)
+    rx.join(60)
+    sent = [(f["id"], f["data"]) for f in frames]
+    seen_candump = read_log(dump_file)
+    seen_python = [(m.arbitration_id, bytes(m.data)) for m in rx.msgs]
+    assert len(seen_candump) == n, f"candump saw {len(seen_candump)} of {n} frames"
+    assert len(seen_python) == n, f"python-can saw {len(seen_python)} of {n} frames"
+    assert seen_candump == sent
+    assert seen_python == sent
+    assert all(not m.is_extended_id and m.dlc == len(m.data) for m in rx.msgs)
+    assert {line.split()[1] for line in dump_file.read_text().splitlines()} == {IFACE}
+
+
+def test_replay_keeps_timing_only_with_realtime(ddct, tmp_path):
+    frames = frame_list(reps=1)[:20]
+    gap = 0.05
+    paced = tmp_path / "paced.log"
+    lib.write_candump(paced, frames, dt=gap)
+    slow = tmp_path / "slow.log"  # 19 gaps of 10 s: only --realtime would take minutes
+    lib.write_candump(slow, frames, dt=10.0)
+
+    rx = PythonCanReceiver(len(frames), timeout=60)  # bound (listening) once constructed
+    rx.start()
+    lib.run([ddct, "log", "replay", paced, "--iface", IFACE, "--realtime"], timeout=120)
+    rx.join(60)
+    assert [(m.arbitration_id, bytes(m.data)) for m in rx.msgs] == [(f["id"], f["data"]) for f in frames]
+    span = rx.msgs[-1].timestamp - rx.msgs[0].timestamp
+    want = gap * (len(frames) - 1)
+    # generous bounds: the relative timing is kept (not compressed, not wildly stretched)
+    assert want * 0.8 <= span <= want + 5.0, f"--realtime span {span:.3f} s, log span {want:.3f} s"
+
+    rx = PythonCanReceiver(len(frames), timeout=60)  # bound (listening) once constructed
+    rx.start()
+    t0 = time.monotonic()
+    lib.run([ddct, "log", "replay", slow, "--iface", IFACE], timeout=120)
+    took = time.monotonic() - t0
+    rx.join(60)
+    assert len(rx.msgs) == len(frames)
+    assert took < 30.0, f"replay without --realtime took {took:.1f} s for a log spanning 190 s"
+
+
+def cansend_frames(db) -> list[tuple[int, bytes]]:
+    """E2E frames of several messages, an unprotected one, an unknown ID and short DLCs."""
+    out = []
+    for fr in frame_list(reps=1)[::4]:
+        out.append((fr["id"], fr["data"]))
+    known = {m.frame_id for m in db.messages}
+    unknown = next(i for i in range(1, 0x800) if i not in known)
+    out += [(unknown, b""), (unknown, b"\xde\xad\xbe\xef"), (unknown, bytes(range(8)))]
+    return out
+
+
+def test_record_sees_cansend(ddct, cansend, tmp_path):
+    db = ddct_can.load_dbc()
+    frames = cansend_frames(db)
+    out = tmp_path / "record.log"
+    before = can_receivers()
+    t_start = time.time()
+    with background(
+        [ddct, "log", "record", "--iface", IFACE, "--out", out, "--count", len(frames)],
+        stdout=open(tmp_path / "record.out", "w"),
+        stderr=open(tmp_path / "record.err", "w"),
+    ) as rec:
+        wait_receivers(before, 1, procs=[rec])
+        for fid, data in frames:
+            lib.run([cansend, IFACE, f"{fid:03X}#{data.hex().upper()}"], timeout=30)
+        rc = rec.wait(60)
+    assert rc == 0, (tmp_path / "record.err").read_text()
+    lines = out.read_text().splitlines()
+    assert len(lines) == len(frames)
+    parsed = [ddct_can.parse_candump_line(line) for line in lines]  # strict candump -l format
+    assert [(fid, data) for (_, _, fid, _, data) in parsed] == frames
+    assert all(iface == IFACE and not ext for (_, iface, _, ext, _) in parsed)
+    stamps = [t for (t, *_rest) in parsed]
+    assert stamps == sorted(stamps)
+    assert t_start - 60 <= stamps[0] <= time.time() + 60, "timestamps are not wall-clock seconds"
+
+    # python-can reads it ...
+    got = list(can.LogReader(str(out)))
+    assert [(m.arbitration_id, bytes(m.data)) for m in got] == frames
+    # ... and so does cantools, with the DBC
+    decoded = lib.cantools_decode_log(out)
+    assert len(decoded) == len(frames)
+    for (fid, data), rec_ in zip(frames, decoded):
+        assert rec_["id"] == fid and rec_["data"] == data
+        if fid in {m.frame_id for m in db.messages}:
+            msg = db.get_message_by_frame_id(fid)
+            assert rec_["name"] == msg.name
+            assert not lib.signal_mismatches(msg, ddct_can.decode(fid, data), rec_["signals"])
+
+
+def test_candump_log_decoded_by_ddct(ddct, candump, db, tmp_path):
+    frames = lib.sample_frames()
+    before = can_receivers()
+    with background(
+        [candump, "-l", "-r", str(RCVBUF), "-n", str(len(frames)), IFACE],
+        cwd=tmp_path,
+        stdout=open(tmp_path / "candump.out", "w"),
+        stderr=open(tmp_path / "candump.err", "w"),
+    ) as dump:
+        wait_receivers(before, 1, procs=[dump])
+        with can.Bus(interface="socketcan", channel=IFACE) as bus:
+            for fr in frames:
+                bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+        assert dump.wait(60) == 0
+    logs = sorted(tmp_path.glob("candump-*.log"))
+    assert len(logs) == 1, list(tmp_path.iterdir())
+    assert read_log(logs[0]) == [(f["id"], f["data"]) for f in frames]
+    recs = lib.json_lines(lib.run([ddct, "log", "decode", logs[0], "--format", "json"]).stdout)
+    assert len(recs) == len(frames)
+    problems = []
+    for fr, r in zip(frames, recs):
+        msg = db.get_message_by_frame_id(fr["id"])
+        assert r["id"] == fr["id"] and r["name"] == msg.name and r["iface"] == IFACE and r["error"] is None, r
+        want = "ok" if ddct_can.is_protected(msg.name) else "not_protected"
+        if r["e2e"] != want:
+            problems.append(f"{msg.name} ({fr['case']}): e2e {r['e2e']!r}, expected {want!r}")
+        problems += lib.signal_mismatches(msg, ddct_can.decode(fr["id"], fr["data"]), r["signals"], f" ({fr['case']})")
+    assert not problems, "\n".join(problems)
