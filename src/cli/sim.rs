@@ -26,7 +26,7 @@ pub struct SimArgs {
 pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
     let sc = SimScenario::load(&args.scenario)?;
     let cfg = TcuConfig::load(&args.config).context("loading the TCU calibration")?;
-    let run = sim::run_scenario(&sc, &cfg, &cfg.physics, &SimOptions::default());
+    let run = sim::run_scenario(&sc, &cfg, &SimOptions::default());
     if args.csv {
         println!("t,state,phase,pedal,ne,ne_ref,nc1,nc_ref,nc2,nout,x1,x1ref,x2,x2ref,tref1,tact1,tref2,tact2,engreq,te,acc,v,th_est1,th_true1,gear_o,gear_e,fault");
         for r in &run.rows {

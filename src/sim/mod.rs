@@ -13,11 +13,10 @@
 //! Frame faults for safety tests ([`Injection`]) act between the plant and the TCU.
 
 pub mod metrics;
-pub mod model_plant;
 pub mod plots;
 pub mod scenario;
 
-pub use scenario::{DriverTable, Initial, ScenarioError, SimScenario, TcuOverrides};
+pub use scenario::{ScenarioError, SimScenario, TcuOverrides};
 
 use crate::can::e2e::CRC_BYTE;
 use crate::can::messages::{
@@ -25,15 +24,26 @@ use crate::can::messages::{
     FaultCode, SimTruth, TcuClutchCmd, TcuEngineReq, TcuEstimates, TcuGearCmd, TcuState, TcuStatus,
 };
 use crate::can::{CanFrame, Received};
-use crate::model::params::Params;
+use crate::plant::Plant;
 use crate::tcu::{Tcu, TcuConfig, TcuInputs, TimedFrame};
 use serde::Serialize;
 use std::time::Duration;
 
-/// A plant as the simulation drives it: integrate to `now` with the frames received, return the
-/// frames due (with their due times, ≤ `now`... the next cycle).
+/// A plant as the simulation drives it: integrate to `now` with the frames received (stamped on
+/// the same time base), return the frames it sends with their due times (a due time may lie up to
+/// one cycle after `now`; the runner holds them until then).
 pub trait PlantNode {
     fn advance(&mut self, now: Duration, rx: &[Received]) -> Vec<(Duration, CanFrame)>;
+}
+
+impl PlantNode for Plant {
+    fn advance(&mut self, now: Duration, rx: &[Received]) -> Vec<(Duration, CanFrame)> {
+        self.step(now, rx)
+            .frames
+            .into_iter()
+            .map(|f| (f.due, f.frame))
+            .collect()
+    }
 }
 
 /// A frame fault between the plant and the TCU, active in [from_s, to_s).
@@ -316,16 +326,12 @@ pub fn run_with(
     (rows, log, steps)
 }
 
-/// Runs a scenario with the stand-in model plant.
-pub fn run_scenario(
-    sc: &SimScenario,
-    base: &TcuConfig,
-    params: &Params,
-    opts: &SimOptions,
-) -> SimRun {
+/// Runs a scenario: the plant core of `plant` with the scenario's configuration and the TCU core
+/// with `base` plus the scenario's overrides.
+pub fn run_scenario(sc: &SimScenario, base: &TcuConfig, opts: &SimOptions) -> SimRun {
     let mut cfg = base.clone();
     sc.tcu.apply(&mut cfg);
-    let mut plant = model_plant::ModelPlant::new(*params, &sc.initial, sc.driver.clone());
+    let mut plant = Plant::new(sc.plant.clone());
     let mut tcu = Tcu::new(cfg.clone(), Duration::ZERO);
     let duration = Duration::from_secs_f64(sc.duration_s);
     let (rows, frames, tcu_steps) = run_with(&mut plant, &mut tcu, duration, opts);
@@ -341,7 +347,7 @@ pub fn run_scenario(
             temperature_compensation: cfg.compensation.temperature,
             slip_compensation: cfg.compensation.slip,
             tcu_initial_temp_c: cfg.estimator.initial_temp_c,
-            plant_temperature_c: sc.initial.temperature_c,
+            plant_temperature_c: sc.plant.initial.temperature_c,
         },
     }
 }

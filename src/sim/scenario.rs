@@ -1,26 +1,28 @@
-//! `ddct sim` scenario files: a driver (the plant's driver-scenario columns `t_s`, `pedal_pct`,
-//! `brake`, `lever`, `grade_pct`, inline in `[driver]` or in a file named by `driver = "..."`),
-//! the plant's initial conditions (`[initial]`, as in the plant configuration), overrides of the
-//! TCU calibration (`[tcu]`) and the simulated duration.
+//! `ddct sim` scenario files. A scenario is a plant configuration (the plant daemon's format,
+//! `config/plant.toml`) with a built-in driver (the plant's driver-scenario format,
+//! `config/scenarios/driver_*.toml`: `t_s`, `pedal_pct`, `brake`, `lever`, `grade_pct`), plus
+//! overrides of the TCU calibration and the simulated duration:
 //!
 //! ```toml
 //! description = "launch at 50 % pedal on the flat"
 //! duration_s = 6.0
-//! [driver]
-//! t_s       = [0.0, 1.0, 1.0, 6.0]
-//! pedal_pct = [0.0, 0.0, 50.0, 50.0]
-//! brake     = [1.0, 1.0, 0.0, 0.0]
-//! lever     = ["D", "D", "D", "D"]
-//! [initial]
-//! temperature_c = 40.0     # every thermal mass of the plant
-//! housing_c = 40.0
+//! # plant = "../plant.toml"   # base plant configuration (default: the built-in config/plant.toml)
+//! driver = "driver_launch_50.toml"   # a driver-scenario file, or an inline [driver] table
+//! [initial]                # merged key by key into the plant configuration's [initial]
+//! temperature_c = 40.0
 //! [tcu]
 //! temperature_compensation = true
 //! slip_compensation = true
-//! initial_temp_c = 40.0    # the TCU's estimate at start (a TCU that kept it across a restart)
+//! initial_temp_c = 40.0    # the TCU's estimate at its start (a TCU that kept it across a restart)
 //! ```
+//!
+//! The plant tables `[initial]`, `[housing]`, `[sensors]` and `[inputs]` merge key by key into the
+//! base configuration; `[effects]` and `[[faults]]` replace the base's. Relative file names are
+//! relative to the scenario file.
 
-use crate::can::messages::GearLever;
+use crate::plant::config::{sent_ids, PlantConfig, DEFAULT_TOML};
+use crate::plant::faults::parse_faults;
+use crate::plant::{Mode, PlantError, Scenario};
 use crate::tcu::TcuConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -38,6 +40,12 @@ pub enum ScenarioError {
         key: String,
         reason: String,
     },
+    #[error("scenario {path}: {source}")]
+    Plant {
+        path: PathBuf,
+        #[source]
+        source: PlantError,
+    },
 }
 
 fn key_err(path: &Path, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
@@ -45,201 +53,6 @@ fn key_err(path: &Path, key: impl Into<String>, reason: impl Into<String>) -> Sc
         path: path.to_path_buf(),
         key: key.into(),
         reason: reason.into(),
-    }
-}
-
-/// What the driver does at one instant.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DriverSample {
-    /// Pedal fraction 0..1.
-    pub pedal: f64,
-    /// Brake fraction 0..1.
-    pub brake: f64,
-    pub lever: GearLever,
-    /// Grade, rise over run.
-    pub grade: f64,
-}
-
-/// Driver points over time (pedal and grade linear, brake and lever held).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct DriverTable {
-    pub t_s: Vec<f64>,
-    pub pedal_pct: Vec<f64>,
-    pub brake: Vec<f64>,
-    pub lever: Vec<GearLever>,
-    pub grade_pct: Vec<f64>,
-}
-
-fn index_before(t: &[f64], x: f64) -> usize {
-    // Last index with t[i] <= x (0 before the first point).
-    match t.iter().rposition(|&ti| ti <= x) {
-        Some(i) => i,
-        None => 0,
-    }
-}
-
-fn linear(t: &[f64], v: &[f64], x: f64) -> f64 {
-    if t.is_empty() {
-        return 0.0;
-    }
-    if x <= t[0] {
-        return v[0];
-    }
-    let i = index_before(t, x);
-    if i + 1 >= t.len() {
-        return v[t.len() - 1];
-    }
-    let (t0, t1) = (t[i], t[i + 1]);
-    if t1 <= t0 {
-        return v[i + 1];
-    }
-    v[i] + (v[i + 1] - v[i]) * (x - t0) / (t1 - t0)
-}
-
-impl DriverTable {
-    pub fn sample(&self, t_s: f64) -> DriverSample {
-        if self.t_s.is_empty() {
-            return DriverSample {
-                pedal: 0.0,
-                brake: 0.0,
-                lever: GearLever::P,
-                grade: 0.0,
-            };
-        }
-        let i = index_before(&self.t_s, t_s);
-        DriverSample {
-            pedal: linear(&self.t_s, &self.pedal_pct, t_s) / 100.0,
-            brake: self.brake[i],
-            lever: self.lever[i],
-            grade: linear(&self.t_s, &self.grade_pct, t_s) / 100.0,
-        }
-    }
-
-    pub fn last_time(&self) -> f64 {
-        self.t_s.last().copied().unwrap_or(0.0)
-    }
-
-    fn from_table(path: &Path, doc: &toml::Table) -> Result<Self, ScenarioError> {
-        for k in doc.keys() {
-            if ![
-                "description",
-                "t_s",
-                "pedal_pct",
-                "brake",
-                "lever",
-                "grade_pct",
-            ]
-            .contains(&k.as_str())
-            {
-                return Err(key_err(path, format!("driver.{k}"), "unknown key"));
-            }
-        }
-        let nums = |key: &str| -> Result<Option<Vec<f64>>, ScenarioError> {
-            match doc.get(key) {
-                None => Ok(None),
-                Some(toml::Value::Array(a)) => a
-                    .iter()
-                    .enumerate()
-                    .map(|(i, v)| match v {
-                        toml::Value::Float(f) if f.is_finite() => Ok(*f),
-                        toml::Value::Integer(n) => Ok(*n as f64),
-                        _ => Err(key_err(
-                            path,
-                            format!("driver.{key}[{i}]"),
-                            "must be a number",
-                        )),
-                    })
-                    .collect::<Result<Vec<_>, _>>()
-                    .map(Some),
-                Some(_) => Err(key_err(path, format!("driver.{key}"), "must be an array")),
-            }
-        };
-        let t = nums("t_s")?.ok_or_else(|| key_err(path, "driver.t_s", "missing"))?;
-        if t.is_empty() {
-            return Err(key_err(path, "driver.t_s", "needs at least one point"));
-        }
-        if t.windows(2).any(|w| w[1] < w[0]) || t[0] < 0.0 {
-            return Err(key_err(
-                path,
-                "driver.t_s",
-                "times must be >= 0 and non-decreasing",
-            ));
-        }
-        let n = t.len();
-        let col = |key: &str, default: f64, lo: f64, hi: f64| -> Result<Vec<f64>, ScenarioError> {
-            let v = nums(key)?.unwrap_or_else(|| vec![default; n]);
-            if v.len() != n {
-                return Err(key_err(
-                    path,
-                    format!("driver.{key}"),
-                    format!("has {} values, t_s has {n}", v.len()),
-                ));
-            }
-            if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !(lo..=hi).contains(*x)) {
-                return Err(key_err(
-                    path,
-                    format!("driver.{key}[{i}]"),
-                    format!("{x} is outside {lo} ..= {hi}"),
-                ));
-            }
-            Ok(v)
-        };
-        let pedal_pct = col("pedal_pct", 0.0, 0.0, 100.0)?;
-        let brake = col("brake", 0.0, 0.0, 1.0)?;
-        let grade_pct = col("grade_pct", 0.0, -50.0, 50.0)?;
-        let lever = match doc.get("lever") {
-            None => vec![GearLever::D; n],
-            Some(toml::Value::Array(a)) if a.len() == n => a
-                .iter()
-                .enumerate()
-                .map(|(i, v)| {
-                    v.as_str()
-                        .and_then(|s| GearLever::ALL.iter().find(|g| g.label() == s).copied())
-                        .ok_or_else(|| {
-                            key_err(path, format!("driver.lever[{i}]"), "must be P, R, N or D")
-                        })
-                })
-                .collect::<Result<Vec<_>, _>>()?,
-            Some(_) => {
-                return Err(key_err(
-                    path,
-                    "driver.lever",
-                    format!("must be an array of {n} lever positions"),
-                ))
-            }
-        };
-        Ok(DriverTable {
-            t_s: t,
-            pedal_pct,
-            brake,
-            lever,
-            grade_pct,
-        })
-    }
-}
-
-/// Initial conditions of the plant (a subset of the plant configuration's `[initial]`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct Initial {
-    pub engine_rpm: f64,
-    pub vehicle_kmh: f64,
-    pub gear_odd: u8,
-    pub gear_even: u8,
-    pub temperature_c: f64,
-    pub housing_c: f64,
-}
-
-impl Default for Initial {
-    fn default() -> Self {
-        Self {
-            engine_rpm: 800.0,
-            vehicle_kmh: 0.0,
-            gear_odd: 0,
-            gear_even: 0,
-            temperature_c: 25.0,
-            housing_c: 25.0,
-        }
     }
 }
 
@@ -273,10 +86,24 @@ pub struct SimScenario {
     pub name: String,
     pub description: String,
     pub duration_s: f64,
-    pub driver: DriverTable,
-    pub initial: Initial,
+    /// The plant configuration, with the driver as its built-in scenario.
+    pub plant: PlantConfig,
     pub tcu: TcuOverrides,
 }
+
+const SCENARIO_KEYS: [&str; 11] = [
+    "description",
+    "duration_s",
+    "plant",
+    "driver",
+    "tcu",
+    "initial",
+    "housing",
+    "sensors",
+    "inputs",
+    "effects",
+    "faults",
+];
 
 impl SimScenario {
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
@@ -288,6 +115,10 @@ impl SimScenario {
     }
 
     pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, ScenarioError> {
+        let plant_err = |source| ScenarioError::Plant {
+            path: path.to_path_buf(),
+            source,
+        };
         let doc: toml::Table =
             text.parse()
                 .map_err(|e: toml::de::Error| ScenarioError::Syntax {
@@ -295,35 +126,101 @@ impl SimScenario {
                     message: e.to_string().trim().replace('\n', " "),
                 })?;
         for k in doc.keys() {
-            if !["description", "duration_s", "driver", "initial", "tcu"].contains(&k.as_str()) {
-                return Err(key_err(path, k.clone(), "unknown key"));
+            if !SCENARIO_KEYS.contains(&k.as_str()) {
+                return Err(key_err(
+                    path,
+                    k.clone(),
+                    format!("unknown key (allowed: {})", SCENARIO_KEYS.join(", ")),
+                ));
             }
         }
-        let driver = match doc.get("driver") {
-            Some(toml::Value::Table(t)) => DriverTable::from_table(path, t)?,
+        let dir = path.parent().unwrap_or(Path::new("."));
+        // Base plant configuration.
+        let (base_path, base_text) = match doc.get("plant") {
+            None => (PathBuf::from("config/plant.toml"), DEFAULT_TOML.to_string()),
             Some(toml::Value::String(f)) => {
-                let p = path.parent().unwrap_or(Path::new(".")).join(f);
-                let text = std::fs::read_to_string(&p).map_err(|e| ScenarioError::Io {
+                let p = dir.join(f);
+                let t = std::fs::read_to_string(&p).map_err(|e| ScenarioError::Io {
                     path: p.clone(),
                     message: e.to_string(),
                 })?;
-                let t: toml::Table =
-                    text.parse()
-                        .map_err(|e: toml::de::Error| ScenarioError::Syntax {
-                            path: p.clone(),
-                            message: e.to_string(),
-                        })?;
-                DriverTable::from_table(&p, &t)?
+                (p, t)
             }
-            _ => return Err(key_err(path, "driver", "missing (a table or a file name)")),
+            Some(_) => return Err(key_err(path, "plant", "must be a file name")),
         };
-        let initial: Initial = match doc.get("initial") {
-            None => Initial::default(),
-            Some(v) => v
-                .clone()
-                .try_into()
-                .map_err(|e: toml::de::Error| key_err(path, "initial", e.message().to_string()))?,
+        let mut base: toml::Table =
+            base_text
+                .parse()
+                .map_err(|e: toml::de::Error| ScenarioError::Syntax {
+                    path: base_path.clone(),
+                    message: e.to_string(),
+                })?;
+        for t in ["initial", "housing", "sensors", "inputs"] {
+            match doc.get(t) {
+                None => {}
+                Some(toml::Value::Table(over)) => {
+                    let entry = base
+                        .entry(t.to_string())
+                        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                    if let toml::Value::Table(bt) = entry {
+                        for (k, v) in over {
+                            bt.insert(k.clone(), v.clone());
+                        }
+                    }
+                }
+                Some(_) => return Err(key_err(path, t, "must be a table")),
+            }
+        }
+        if let Some(e) = doc.get("effects") {
+            base.insert("effects".into(), e.clone());
+        }
+        // Faults are parsed once the driver is known (DRV_Pedal is then one of the plant's).
+        let faults_doc = match doc.get("faults") {
+            Some(f) => {
+                let mut t = toml::Table::new();
+                t.insert("faults".into(), f.clone());
+                Some(t)
+            }
+            None => base.remove("faults").map(|f| {
+                let mut t = toml::Table::new();
+                t.insert("faults".into(), f);
+                t
+            }),
         };
+        base.remove("faults");
+        if let Some(toml::Value::Table(p)) = base.get_mut("plant") {
+            p.remove("scenario");
+        }
+        let merged = toml::to_string(&base).map_err(|e| key_err(path, "plant", e.to_string()))?;
+        let mut plant =
+            PlantConfig::from_toml_str(path, &merged, Some(&base_path)).map_err(plant_err)?;
+        if plant.mode != Mode::Vehicle {
+            return Err(key_err(
+                path,
+                "plant.mode",
+                "a sim scenario needs vehicle mode",
+            ));
+        }
+        let driver = match doc.get("driver") {
+            Some(toml::Value::Table(t)) => {
+                let text =
+                    toml::to_string(t).map_err(|e| key_err(path, "driver", e.to_string()))?;
+                Scenario::from_toml_str(path, &text).map_err(plant_err)?
+            }
+            Some(toml::Value::String(f)) => Scenario::load(&dir.join(f)).map_err(plant_err)?,
+            _ => {
+                return Err(key_err(
+                    path,
+                    "driver",
+                    "missing (a driver-scenario file name or an inline [driver] table)",
+                ))
+            }
+        };
+        plant.scenario = Some(driver);
+        if let Some(fd) = faults_doc {
+            plant.faults =
+                parse_faults(path, &fd, &sent_ids(Mode::Vehicle, true)).map_err(plant_err)?;
+        }
         let tcu: TcuOverrides = match doc.get("tcu") {
             None => TcuOverrides::default(),
             Some(v) => v
@@ -332,7 +229,7 @@ impl SimScenario {
                 .map_err(|e: toml::de::Error| key_err(path, "tcu", e.message().to_string()))?,
         };
         let duration_s = match doc.get("duration_s") {
-            None => driver.last_time(),
+            None => plant.scenario.as_ref().map_or(0.0, |s| s.duration_s),
             Some(toml::Value::Float(f)) => *f,
             Some(toml::Value::Integer(n)) => *n as f64,
             Some(_) => return Err(key_err(path, "duration_s", "must be a number")),
@@ -357,9 +254,58 @@ impl SimScenario {
             name,
             description,
             duration_s,
-            driver,
-            initial,
+            plant,
             tcu,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEXT: &str = r#"
+description = "t"
+duration_s = 2.0
+[driver]
+t_s = [0.0, 1.0]
+pedal_pct = [0.0, 50.0]
+lever = ["D", "D"]
+[initial]
+temperature_c = 140.0
+[sensors]
+speed_rpm = 0.0
+[tcu]
+temperature_compensation = false
+initial_temp_c = 140.0
+"#;
+
+    #[test]
+    fn merges_into_the_plant_configuration() {
+        let s = SimScenario::from_toml_str(Path::new("x.toml"), TEXT).unwrap();
+        assert_eq!(s.plant.initial.temperature_c, 140.0);
+        // Keys not overridden keep the base configuration's value.
+        let base = PlantConfig::default();
+        assert_eq!(s.plant.initial.housing_c, base.initial.housing_c);
+        assert_eq!(s.plant.sensors.speed_rpm, 0.0);
+        assert_eq!(s.plant.sensors.position_mm, base.sensors.position_mm);
+        assert!(s.plant.scenario.is_some());
+        let mut c = TcuConfig::default();
+        s.tcu.apply(&mut c);
+        assert!(!c.compensation.temperature && c.compensation.slip);
+        assert_eq!(c.estimator.initial_temp_c, Some(140.0));
+    }
+
+    #[test]
+    fn errors_name_the_key() {
+        let bad = TEXT.replace("duration_s = 2.0", "duration_s = 2.0\nfoo = 1");
+        let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
+        assert!(e.to_string().contains("`foo`"), "{e}");
+        let bad = TEXT.replace("pedal_pct = [0.0, 50.0]", "pedal_pct = [0.0, 150.0]");
+        let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
+        assert!(e.to_string().contains("pedal_pct"), "{e}");
+        let bad = TEXT.replace("initial_temp_c = 140.0", "initial_tmp_c = 140.0");
+        let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
+        assert!(e.to_string().contains("tcu"), "{e}");
     }
 }

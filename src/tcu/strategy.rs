@@ -287,6 +287,9 @@ pub struct Strategy {
     since_shift_s: f64,
     /// Previous engine feed-forward (for the lag compensation); `None` after a reset.
     ff_prev: Option<f64>,
+    /// Step counter and, per clutch, the step and position of the last lead-compensated request.
+    steps: u64,
+    lead_prev: [Option<(u64, f64)>; 2],
 }
 
 impl Strategy {
@@ -299,6 +302,26 @@ impl Strategy {
             last: Command::default(),
             since_shift_s: 1e9,
             ff_prev: None,
+            steps: 0,
+            lead_prev: [None; 2],
+        }
+    }
+
+    /// Lead on the position request of a slipping clutch, x + τ_a·ẋ, cancelling the actuator's
+    /// first-order lag τ_a (the nominal actuator of the parameter file), so the torque follows the
+    /// inverse's position without the lag's error (it matters near lock-up, where the inverse's
+    /// position rises steeply as the friction coefficient falls with the slip). Only between two
+    /// consecutive requests above the kiss point.
+    fn lead(&mut self, ctx: &Ctx, i: usize, x_des: f64) -> f64 {
+        let kiss = ctx.model.kiss_point(ctx.theta[i]);
+        let prev = self.lead_prev[i];
+        self.lead_prev[i] = Some((self.steps, x_des));
+        match prev {
+            Some((k, p)) if k + 1 == self.steps && p > kiss && x_des > kiss && ctx.dt > 0.0 => {
+                let tau = ctx.cfg.physics.actuator.tau_s;
+                x_des + tau * (x_des - p) / ctx.dt
+            }
+            _ => x_des,
         }
     }
 
@@ -373,6 +396,7 @@ impl Strategy {
             _ => {}
         }
         self.since_shift_s += ctx.dt;
+        self.steps += 1;
         let cmd = match self.mode {
             Mode::Neutral => self.neutral(ctx),
             Mode::Creep(c) => self.creep(ctx, c),
@@ -595,7 +619,7 @@ impl Strategy {
         } else {
             l.lock_count = 0;
         }
-        let x_a = ctx.x_slip(a, t_a);
+        let x_a = self.lead(ctx, a, ctx.x_slip(a, t_a));
         let mut x_ref = [0.0; 2];
         x_ref[a] = x_a;
         x_ref[o] = ctx.standby(o);
@@ -825,7 +849,7 @@ impl Strategy {
                 t[o] = u * s.t_tr;
                 let cap_a = (1.0 - u) * ((1.0 + k.clamp_margin) * s.t_tr + k.clamp_offset_nm);
                 t[a] = cap_a;
-                x[o] = ctx.x_slip(o, t[o]);
+                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
                 x[a] = ctx.x_clamp(a, cap_a);
                 phase = "upshift-torque";
                 if u >= 1.0 {
@@ -838,7 +862,7 @@ impl Strategy {
                 // near the on-coming clutch's torque (so lock-up does not drop the acceleration),
                 // then lets the slip cross zero.
                 t[o] = s.t_tr.min(ctx.t_max(o));
-                x[o] = ctx.x_slip(o, t[o]);
+                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
                 let hold = k.lock_hold_slip_radps;
                 let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
                 if s.tau >= s.duration {
@@ -885,7 +909,7 @@ impl Strategy {
                 let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
                 t[o] = u * (s.t_tr + k.clamp_offset_nm);
                 t[a] = (1.0 - u) * s.t_a0;
-                x[o] = ctx.x_slip(o, t[o]);
+                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
                 x[a] = if t[a] > 0.0 {
                     ctx.x_slip(a, t[a])
                 } else {
