@@ -134,10 +134,16 @@ impl Ctx<'_> {
         }
         self.model.clamp_position_for(cap, self.theta[i])
     }
-    /// Anti-stall scale on a clutch torque: 1 above idle, falling to 0 at 75 % of idle.
-    fn stall_scale(&self) -> f64 {
+    /// Anti-stall limit on a slipping clutch's torque: unlimited above 95 % of idle; below it the
+    /// clutch may take at most a share of the engine's full-load torque that falls from 90 % at
+    /// 95 % of idle to 0 at 70 % of idle, so the engine always keeps torque to recover.
+    fn stall_limit(&self) -> f64 {
         let idle = self.idle();
-        ((self.m.w_e - 0.75 * idle) / (0.2 * idle)).clamp(0.0, 1.0)
+        if self.m.w_e >= 0.95 * idle {
+            return f64::INFINITY;
+        }
+        let share = 0.9 * ((self.m.w_e - 0.7 * idle) / (0.25 * idle)).clamp(0.0, 1.0);
+        share * crate::model::engine::full_load(&self.cfg.physics.engine, self.m.w_e)
     }
 }
 
@@ -149,6 +155,9 @@ pub fn start_gear(lever: GearLever) -> Option<u8> {
         _ => None,
     }
 }
+
+/// Smallest on-coming clutch torque in an upshift's inertia phase (N·m).
+const MIN_ONCOMING_NM: f64 = 10.0;
 
 /// Largest rise of the creep torque (N·m/s).
 const CREEP_TORQUE_RATE_NM_PER_S: f64 = 80.0;
@@ -397,13 +406,20 @@ impl Strategy {
         }
         self.since_shift_s += ctx.dt;
         self.steps += 1;
-        let cmd = match self.mode {
+        let mut cmd = match self.mode {
             Mode::Neutral => self.neutral(ctx),
             Mode::Creep(c) => self.creep(ctx, c),
             Mode::Launch(l) => self.launch(ctx, l),
             Mode::Drive(d) => self.drive(ctx, d),
             Mode::Shift(s) => self.shift(ctx, s),
         };
+        // Anti-stall: near idle the engine's own idle governor gets the engine back unless the
+        // request asks for more than the driver would.
+        if ctx.m.w_e < 1.05 * ctx.idle()
+            && cmd.engine_req.is_some_and(|t| t < ctx.demand().max(0.0))
+        {
+            cmd.engine_req = None;
+        }
         self.last = cmd;
         cmd
     }
@@ -490,7 +506,7 @@ impl Strategy {
                 .max_torque_nm
                 .min(ctx.t_max(a))
                 .min(c.t_ref + CREEP_TORQUE_RATE_NM_PER_S * ctx.dt)
-                * ctx.stall_scale();
+                .min(ctx.stall_limit());
             t = raw.clamp(0.0, hi.max(0.0));
             self.pi_c[a].integrate(e, ctx.dt, raw >= hi, raw <= 0.0);
             c.t_ref = t;
@@ -608,7 +624,7 @@ impl Strategy {
         let e_c = l.w_c_ref - w_c;
         let w_dot_cmd = self.pi_c[a].output(l.alpha, e_c);
         let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
-        let hi = ctx.t_max(a) * ctx.stall_scale();
+        let hi = ctx.t_max(a).min(ctx.stall_limit());
         let t_a = raw.clamp(0.0, hi);
         self.pi_c[a].integrate(e_c, ctx.dt, raw >= hi, raw <= 0.0);
         // PI_e and (24).
@@ -748,7 +764,8 @@ impl Strategy {
             && d.blend.is_none()
         {
             let g = scheduled_gear(cfg, d.gear, v, ctx.m.pedal);
-            if g != d.gear && ctx.m.gear[o] == g && shaft(g) == o {
+            let braking_up = g > d.gear && ctx.m.brake;
+            if g != d.gear && !braking_up && ctx.m.gear[o] == g && shaft(g) == o {
                 self.start_shift(ctx, d, g);
             }
         }
@@ -831,6 +848,19 @@ impl Strategy {
         let r = ctx.reduced();
         s.tau += ctx.dt;
         s.total_s += ctx.dt;
+        // The vehicle is slowing too fast for the shift (hard braking toward a stop): open both
+        // clutches and let creep/hold take over in the start gear.
+        let start = start_gear(ctx.m.lever).unwrap_or(1);
+        if ctx.m.w_c[s.o] < 0.9 * ctx.idle() || ctx.m.w_e < 0.8 * ctx.idle() {
+            self.since_shift_s = 0.0;
+            self.mode = Mode::Creep(Creep {
+                a: shaft(start),
+                gear: start,
+                w_c_ref: ctx.m.w_c[shaft(start)],
+                t_ref: 0.0,
+            });
+            return self.creep_now(ctx);
+        }
         let demand = ctx.demand();
         s.t_tr = demand.max(0.0);
         let slip_o = ctx.m.slip(o);
@@ -861,7 +891,9 @@ impl Strategy {
                 // a smoothstep to a small positive slip, holds it until the engine torque is back
                 // near the on-coming clutch's torque (so lock-up does not drop the acceleration),
                 // then lets the slip cross zero.
-                t[o] = s.t_tr.min(ctx.t_max(o));
+                // (At least a little torque: with the pedal off the on-coming clutch still has to
+                // pull the engine down to its shaft.)
+                t[o] = s.t_tr.max(MIN_ONCOMING_NM).min(ctx.t_max(o));
                 x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
                 let hold = k.lock_hold_slip_radps;
                 let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
@@ -963,11 +995,12 @@ impl Strategy {
                 slip_count: 0,
             });
         } else if s.total_s > 4.0 {
-            // The shift did not complete: engage the on-coming gear like a launch.
+            // The shift did not complete: re-engage an engaged gear like a launch (or creep when
+            // slow), from the measurements.
             self.since_shift_s = 0.0;
-            self.pi_c[o].reset(0.0);
+            self.pi_c.iter_mut().for_each(|p| p.reset(0.0));
             self.reset_engine();
-            self.mode = Mode::Launch(Launch::new(ctx, o, s.to));
+            self.mode = Self::initial_mode(ctx);
         } else {
             self.mode = Mode::Shift(s);
         }
