@@ -351,3 +351,55 @@ pub fn run_scenario(sc: &SimScenario, base: &TcuConfig, opts: &SimOptions) -> Si
         },
     }
 }
+
+/// The rows of a run as CSV (one header line; `-` for an inactive engine request).
+pub fn rows_csv(rows: &[Row]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from(
+        "t_s,state,phase,fault,pedal_pct,brake,gear_active,gear_odd,gear_even,n_e_rpm,n_e_ref_rpm,\
+         n_c1_rpm,n_c2_rpm,n_c_ref_rpm,n_out_rpm,x1_mm,x1_ref_mm,x2_mm,x2_ref_mm,t_ref1_nm,\
+         t_act1_nm,t_ref2_nm,t_act2_nm,eng_req_nm,t_e_nm,accel_mps2,v_kmh,grade_pct,housing_c,\
+         theta_est1_c,theta_true1_c,theta_est2_c,theta_true2_c\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{:.3},{},{},{},{:.1},{},{},{},{},{:.1},{:.1},{:.1},{:.1},{:.1},{:.1},{:.3},{:.3},{:.3},{:.3},\
+             {:.1},{:.1},{:.1},{:.1},{},{:.1},{:.3},{:.2},{:.1},{:.0},{:.1},{:.1},{:.1},{:.1}",
+            r.t_s,
+            r.state.label(),
+            r.phase,
+            r.fault.label(),
+            r.pedal_pct,
+            u8::from(r.brake),
+            r.gear_active,
+            r.gear_act[0],
+            r.gear_act[1],
+            r.n_e_rpm,
+            r.n_e_ref_rpm,
+            r.n_c_rpm[0],
+            r.n_c_rpm[1],
+            r.n_c_ref_rpm,
+            r.n_out_rpm,
+            r.x_mm[0],
+            r.x_ref_mm[0],
+            r.x_mm[1],
+            r.x_ref_mm[1],
+            r.t_ref_nm[0],
+            r.t_act_nm[0],
+            r.t_ref_nm[1],
+            r.t_act_nm[1],
+            r.eng_req_nm.map_or("-".to_string(), |v| format!("{v:.1}")),
+            r.t_e_nm,
+            r.accel_mps2,
+            r.v_kmh,
+            r.grade_pct,
+            r.housing_c,
+            r.theta_est_c[0],
+            r.theta_true_c[0],
+            r.theta_est_c[1],
+            r.theta_true_c[1],
+        );
+    }
+    s
+}

@@ -253,12 +253,19 @@ impl InputMonitor {
             return Verdict::Ignored;
         }
         let verdict = self.check(input, f);
+        let limit = input.cycle() * self.cfg.timeout_cycles;
         let c = &mut self.ch[input.index()];
         match verdict {
             Ok(()) => {
+                // A frame after a timeout starts a new run of valid frames.
+                let after_gap = c.last_valid.is_none_or(|t| f.at.saturating_sub(t) >= limit);
+                c.consecutive_valid = if after_gap {
+                    1
+                } else {
+                    c.consecutive_valid.saturating_add(1)
+                };
                 c.last_valid = Some(f.at);
                 c.cause = None;
-                c.consecutive_valid = c.consecutive_valid.saturating_add(1);
                 c.accepted += 1;
                 self.seen[input.index()] = true;
                 Verdict::Accepted
