@@ -116,7 +116,11 @@ fn print_tables(out: &[ScenarioSummary]) {
                 "{:<22} {:>6.0} {:>5} {:>5} {:>8} {:>8.0} {:>7} {:>7} {:>8.1} {:>8.2} {:>8.1}",
                 s.scenario,
                 l.pedal_pct,
-                if s.temperature_compensation { "on" } else { "off" },
+                if s.temperature_compensation {
+                    "on"
+                } else {
+                    "off"
+                },
                 if s.slip_compensation { "on" } else { "off" },
                 opt(l.lockup_s, 2),
                 l.flare_rpm,

@@ -156,6 +156,10 @@ pub fn start_gear(lever: GearLever) -> Option<u8> {
     }
 }
 
+/// The lead terms differentiate over the time between two steps; steps closer than this (a burst
+/// of late frames) get no lead rather than a huge one (s).
+const MIN_LEAD_DT_S: f64 = 0.005;
+
 /// Smallest on-coming clutch torque in an upshift's inertia phase (N·m).
 const MIN_ONCOMING_NM: f64 = 10.0;
 
@@ -326,7 +330,9 @@ impl Strategy {
         let prev = self.lead_prev[i];
         self.lead_prev[i] = Some((self.steps, x_des));
         match prev {
-            Some((k, p)) if k + 1 == self.steps && p > kiss && x_des > kiss && ctx.dt > 0.0 => {
+            Some((k, p))
+                if k + 1 == self.steps && p > kiss && x_des > kiss && ctx.dt >= MIN_LEAD_DT_S =>
+            {
                 let tau = ctx.cfg.physics.actuator.tau_s;
                 x_des + tau * (x_des - p) / ctx.dt
             }
@@ -1014,7 +1020,7 @@ impl Strategy {
         let e = w_ref - ctx.m.w_e;
         let ff = r.j_eq * w_dot_ref + t_c;
         let lead = match self.ff_prev {
-            Some(prev) if ctx.dt > 0.0 => {
+            Some(prev) if ctx.dt >= MIN_LEAD_DT_S => {
                 ctx.cfg.physics.engine.torque_lag_s * (ff - prev) / ctx.dt
             }
             _ => 0.0,
