@@ -376,3 +376,65 @@ fn sensors_stopped_still_run_the_tcu_on_its_fallback_deadline() {
         FaultCode::SensorsTimeout,
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// The daemon, in real time on the in-process bus.
+
+/// The TCU daemon with the plant daemon on the in-process bus: it computes on each DCT_Sensors
+/// frame, launches, and when the plant stops its fallback deadline keeps it running and it goes
+/// to the safe state with a timeout fault.
+#[tokio::test]
+async fn daemon_launches_with_the_plant_and_detects_its_silence() {
+    use ddct::can::{EndpointConfig, InProcessBus};
+    use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
+    use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig};
+    let sc = scenario("launch_50");
+    let bus = InProcessBus::new("sim");
+    let plant_ep = bus.endpoint(EndpointConfig::default());
+    let tcu_ep = bus.endpoint(EndpointConfig::default());
+    let plant_cfg = PlantDaemonConfig {
+        plant: sc.plant.clone(),
+        pacing: Pacing::RealTime { speed: 1.0 },
+        duration: Some(Duration::from_millis(3000)),
+        log: None,
+    };
+    let tcu_cfg = TcuDaemonConfig {
+        tcu: tcu_config(),
+        duration: Some(Duration::from_millis(3300)),
+        log: None,
+    };
+    let (p, t) = tokio::join!(
+        run_plant(plant_ep, std::future::pending::<()>(), plant_cfg),
+        run_tcu(tcu_ep, std::future::pending::<()>(), tcu_cfg)
+    );
+    let (p, t) = (p.unwrap(), t.unwrap());
+    eprintln!("{}{}", p.summary(), t.summary());
+    assert_eq!(t.stopped_by, "duration");
+    // Every plant cycle's DCT_Sensors triggered a computation (generous: a loaded machine may
+    // make the fallback step in once in a while).
+    assert!(t.sync_computations >= 250, "{t:?}");
+    assert!(
+        t.fallback_computations >= 20,
+        "the 300 ms after the plant stopped: {t:?}"
+    );
+    assert_eq!(t.send_errors, 0);
+    // The plant stopped first: the TCU ends in the safe state with a timeout fault.
+    assert_eq!(t.final_state, TcuState::SafeState);
+    assert!(
+        matches!(
+            t.final_fault,
+            FaultCode::EngStatusTimeout | FaultCode::SensorsTimeout | FaultCode::ActuatorsTimeout
+        ),
+        "{:?}",
+        t.final_fault
+    );
+    // It launched: the plant accepted its commands throughout.
+    assert!(
+        p.plant
+            .rx_accepted
+            .get("TCU_ClutchCmd")
+            .copied()
+            .unwrap_or(0)
+            >= 250
+    );
+}

@@ -21,7 +21,7 @@ use ddct::can::{
     Bus, BusError, CanFrame, EndpointConfig, InProcessBus, InProcessEndpoint, Received,
 };
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig, PlantReport};
-use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig, TcuReport, CYCLE};
+use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig, TcuReport, CYCLE, INPUT_IDS};
 use ddct::daemon::Periodic;
 use ddct::sim::buslog::{self, Spread};
 use ddct::sim::metrics::{self, Metrics};
@@ -106,11 +106,21 @@ enum Net {
 impl Net {
     /// A new node; must be called on the runtime (thread) that will use it.
     fn open(&self) -> anyhow::Result<AnyBus> {
+        self.open_filtered(&[])
+    }
+
+    /// A new node receiving only `ids` (all frames when empty; the filter is the kernel's on
+    /// SocketCAN, none on the in-process bus).
+    fn open_filtered(&self, ids: &[u16]) -> anyhow::Result<AnyBus> {
         Ok(match self {
-            Net::Can(i) => AnyBus::Can(
-                SocketCanBus::open(i, false)
-                    .with_context(|| format!("opening CAN interface {i}"))?,
-            ),
+            Net::Can(i) => {
+                let b = SocketCanBus::open(i, false)
+                    .with_context(|| format!("opening CAN interface {i}"))?;
+                if !ids.is_empty() {
+                    b.set_filter_ids(ids)?;
+                }
+                AnyBus::Can(b)
+            }
             Net::Sim(b) => AnyBus::Sim(b.endpoint(EndpointConfig::default())),
         })
     }
@@ -175,7 +185,7 @@ fn echo_run(net: &Net, seconds: f64) -> anyhow::Result<Vec<(Duration, CanFrame)>
     let responder = std::thread::spawn(move || -> anyhow::Result<u64> {
         let rt = runtime()?;
         rt.block_on(async move {
-            let mut bus = n2.open()?;
+            let mut bus = n2.open_filtered(&[ids::DCT_SENSORS])?;
             let _ = ready_tx.send(());
             let reply = CanFrame::standard(ids::TCU_CLUTCH_CMD, &[0; 8])?;
             let stop_fut = stopped(stop2);
@@ -240,7 +250,7 @@ fn bench_run(net: &Net, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Run
     let tcu = std::thread::spawn(move || -> anyhow::Result<TcuReport> {
         let rt = runtime()?;
         rt.block_on(async move {
-            let bus = n2.open()?;
+            let bus = n2.open_filtered(&INPUT_IDS)?;
             let c = TcuDaemonConfig {
                 tcu: tcu_cfg,
                 duration: None,
@@ -259,7 +269,8 @@ fn bench_run(net: &Net, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Run
     };
     let rt = runtime()?;
     let plant = rt.block_on(async {
-        let bus = net.open()?;
+        let bus =
+            net.open_filtered(&[ids::TCU_CLUTCH_CMD, ids::TCU_ENGINE_REQ, ids::TCU_GEAR_CMD])?; // the plant plays the driver itself
         anyhow::Ok(run_plant(bus, shutdown_signal(), plant_cfg).await?)
     })?;
     std::thread::sleep(Duration::from_millis(50));

@@ -6,7 +6,7 @@ use clap::Args;
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
-use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig, TcuReport};
+use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig, TcuReport, INPUT_IDS};
 use ddct::plant::{PlantConfig, Scenario};
 use ddct::tcu::TcuConfig;
 use std::path::PathBuf;
@@ -99,6 +99,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
         } else {
             let bus = SocketCanBus::open(&a.iface, false)
                 .with_context(|| format!("opening CAN interface {}", a.iface))?;
+            bus.set_filter_ids(&INPUT_IDS)?;
             let c = TcuDaemonConfig {
                 tcu: cfg,
                 duration,

@@ -5,9 +5,9 @@
 //! - The arrival of a DCT_Sensors frame (the plant's 10 ms sensor message, the bench's sync)
 //!   triggers a computation at once: `Tcu::step` with the queued frames, then the five TCU
 //!   messages are sent.
-//! - Fallback: a periodic timer on absolute deadlines (`Periodic`, 10 ms, no drift) computes when
-//!   no computation happened for 1.2 cycles (DCT_Sensors missing or late), so the safe state is
-//!   commanded even when the sensors go silent.
+//! - Fallback: a periodic timer on absolute deadlines (`Periodic`, 10 ms, no drift) computes on
+//!   every deadline while no DCT_Sensors frame came for 1.2 cycles (missing or late), so the safe
+//!   state is commanded even when the sensors go silent.
 //! - A computation whose work (step + sends) takes longer than a cycle counts as an overrun; late
 //!   fallback wake-ups count as deadline misses (`LoopStats`).
 //! - Clean shutdown on the `shutdown` future (SIGINT/SIGTERM in the CLI) or after `duration`;
@@ -26,6 +26,17 @@ use tokio::time::Instant;
 
 /// The TCU's computation cycle (the contract's 10 ms).
 pub const CYCLE: Duration = Duration::from_millis(10);
+
+/// Frames received this soon after the sync frame belong to the same plant cycle.
+const BURST: Duration = Duration::from_millis(2);
+
+/// The messages the TCU reads (a SocketCAN socket can filter on them).
+pub const INPUT_IDS: [u16; 4] = [
+    ids::ENG_STATUS,
+    ids::DRV_PEDAL,
+    ids::DCT_SENSORS,
+    ids::DCT_ACTUATORS,
+];
 
 /// Daemon configuration.
 #[derive(Debug, Clone)]
@@ -139,7 +150,7 @@ struct Shell<B: Bus> {
     fallback: u64,
     overruns: u64,
     compute_us: Vec<u32>,
-    last_compute: Option<Instant>,
+    last_sync: Option<Instant>,
     last_now: Duration,
     last_state: (TcuState, FaultCode),
 }
@@ -251,15 +262,32 @@ impl<B: Bus> Shell<B> {
             .unwrap_or_else(|| t0.saturating_duration_since(self.start))
             .max(self.last_now);
         self.last_now = now;
-        // Frames up to the computation's time; later ones (received in the same burst) wait.
-        let n = self.inbox.iter().take_while(|f| f.at <= now).count();
+        // Frames up to the computation's time (with the rest of the sender's burst: the plant
+        // sends DCT_Actuators just after DCT_Sensors); later ones, of a later cycle, wait.
+        let horizon = now + BURST;
+        let n = self.inbox.iter().take_while(|f| f.at <= horizon).count();
         let inbox: Vec<TimedFrame> = self.inbox.drain(..n).collect();
+        let t_recv = t0.elapsed();
         let out = self.tcu.step(now, &TcuInputs { frames: &inbox });
         self.last_state = (out.status.tcu_state, out.status.fault_code);
+        let t_step = t0.elapsed();
+        let mut slowest_send = Duration::ZERO;
         for f in out.frames {
+            let ts = Instant::now();
             self.send(f).await?;
+            slowest_send = slowest_send.max(ts.elapsed());
         }
         let took = t0.elapsed();
+        if took > 5 * CYCLE {
+            tracing::warn!(
+                "slow TCU computation: {:?} (receive {:?}, step {:?}, slowest send {:?}, {} frames in)",
+                took,
+                t_recv,
+                t_step - t_recv,
+                slowest_send,
+                inbox.len()
+            );
+        }
         self.computations += 1;
         if sync.is_some() {
             self.sync += 1;
@@ -273,7 +301,9 @@ impl<B: Bus> Shell<B> {
             self.compute_us
                 .push(took.as_micros().min(u128::from(u32::MAX)) as u32);
         }
-        self.last_compute = Some(t0);
+        if sync.is_some() {
+            self.last_sync = Some(t0);
+        }
         if self.computations % 100 == 0 {
             if let Some(tap) = self.tap.as_mut() {
                 if let Err(e) = tap.flush() {
@@ -320,7 +350,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         fallback: 0,
         overruns: 0,
         compute_us: Vec::new(),
-        last_compute: None,
+        last_sync: None,
         last_now: Duration::ZERO,
         last_state: (TcuState::Init, FaultCode::None),
     };
@@ -349,7 +379,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
                 if config.duration.is_some_and(|d| now.saturating_duration_since(start) >= d) {
                     break "duration";
                 }
-                if shell.last_compute.is_none_or(|t| now.saturating_duration_since(t) >= grace) {
+                // No DCT_Sensors for 1.2 cycles: compute on every deadline until it is back.
+                if shell.last_sync.is_none_or(|t| now.saturating_duration_since(t) >= grace) {
                     shell.compute(None).await?;
                 }
             }

@@ -291,8 +291,11 @@ impl InputMonitor {
             }
             Err(_) => return Err(crc_code),
         }
+        // Time since the previous accepted frame, at least one cycle: a frame carries at least a
+        // cycle of physics even when a sender's scheduling delay delivers several at once.
         let prev_at = self.ch[input.index()].last_valid;
-        let dt = prev_at.map(|p| f.at.saturating_sub(p).as_secs_f64());
+        let cycle = input.cycle();
+        let dt = prev_at.map(|p| f.at.saturating_sub(p).max(cycle).as_secs_f64());
         let cfg = self.cfg;
         match input {
             Input::EngStatus => {
@@ -332,6 +335,9 @@ impl InputMonitor {
                         return Err(FaultCode::ImplausibleSpeed);
                     }
                 }
+                // An input shaft with its gear engaged turns with the output: a gross mismatch
+                // (the gear state comes from DCT_Actuators, possibly a cycle older) is not a
+                // transmission.
                 for (shaft, &g) in self.meas.gear.iter().enumerate() {
                     if let Some(k) = driveline::overall_ratio(&self.driveline, g) {
                         if (w_c[shaft] - k * w_out).abs() > cfg.max_shaft_mismatch_radps {
