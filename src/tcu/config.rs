@@ -7,6 +7,7 @@
 //! Loading checks TOML syntax, unknown and missing keys (serde) and then every value's range;
 //! each failure is a [`TcuConfigError`] naming the key.
 
+use crate::model::effects::EffectSet;
 use crate::model::params::{Params, ParamsError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -30,6 +31,8 @@ pub enum TcuConfigError {
     },
     #[error("TCU calibration: inconsistent `{key}`: {reason}")]
     Inconsistent { key: String, reason: String },
+    #[error("TCU calibration: effects file {path}: {message}")]
+    Effects { path: PathBuf, message: String },
     #[error("TCU calibration: parameter file {path}: {source}")]
     Params {
         path: PathBuf,
@@ -146,6 +149,10 @@ pub struct ShiftCfg {
 pub struct TcuConfig {
     /// Path of the parameter file, relative to the calibration file.
     pub params: PathBuf,
+    /// Optional effects file (`model::effects`, `[effects.<id>]` tables) calibrating the TCU's
+    /// torque characteristic, relative to the calibration file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effects: Option<PathBuf>,
     pub compensation: Compensation,
     pub estimator: EstimatorCfg,
     pub inputs: InputsCfg,
@@ -157,6 +164,9 @@ pub struct TcuConfig {
     /// The physical parameters (loaded from `params`).
     #[serde(skip)]
     pub physics: Params,
+    /// The calibrated effects (loaded from `effects`; nominal without).
+    #[serde(skip)]
+    pub effect_set: EffectSet,
 }
 
 impl Default for TcuConfig {
@@ -211,6 +221,13 @@ impl TcuConfig {
             path: pp.clone(),
             source,
         })?;
+        if let Some(e) = &c.effects {
+            let ep = path.parent().unwrap_or_else(|| Path::new(".")).join(e);
+            c.effect_set = EffectSet::load(&ep).map_err(|e| TcuConfigError::Effects {
+                path: ep.clone(),
+                message: e.to_string(),
+            })?;
+        }
         Ok(c)
     }
 

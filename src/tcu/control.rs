@@ -14,30 +14,43 @@
 //!   μ_d, paper Sect. 6), everything else unchanged.
 //!
 //! [`ClutchModel`] is the one place the TCU evaluates the torque characteristic, both forward (the
-//! thermal estimator's friction power) and inverse (the controller), so that a calibration with
-//! extra effects can replace it in one spot.
+//! thermal estimator's friction power) and inverse (the controller); a calibration with effects of
+//! `model::effects` (`effects = "FILE"` in the TCU calibration) replaces it in that one spot.
 
 use super::config::Compensation;
 use crate::model::clutch;
 use crate::model::driveline;
+use crate::model::effects::{self, EffectSet, TorqueContext};
 use crate::model::params::{ClutchParams, DrivelineParams, EngineParams};
 
-/// The TCU's model of one dry clutch: the torque characteristic (13) and its inverse.
+/// The TCU's model of one dry clutch: the torque characteristic (13) and its inverse, optionally
+/// calibrated with effects of `model::effects` (e.g. the ones `ddct gap` identified; the nominal
+/// set gives (13) exactly).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClutchModel {
     pub p: ClutchParams,
     pub comp: Compensation,
+    pub effects: EffectSet,
 }
 
 impl ClutchModel {
     pub fn new(p: ClutchParams, comp: Compensation) -> Self {
-        Self { p, comp }
+        Self::with_effects(p, comp, EffectSet::nominal())
+    }
+
+    pub fn with_effects(p: ClutchParams, comp: Compensation, effects: EffectSet) -> Self {
+        Self { p, comp, effects }
     }
 
     /// Torque (N·m, sign of the slip) the model predicts at a bearing position, slip and clutch
-    /// temperature: (13). Used by the estimator with the measured position and slip.
+    /// temperature: (13) (with the calibration's effects). Used by the estimator with the
+    /// measured position and slip.
     pub fn torque(&self, x_to_mm: f64, slip_radps: f64, theta_c: f64) -> f64 {
-        clutch::torque(&self.p, x_to_mm, slip_radps, theta_c)
+        effects::torque(
+            &self.p,
+            &self.effects,
+            &TorqueContext::new(x_to_mm, slip_radps, theta_c),
+        )
     }
 
     /// The temperature and slip the inverse uses, after the compensation switches.
@@ -65,7 +78,7 @@ impl ClutchModel {
         } else {
             0.0
         };
-        match clutch::invert(&self.p, t, s, th) {
+        match effects::invert(&self.p, &self.effects, t, &TorqueContext::new(0.0, s, th)) {
             Ok(inv) => inv.x_to_mm,
             Err(_) => clutch::x_isp(&self.p, self.comp.calibration_temp_c),
         }
@@ -87,13 +100,31 @@ impl ClutchModel {
         } else {
             self.comp.calibration_temp_c
         };
-        clutch::x_isp(&self.p, th)
+        // The inverse of zero torque is the kiss point (shifted by any calibrated wear).
+        match effects::invert(
+            &self.p,
+            &self.effects,
+            0.0,
+            &TorqueContext::new(0.0, 0.0, th),
+        ) {
+            Ok(inv) => inv.x_to_mm,
+            Err(_) => clutch::x_isp(&self.p, th),
+        }
     }
 
     /// Largest torque the model gives at this slip and temperature.
     pub fn max_torque(&self, slip_radps: f64, theta_est_c: f64) -> f64 {
         let (s, th) = self.inverse_arguments(slip_radps, theta_est_c);
-        clutch::max_torque(&self.p, s, th)
+        if self.effects.is_nominal() {
+            clutch::max_torque(&self.p, s, th)
+        } else {
+            effects::torque(
+                &self.p,
+                &self.effects,
+                &TorqueContext::new(self.p.x_to_max_mm, s.max(1e-9), th),
+            )
+            .abs()
+        }
     }
 }
 
@@ -268,6 +299,23 @@ mod tests {
             no_temp.torque(5.0, 10.0, 200.0),
             on.torque(5.0, 10.0, 200.0)
         );
+    }
+
+    #[test]
+    fn a_calibration_with_effects_inverts_its_own_forward_model() {
+        use crate::model::effects::EffectId;
+        let p = Params::default().clutch;
+        for id in [EffectId::SpringStiffnessTemp, EffectId::FrictionPressure] {
+            let set = EffectSet::single(id, &id.typical()[..id.params().len()]).unwrap();
+            let m = ClutchModel::with_effects(p, comp(true, true), set);
+            let nominal = ClutchModel::new(p, comp(true, true));
+            let x = m.position_for(80.0, 20.0, 200.0);
+            assert!((m.torque(x, 20.0, 200.0) - 80.0).abs() < 1e-4, "{id:?}");
+            assert!(
+                (x - nominal.position_for(80.0, 20.0, 200.0)).abs() > 1e-3,
+                "{id:?} changes the calibration"
+            );
+        }
     }
 
     #[test]

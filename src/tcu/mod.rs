@@ -118,7 +118,7 @@ pub struct Tcu {
 impl Tcu {
     /// A TCU starting at time `start` (timeouts of never-seen inputs count from here).
     pub fn new(cfg: TcuConfig, start: Duration) -> Self {
-        let model = ClutchModel::new(cfg.physics.clutch, cfg.compensation);
+        let model = ClutchModel::with_effects(cfg.physics.clutch, cfg.compensation, cfg.effect_set);
         Self {
             inputs: InputMonitor::new(cfg.inputs, cfg.physics.driveline, start),
             est: ThermalEstimator::new(
