@@ -438,3 +438,185 @@ async fn daemon_launches_with_the_plant_and_detects_its_silence() {
             >= 250
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// Plausibility, over-temperature and garbage, through the plant's own fault injection.
+
+fn inline(text: &str) -> (SimRun, Metrics) {
+    let sc = SimScenario::from_toml_str(std::path::Path::new("inline.toml"), text)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let cfg = tcu_config();
+    let r = sim::run_scenario(&sc, &cfg, &SimOptions::default());
+    let m = metrics::compute(&r.rows, &cfg);
+    (r, m)
+}
+
+const LAUNCH_DRIVER: &str = r#"
+duration_s = 6.0
+[driver]
+t_s       = [0.0, 0.5, 1.0, 1.0, 6.0]
+pedal_pct = [0.0, 0.0, 0.0, 40.0, 40.0]
+brake     = [1.0, 1.0, 1.0, 0.0, 0.0]
+lever     = ["N", "D", "D", "D", "D"]
+"#;
+
+fn first_fault(r: &SimRun, after_s: f64) -> Option<(f64, FaultCode, TcuState)> {
+    r.rows
+        .iter()
+        .find(|x| x.t_s >= after_s && x.fault != FaultCode::None)
+        .map(|x| (x.t_s, x.fault, x.state))
+}
+
+#[test]
+fn implausible_values_give_their_fault_codes_and_the_safe_state() {
+    for (signal, message, value, expected) in [
+        (
+            "HousingTemp",
+            "DCT_Sensors",
+            200.0,
+            FaultCode::ImplausibleTemp,
+        ),
+        (
+            "EngSpeed",
+            "ENG_Status",
+            9500.0,
+            FaultCode::ImplausibleSpeed,
+        ),
+        (
+            "Clutch1Pos",
+            "DCT_Actuators",
+            12.0,
+            FaultCode::ImplausiblePosition,
+        ),
+    ] {
+        let text = format!(
+            "{LAUNCH_DRIVER}\n[[faults]]\nmessage = \"{message}\"\nkind = \"implausible\"\n\
+             signal = \"{signal}\"\nvalue = {value}\nfrom_s = 4.0\nto_s = 4.5\n"
+        );
+        let (r, m) = inline(&text);
+        assert!(!m.nonfinite);
+        let (t, code, state) = first_fault(&r, 3.9).unwrap_or_else(|| panic!("{signal}: no fault"));
+        assert_eq!(code, expected, "{signal}");
+        assert_eq!(state, TcuState::SafeState, "{signal}");
+        // The first implausible frame is at 4.0 s; the last valid one 10 ms before: detected
+        // within 3 cycles of it.
+        assert!(t <= 3.99 + 0.031, "{signal}: detected at {t}");
+        // Back to normal once the values are plausible again.
+        let back = r
+            .rows
+            .iter()
+            .find(|x| x.t_s >= 4.5 && x.fault == FaultCode::None && x.state != TcuState::SafeState)
+            .map(|x| x.t_s);
+        assert!(
+            back.is_some_and(|b| b <= 4.6),
+            "{signal}: recovered at {back:?}"
+        );
+    }
+}
+
+#[test]
+fn over_temperature_warns_then_limits_the_torque() {
+    let cfg = tcu_config();
+    let (warn, limit) = (cfg.safety.over_temp_warn_c, cfg.safety.over_temp_limit_c);
+    // Between the thresholds: a warning, nothing else changes.
+    let t_warn = 0.5 * (warn + limit);
+    let text = format!(
+        "{LAUNCH_DRIVER}\n[initial]\ntemperature_c = {t_warn}\n[tcu]\ninitial_temp_c = {t_warn}\n"
+    );
+    let (r, m) = inline(&text);
+    assert!(r
+        .rows
+        .iter()
+        .any(|x| x.fault == FaultCode::ClutchOverTempWarning));
+    assert!(m.launches[0].lockup_s.is_some());
+    // Above the limit: the engine torque request is capped and the fault code says so.
+    let t_lim = limit + 10.0;
+    let text = format!(
+        "{LAUNCH_DRIVER}\n[initial]\ntemperature_c = {t_lim}\n[tcu]\ninitial_temp_c = {t_lim}\n"
+    );
+    let (r, m) = inline(&text);
+    let launching: Vec<_> = r
+        .rows
+        .iter()
+        .filter(|x| x.state == TcuState::Launch)
+        .collect();
+    assert!(!launching.is_empty());
+    assert!(launching
+        .iter()
+        .all(|x| x.fault == FaultCode::ClutchOverTempLimit));
+    let cap = cfg.safety.over_temp_engine_torque_nm;
+    assert!(
+        launching
+            .iter()
+            .all(|x| x.eng_req_nm.is_none_or(|t| t <= cap + 0.05)),
+        "engine request above {cap} N·m"
+    );
+    assert!(
+        m.launches[0].lockup_s.is_some(),
+        "it still launches: {:?}",
+        m.launches[0]
+    );
+}
+
+/// Garbage on every input id (random payloads, wrong lengths) never panics the core and never
+/// puts a non-finite or out-of-range value on the bus.
+#[test]
+fn garbage_frames_never_panic_or_leak_nan() {
+    use ddct::can::messages::{TcuEstimates, TcuGearCmd};
+    use ddct::tcu::{Tcu, TcuInputs, TimedFrame};
+    let mut tcu = Tcu::new(tcu_config(), Duration::ZERO);
+    let mut seed: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    let inputs = [
+        ids::ENG_STATUS,
+        ids::DRV_PEDAL,
+        ids::DCT_SENSORS,
+        ids::DCT_ACTUATORS,
+    ];
+    for k in 0..2000u32 {
+        let now = Duration::from_millis(10) * k;
+        let mut frames = Vec::new();
+        for &id in &inputs {
+            let len = (rnd() % 9) as usize;
+            let bytes = rnd().to_le_bytes();
+            frames.push(TimedFrame {
+                at: now,
+                frame: CanFrame::standard(id, &bytes[..len]).unwrap(),
+            });
+        }
+        let out = tcu.step(now, &TcuInputs { frames: &frames });
+        assert_eq!(out.frames.len(), 5);
+        for f in &out.frames {
+            match f.standard_id().unwrap() {
+                ids::TCU_CLUTCH_CMD => {
+                    let c = TcuClutchCmd::decode(f.bytes()).unwrap();
+                    assert!(c.clutch1_pos_req.is_finite() && c.clutch2_pos_req.is_finite());
+                }
+                ids::TCU_ENGINE_REQ => {
+                    assert!(TcuEngineReq::decode(f.bytes())
+                        .unwrap()
+                        .eng_torque_req
+                        .is_finite())
+                }
+                ids::TCU_GEAR_CMD => {
+                    TcuGearCmd::decode(f.bytes()).unwrap();
+                }
+                ids::TCU_STATUS => {
+                    let s = TcuStatus::decode(f.bytes()).unwrap();
+                    if k > 3 {
+                        assert!(matches!(s.tcu_state, TcuState::Init | TcuState::SafeState));
+                    }
+                }
+                ids::TCU_ESTIMATES => {
+                    TcuEstimates::decode(f.bytes()).unwrap();
+                }
+                other => panic!("unexpected id {other:#x}"),
+            }
+        }
+    }
+}

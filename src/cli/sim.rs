@@ -132,6 +132,29 @@ fn print_tables(out: &[ScenarioSummary]) {
             );
         }
     }
+    // Fig. 14: mean T_ref − T_actual of the launch clutch per slip bin (rad/s), as % of T_ref.
+    if out.iter().any(|s| !s.metrics.launches.is_empty()) {
+        println!();
+        let edges = metrics::SLIP_BINS_RADPS;
+        let mut head = format!("{:<22} {:>6}", "T_ref-T_act (% T_ref)", "pedal%");
+        for w in edges.windows(2) {
+            head.push_str(&format!(" {:>9}", format!("{}-{}", w[1], w[0])));
+        }
+        println!("{head}   (slip bins, rad/s)");
+        for s in out {
+            for l in &s.metrics.launches {
+                let mut line = format!("{:<22} {:>6.0}", s.scenario, l.pedal_pct);
+                for b in &l.torque_error_by_slip {
+                    line.push_str(&format!(
+                        " {:>9}",
+                        b.mean_rel_error
+                            .map_or("-".into(), |e| format!("{:.1}", 100.0 * e))
+                    ));
+                }
+                println!("{line}");
+            }
+        }
+    }
     let shifts: Vec<_> = out
         .iter()
         .flat_map(|s| s.metrics.shifts.iter().map(move |x| (s, x)))

@@ -1107,7 +1107,18 @@ impl Launch {
             0.0
         };
         let alpha_min = (w_tgt - w_c0).max(0.0) / l.lockup_time_s;
-        (w_tgt, alpha_cons.max(alpha_min).max(0.0))
+        // At lock-up the engine has to accelerate with the clutch: leave it 5 % of its full-load
+        // torque at the target speed for that, or the lock-up comes with a jolt.
+        let mut t_full = crate::model::engine::full_load(&cfg.physics.engine, w_tgt);
+        if ctx.limit_torque {
+            t_full = t_full.min(cfg.safety.over_temp_engine_torque_nm);
+        }
+        let alpha_cap = if k != 0.0 {
+            (0.95 * t_full - tl / k) / (r.j_eq + r.j_eq2 / (k * k))
+        } else {
+            0.0
+        };
+        (w_tgt, alpha_cons.max(alpha_min).min(alpha_cap).max(0.0))
     }
 }
 
