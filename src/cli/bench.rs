@@ -66,6 +66,7 @@ enum AnyBus {
     Sim(InProcessEndpoint),
 }
 
+#[allow(clippy::manual_async_fn)]
 impl Bus for AnyBus {
     fn send(&mut self, frame: CanFrame) -> impl Future<Output = Result<(), BusError>> + Send {
         async move {

@@ -53,11 +53,13 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     let report: TcuReport = rt.block_on(async {
         if a.iface == "sim" {
             let bus = InProcessBus::new("sim");
-            let mut plant = PlantConfig::default();
-            plant.scenario = Some(match &a.scenario {
-                Some(p) => Scenario::load(p)?,
-                None => Scenario::builtin(),
-            });
+            let plant = PlantConfig {
+                scenario: Some(match &a.scenario {
+                    Some(p) => Scenario::load(p)?,
+                    None => Scenario::builtin(),
+                }),
+                ..PlantConfig::default()
+            };
             let d = duration.unwrap_or_else(|| {
                 Duration::from_secs_f64(plant.scenario.as_ref().map_or(10.0, |s| s.duration_s))
             });

@@ -72,6 +72,7 @@ impl ThermalEstimator {
             .state
             .get_or_insert_with(|| Thermal3State::uniform(u.theta_h_c));
         let th = [s.c1, s.c2];
+        #[allow(clippy::needless_range_loop)] // four parallel per-clutch arrays
         for i in 0..2 {
             let (x, w) = (u.x_mm[i], u.slip_radps[i]);
             if !(x.is_finite() && w.is_finite()) {
