@@ -255,46 +255,49 @@ def fault_events(rows: list[dict]) -> list[dict]:
     return out
 
 
-def fault_timing(records, message: str, fault_from_s: float, fault_to_s: float, t_plant0: float) -> dict:
-    """Detection and recovery of a fault injected on `message` in [from, to) of plant time:
-    last valid frame before the window's end -> first TCU_Status with a fault code; first frame
-    back -> first TCU_Status in normal operation (not SafeState/Init, no fault code)."""
+def fault_timing(records, message: str, expected: str, fault_from_s: float, t_plant0: float) -> dict:
+    """Detection and recovery of a fault injected on `message` from `fault_from_s` of plant time
+    (t_plant0: the plant's first frame): the first TCU_Status carrying the `expected` fault code
+    after the injection started is the detection; it is measured from the last valid frame of
+    the message before it (CRC and counter sequence checked here); recovery is from the first
+    valid frame after the detection to the first TCU_Status in normal operation (not SafeState or
+    Init, no fault code)."""
     fid = frame_id(message)
     status_id = frame_id("TCU_Status")
     safe = choice("TCU_Status", "TcuState", "SafeState")
     init = choice("TCU_Status", "TcuState", "Init")
-    checker = ddct_can.E2EChecker()
-    last_valid = first_back = None
+    code = choice("TCU_Status", "FaultCode", expected)
+    start = t_plant0 + fault_from_s - 0.05
+    status = []
     for t, _, i, _, data in records:
-        if i != fid:
-            continue
-        ok = checker.check(i, data) == ddct_can.OK
-        tp = t - t_plant0
-        if ok and tp < fault_to_s:
-            last_valid = t
-        if tp >= fault_to_s and first_back is None:
-            first_back = t
-    detected = fault = safe_t = recovered = None
+        if i == status_id:
+            s = ddct_can.decode(i, data)
+            status.append((t, s["TcuState"], s["FaultCode"]))
+    detected = next((t for t, _, f in status if t >= start and f == code), None)
+    # Valid: CRC right and the counter moved on. After a gap the counter may jump (frames were
+    # lost), which still counts as back.
+    valid, prev = [], None
     for t, _, i, _, data in records:
-        if i != status_id:
+        if i != fid or ddct_can.check(i, data) != ddct_can.OK:
             continue
-        s = ddct_can.decode(i, data)
-        if detected is None and last_valid is not None and t > last_valid and s["FaultCode"] != 0:
-            detected, fault = t, label("TCU_Status", "FaultCode", s["FaultCode"])
-        if detected is not None and safe_t is None and s["TcuState"] == safe:
-            safe_t = t
-        if (
-            first_back is not None
-            and recovered is None
-            and t >= first_back
-            and s["FaultCode"] == 0
-            and s["TcuState"] not in (safe, init)
-        ):
-            recovered = t
+        c = ddct_can.counter_of(i, data)
+        if c != prev:
+            valid.append(t)
+        prev = c
+    last_valid = first_back = safe_t = recovered = None
+    if detected is not None:
+        last_valid = max((t for t in valid if t < detected), default=None)
+        first_back = min((t for t in valid if t > detected), default=None)
+        safe_t = next((t for t, st, _ in status if t >= detected and st == safe), None)
+    if first_back is not None:
+        recovered = next(
+            (t for t, st, f in status if t >= first_back and f == 0 and st not in (safe, init)),
+            None,
+        )
     ms = lambda a, b: None if a is None or b is None else (a - b) * 1e3  # noqa: E731
     return {
         "message": message,
-        "fault": fault,
+        "fault": expected if detected is not None else None,
         "detection_ms": ms(detected, last_valid),
         "safe_state_after_detection_ms": ms(safe_t, detected),
         "recovery_ms": ms(recovered, first_back),
