@@ -21,7 +21,9 @@ use ddct::can::{
     Bus, BusError, CanFrame, EndpointConfig, InProcessBus, InProcessEndpoint, Received,
 };
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig, PlantReport};
-use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig, TcuReport, CYCLE, INPUT_IDS};
+use ddct::daemon::tcu::{
+    run as run_tcu, set_realtime_priority, TcuDaemonConfig, TcuReport, CYCLE, INPUT_IDS,
+};
 use ddct::daemon::Periodic;
 use ddct::sim::buslog::{self, Spread};
 use ddct::sim::metrics::{self, Metrics};
@@ -55,9 +57,21 @@ pub struct BenchArgs {
     /// Analyse a candump -l log instead of running (the scenario still names the launch target).
     #[arg(long)]
     analyze: Option<PathBuf>,
+    /// Run the plant, TCU, echo and recorder threads under the real-time FIFO scheduler at this
+    /// priority (1..=99; needs root; a warning when refused).
+    #[arg(long)]
+    rt_priority: Option<i32>,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+fn realtime(prio: Option<i32>) {
+    if let Some(p) = prio {
+        if let Err(e) = set_realtime_priority(p) {
+            eprintln!("bench: real-time priority {p} refused ({e}); running at normal priority");
+        }
+    }
 }
 
 /// Either bus, so one set of node functions serves both.
@@ -146,8 +160,10 @@ fn spawn_recorder(
     net: Net,
     stop: watch::Receiver<bool>,
     ready: std::sync::mpsc::Sender<()>,
+    prio: Option<i32>,
 ) -> std::thread::JoinHandle<anyhow::Result<Vec<(Duration, CanFrame)>>> {
     std::thread::spawn(move || {
+        realtime(prio);
         let rt = runtime()?;
         rt.block_on(async move {
             let mut bus = net.open()?;
@@ -177,13 +193,18 @@ fn spawn_recorder(
 
 /// Bare frame echo: a responder (tokio, one socket) answers each DCT_Sensors-id frame of a 10 ms
 /// pinger with a TCU_ClutchCmd-id frame. Returns the recorded frames.
-fn echo_run(net: &Net, seconds: f64) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
+fn echo_run(
+    net: &Net,
+    seconds: f64,
+    prio: Option<i32>,
+) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
     let (stop_tx, stop_rx) = watch::channel(false);
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone());
+    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone(), prio);
     let n2 = net.clone();
     let stop2 = stop_rx.clone();
     let responder = std::thread::spawn(move || -> anyhow::Result<u64> {
+        realtime(prio);
         let rt = runtime()?;
         rt.block_on(async move {
             let mut bus = n2.open_filtered(&[ids::DCT_SENSORS])?;
@@ -239,16 +260,22 @@ struct RunResult {
     tcu: TcuReport,
 }
 
-fn bench_run(net: &Net, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<RunResult> {
+fn bench_run(
+    net: &Net,
+    sc: &SimScenario,
+    cfg: &TcuConfig,
+    prio: Option<i32>,
+) -> anyhow::Result<RunResult> {
     let (stop_tx, stop_rx) = watch::channel(false);
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone());
+    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone(), prio);
     let _ = ready_rx.recv_timeout(Duration::from_secs(5));
     let mut tcu_cfg = cfg.clone();
     sc.tcu.apply(&mut tcu_cfg);
     let n2 = net.clone();
     let stop2 = stop_rx.clone();
     let tcu = std::thread::spawn(move || -> anyhow::Result<TcuReport> {
+        realtime(prio);
         let rt = runtime()?;
         rt.block_on(async move {
             let bus = n2.open_filtered(&INPUT_IDS)?;
@@ -385,7 +412,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             }
             let echo = if a.echo > 0.0 {
                 eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
-                let e = echo_run(&net, a.echo)?;
+                let e = echo_run(&net, a.echo, a.rt_priority)?;
                 write_log(&a.out.join("echo.log"), &net.name(), &e)?;
                 Some(e)
             } else {
@@ -397,7 +424,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
                 sc.duration_s,
                 sc.name
             );
-            let r = bench_run(&net, &sc, &cfg)?;
+            realtime(a.rt_priority);
+            let r = bench_run(&net, &sc, &cfg, a.rt_priority)?;
             let log = a.out.join("bench.log");
             write_log(&log, &net.name(), &r.frames)?;
             (net.name(), r.frames, echo, Some(r.plant), Some(r.tcu), log)

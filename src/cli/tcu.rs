@@ -6,7 +6,9 @@ use clap::Args;
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
-use ddct::daemon::tcu::{run as run_tcu, TcuDaemonConfig, TcuReport, INPUT_IDS};
+use ddct::daemon::tcu::{
+    run as run_tcu, set_realtime_priority, TcuDaemonConfig, TcuReport, INPUT_IDS,
+};
 use ddct::plant::{PlantConfig, Scenario};
 use ddct::tcu::TcuConfig;
 use std::path::PathBuf;
@@ -34,6 +36,9 @@ pub struct TcuArgs {
     /// config/scenarios/driver_launch.toml).
     #[arg(long)]
     scenario: Option<PathBuf>,
+    /// Run under the real-time FIFO scheduler at this priority (1..=99; needs root).
+    #[arg(long)]
+    rt_priority: Option<i32>,
     /// Print the exit report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -48,6 +53,9 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     };
     if a.scenario.is_some() && a.iface != "sim" {
         bail!("--scenario is for --iface sim (on a real bus the driver is on the bus)");
+    }
+    if let Some(p) = a.rt_priority {
+        set_realtime_priority(p).with_context(|| format!("--rt-priority {p}"))?;
     }
     let rt = runtime()?;
     let report: TcuReport = rt.block_on(async {

@@ -315,6 +315,23 @@ impl<B: Bus> Shell<B> {
     }
 }
 
+/// Puts the calling thread under the real-time FIFO scheduler at `priority` (1..=99), as a
+/// bench ECU process would run; needs CAP_SYS_NICE (root). Under User-Mode Linux, where every
+/// process of the guest shares one virtual CPU, it keeps a busy neighbour from delaying the
+/// 10 ms loop.
+pub fn set_realtime_priority(priority: i32) -> std::io::Result<()> {
+    let param = libc::sched_param {
+        sched_priority: priority.clamp(1, 99),
+    };
+    // SAFETY: plain syscall on the calling thread (pid 0) with a valid parameter struct.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
 /// Runs the TCU on `bus` until `shutdown` resolves or `duration` has passed.
 pub async fn run<B: Bus, S: Future<Output = ()>>(
     bus: B,
