@@ -344,16 +344,6 @@ class Run:
     plant_start_wall: float
 
 
-def rt_prefix() -> list[str]:
-    """`chrt -f 50` for the daemons when we may (root): under User-Mode Linux every process of the
-    guest shares one virtual CPU, and the 10 ms loops must not wait for a busy neighbour."""
-    import os
-    import shutil
-
-    chrt = shutil.which("chrt")
-    return [chrt, "-f", "50"] if chrt and os.geteuid() == 0 else []
-
-
 def wait_for_file(p: Path, timeout: float = 10.0):
     t = time.monotonic() + timeout
     while not p.exists() and time.monotonic() < t:
@@ -379,9 +369,8 @@ def run_bench(
         log.unlink()
     procs = []
     tcu_json = out / f"{name}_tcu.json"
-    rt = rt_prefix()
     rec = subprocess.Popen(
-        rt + [str(ddct), "log", "record", "--iface", iface, "--out", str(log), "--duration", str(seconds + 3.0)],
+        [str(ddct), "log", "record", "--iface", iface, "--out", str(log), "--duration", str(seconds + 3.0)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -392,7 +381,7 @@ def run_bench(
         time.sleep(0.3)
         if daemons:
             tcu = subprocess.Popen(
-                rt + [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json"],
+                [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json"],
                 stdout=open(tcu_json, "w"),
                 stderr=subprocess.PIPE,
                 text=True,
@@ -400,7 +389,7 @@ def run_bench(
             )
             procs.append(tcu)
             time.sleep(0.3)
-            cmd = rt + [str(ddct), "plant", "--iface", iface, "--duration", str(seconds + 0.5)]
+            cmd = [str(ddct), "plant", "--iface", iface, "--duration", str(seconds + 0.5)]
             if faults is not None:
                 cmd += ["--faults", str(faults)]
             plant = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=REPO)
