@@ -5,7 +5,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus, ManualClock};
-use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig, PlantReport};
+use ddct::daemon::plant::{run as run_plant, Lockstep, Pacing, PlantDaemonConfig, PlantReport};
 use ddct::daemon::wall_clock;
 use ddct::model::effects::EffectSet;
 use ddct::plant::{Mode, PlantConfig, RigProfile, Scenario};
@@ -23,8 +23,12 @@ pub enum ModeArg {
 #[derive(Debug, Args)]
 pub struct PlantArgs {
     /// CAN interface (e.g. vcan0), or `sim` for the in-process bus.
+    #[arg(long, required_unless_present = "list_effects")]
+    iface: Option<String>,
+    /// Print the reality-effect library (identifiers, subsystems, equations, parameters with
+    /// units, plausible ranges and bounds) as a Markdown table, or JSON with --json, and exit.
     #[arg(long)]
-    iface: String,
+    list_effects: bool,
     /// Plant configuration (default: the built-in config/plant.toml).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -39,6 +43,9 @@ pub struct PlantArgs {
     /// Rig mode: built-in x_to profile (config/rig/*.toml) instead of TCU_ClutchCmd from the bus.
     #[arg(long)]
     rig_profile: Option<PathBuf>,
+    /// Rig mode: dyno speed holding the input side (rpm); overrides the config and the profile.
+    #[arg(long)]
+    input_speed: Option<f64>,
     /// Reality effects file ([effects.<id>] tables); replaces the config's effects.
     #[arg(long)]
     effects: Option<PathBuf>,
@@ -56,6 +63,14 @@ pub struct PlantArgs {
     /// only on `--iface sim`, the default there).
     #[arg(long)]
     speed: Option<String>,
+    /// Lockstep with a controller: after each cycle wait for its answer (a frame of MESSAGE,
+    /// default TCU_ClutchCmd) before simulating the next, never faster than --speed; makes a fast
+    /// bus experiment independent of the host's scheduling.
+    #[arg(long, value_name = "MESSAGE", num_args = 0..=1, default_missing_value = "TCU_ClutchCmd")]
+    lockstep: Option<String>,
+    /// Lockstep: seconds of wall time to wait for an answer before simulating on without it.
+    #[arg(long, default_value_t = 1.0)]
+    lockstep_timeout: f64,
     /// Sensor-noise seed (default: the config's).
     #[arg(long)]
     seed: Option<u64>,
@@ -90,7 +105,19 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
         }
         cfg.rig_profile = Some(RigProfile::load(p)?);
     }
-    if a.iface == "sim" && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
+    if let Some(rpm) = a.input_speed {
+        if cfg.mode != Mode::Rig {
+            bail!("--input-speed is for rig mode (add --mode rig)");
+        }
+        if !(rpm.is_finite() && (0.0..=6000.0).contains(&rpm)) {
+            bail!("--input-speed {rpm}: must be in 0 ..= 6000 rpm");
+        }
+        cfg.rig.input_speed_rpm = rpm;
+        if let Some(p) = cfg.rig_profile.as_mut() {
+            p.input_speed_rpm = rpm;
+        }
+    }
+    if a.iface.as_deref() == Some("sim") && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
         cfg.scenario = Some(Scenario::builtin());
     }
     if let Some(p) = &a.effects {
@@ -104,9 +131,73 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
     Ok(cfg)
 }
 
+fn list_effects(json: bool) -> anyhow::Result<ExitCode> {
+    use ddct::model::effects::EffectId;
+    if json {
+        let v: Vec<_> = EffectId::ALL
+            .iter()
+            .map(|id| {
+                let s = id.spec();
+                serde_json::json!({
+                    "id": id.as_str(),
+                    "subsystem": s.subsystem.as_str(),
+                    "in_library": s.in_library,
+                    "equation": s.equation,
+                    "description": s.description,
+                    "params": s.params.iter().map(|p| serde_json::json!({
+                        "name": p.name, "unit": p.unit, "nominal": p.nominal, "typical": p.typical,
+                        "plausible": [p.plausible.0, p.plausible.1], "min_effect": p.min_effect,
+                        "bounds": [p.bounds.0, p.bounds.1], "doc": p.doc,
+                    })).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "| id | subsystem | library | parameter | unit | nominal | typical | plausible | bounds |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for id in EffectId::ALL {
+        let s = id.spec();
+        for (i, p) in s.params.iter().enumerate() {
+            let (idc, sub, lib) = if i == 0 {
+                (
+                    format!("`{id}`"),
+                    s.subsystem.as_str().to_string(),
+                    if s.in_library { "yes" } else { "no (outside)" }.to_string(),
+                )
+            } else {
+                (String::new(), String::new(), String::new())
+            };
+            let plaus = if p.min_effect > 0.0 {
+                format!(
+                    "{} … {}, except {} … {}",
+                    p.plausible.0,
+                    p.plausible.1,
+                    p.nominal - p.min_effect,
+                    p.nominal + p.min_effect
+                )
+            } else {
+                format!("{} … {}", p.plausible.0, p.plausible.1)
+            };
+            println!(
+                "| {idc} | {sub} | {lib} | `{}` | {} | {} | {} | {plaus} | {} … {} |",
+                p.name, p.unit, p.nominal, p.typical, p.bounds.0, p.bounds.1
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
+    if a.list_effects {
+        return list_effects(a.json);
+    }
     let cfg = build_config(&a)?;
-    let sim = a.iface == "sim";
+    let iface = a.iface.clone().unwrap_or_default();
+    let sim = iface == "sim";
     let speed: Option<f64> = match a.speed.as_deref() {
         None if sim => None,
         None => Some(1.0),
@@ -136,6 +227,26 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    let lockstep = match &a.lockstep {
+        None => None,
+        Some(name) => {
+            let def = ddct::can::messages::message_by_name(name)
+                .with_context(|| format!("--lockstep {name}: not a message of the contract"))?;
+            if sim && speed.is_none() {
+                bail!("--lockstep needs real-time pacing (--speed K)");
+            }
+            if !(a.lockstep_timeout.is_finite() && a.lockstep_timeout > 0.0) {
+                bail!(
+                    "--lockstep-timeout {}: must be a positive number of seconds",
+                    a.lockstep_timeout
+                );
+            }
+            Some(Lockstep {
+                message: def.id,
+                timeout: Duration::from_secs_f64(a.lockstep_timeout),
+            })
+        }
+    };
     let rt = runtime()?;
     let report: PlantReport = rt.block_on(async {
         if sim {
@@ -153,11 +264,12 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 pacing,
                 duration,
                 log: a.log.clone(),
+                lockstep,
             };
             anyhow::Ok(run_plant(ep, shutdown_signal(), c).await?)
         } else {
-            let bus = SocketCanBus::open(&a.iface, false)
-                .with_context(|| format!("opening CAN interface {}", a.iface))?;
+            let bus = SocketCanBus::open(&iface, false)
+                .with_context(|| format!("opening CAN interface {iface}"))?;
             let c = PlantDaemonConfig {
                 plant: cfg,
                 pacing: Pacing::RealTime {
@@ -165,6 +277,7 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 },
                 duration,
                 log: a.log.clone(),
+                lockstep,
             };
             anyhow::Ok(run_plant(bus, shutdown_signal(), c).await?)
         }

@@ -6,16 +6,24 @@
 //!   cycles are integrated (the core catches up to the simulated time of the deadline) but their
 //!   frames are sent late rather than dropped. Received frames are applied at their (scaled)
 //!   receive time; frames a fault delays are sent at their due time.
+//! - Lockstep ([`PlantDaemonConfig::lockstep`], real-time pacing): after sending cycle n the
+//!   plant waits for the controller's answer (a frame of the lockstep message) before it
+//!   simulates cycle n+1, and never runs faster than `speed`. The run is then deterministic
+//!   whatever the host's scheduling (a loaded CI machine, User-Mode Linux): the experiment gives
+//!   the same frames over a real bus as in process. No deadlines, so no misses are counted; the
+//!   cycles whose answer did not come within the timeout are.
 //! - [`Pacing::Virtual`]: as fast as possible in simulated time (the in-process bus's
 //!   `ManualClock`, if given, follows the simulated time), yielding to other tasks every cycle.
 //!
 //! Time mapping: simulated time = (wall time − start) · speed. The candump tap (`log`) records
-//! every frame sent and received with timestamps on the same scale (start + simulated time), so a
-//! log of a run at `speed` 10 has the time axis of the simulation. The loop ends when `shutdown`
+//! every frame sent and received: at speed 1 with the real wall-clock time of sending (received
+//! frames with their kernel timestamps); at any other speed on the simulated time axis (start +
+//! simulated time: sent frames at their due time, received ones at their scaled arrival time), so
+//! a log of a run at speed 10 has the time axis of the simulation, not ten-fold wall jitter. The loop ends when `shutdown`
 //! resolves (SIGINT/SIGTERM in the CLI) or after `duration` of simulated time; the log is flushed
 //! either way.
 
-use super::{wall_clock, LogTap, LoopStats, Periodic};
+use super::{sleep_until_precise, wall_clock, LogTap, LoopStats, Periodic};
 use crate::can::{Bus, BusError, ManualClock, Received};
 use crate::model::effects::EffectSet;
 use crate::plant::core::CYCLE;
@@ -45,6 +53,18 @@ pub struct PlantDaemonConfig {
     pub duration: Option<Duration>,
     /// candump -l tap of every frame sent and received.
     pub log: Option<PathBuf>,
+    /// Lockstep with a controller (real-time pacing only): after sending cycle n the plant waits
+    /// for a frame of this message before it simulates cycle n+1 (never faster than `speed`).
+    pub lockstep: Option<Lockstep>,
+}
+
+/// Lockstep settings (see [`PlantDaemonConfig::lockstep`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lockstep {
+    /// The message that answers a cycle (e.g. TCU_ClutchCmd).
+    pub message: u16,
+    /// Wall time to wait for the answer before simulating on without it.
+    pub timeout: Duration,
 }
 
 /// Errors that stop the daemon.
@@ -73,7 +93,7 @@ pub enum PlantDaemonError {
 pub struct PlantReport {
     pub iface: String,
     pub mode: &'static str,
-    /// "real_time" or "virtual".
+    /// "real_time", "lockstep" or "virtual".
     pub pacing: &'static str,
     pub speed: Option<f64>,
     /// "duration" or "shutdown".
@@ -90,6 +110,9 @@ pub struct PlantReport {
     pub send_errors: u64,
     pub frames_received: u64,
     pub receive_errors: u64,
+    /// Lockstep: the message waited for, and the cycles whose answer did not come in time.
+    pub lockstep: Option<String>,
+    pub lockstep_timeouts: u64,
     pub log: Option<PathBuf>,
     pub log_frames: Option<u64>,
     pub effects: EffectSet,
@@ -135,6 +158,12 @@ impl PlantReport {
         if !self.effects.is_nominal() {
             s.push_str(&format!("effects {:?}\n", self.effects.to_map()));
         }
+        if let Some(m) = &self.lockstep {
+            s.push_str(&format!(
+                "lockstep on {m}: {} cycle(s) without an answer in time\n",
+                self.lockstep_timeouts
+            ));
+        }
         if let (Some(p), Some(n)) = (&self.log, self.log_frames) {
             s.push_str(&format!("log {} ({n} frames)\n", p.display()));
         }
@@ -158,6 +187,7 @@ struct Shell<B: Bus> {
     consecutive_send_errors: u64,
     received: u64,
     receive_errors: u64,
+    lockstep_timeouts: u64,
     pending: Vec<Received>,
 }
 
@@ -170,6 +200,16 @@ impl<B: Bus> Shell<B> {
     /// Log timestamp (start + simulated time) of a wall timestamp.
     fn log_time(&self, wall: Duration) -> Duration {
         self.start_wall + self.to_sim(wall)
+    }
+
+    /// Log timestamp of a frame sent now with simulated due time `due`: the wall clock at speed 1,
+    /// start + `due` otherwise.
+    fn sent_log_time(&self, due: Duration) -> Duration {
+        if self.speed == 1.0 {
+            wall_clock()
+        } else {
+            self.start_wall + due
+        }
     }
 
     fn tap_err(&self, source: std::io::Error) -> PlantDaemonError {
@@ -283,16 +323,20 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         consecutive_send_errors: 0,
         received: 0,
         receive_errors: 0,
+        lockstep_timeouts: 0,
         pending: Vec::new(),
     };
     let wall0 = std::time::Instant::now();
     let mut stats = LoopStats::default();
     tokio::pin!(shutdown);
-    let stopped_by = match &config.pacing {
-        Pacing::RealTime { .. } => {
+    let stopped_by = match (&config.pacing, config.lockstep) {
+        (Pacing::RealTime { .. }, Some(ls)) => {
+            run_lockstep(&mut shell, &mut shutdown, config.duration, ls, &mut stats).await?
+        }
+        (Pacing::RealTime { .. }, None) => {
             run_real_time(&mut shell, &mut shutdown, config.duration, &mut stats).await?
         }
-        Pacing::Virtual { clock } => {
+        (Pacing::Virtual { clock }, _) => {
             run_virtual(
                 &mut shell,
                 &mut shutdown,
@@ -314,6 +358,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         None => None,
     };
     let (pacing, speed_out) = match config.pacing {
+        Pacing::RealTime { speed } if config.lockstep.is_some() => ("lockstep", Some(speed)),
         Pacing::RealTime { speed } => ("real_time", Some(speed)),
         Pacing::Virtual { .. } => ("virtual", None),
     };
@@ -335,6 +380,11 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         send_errors: shell.send_errors,
         frames_received: shell.received,
         receive_errors: shell.receive_errors,
+        lockstep: config.lockstep.map(|l| {
+            crate::can::messages::message_def(u32::from(l.message))
+                .map_or(format!("{:#x}", l.message), |d| d.name.to_string())
+        }),
+        lockstep_timeouts: shell.lockstep_timeouts,
         log: config.log,
         log_frames,
         effects,
@@ -362,7 +412,7 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
         tokio::select! {
             biased;
             _ = shutdown.as_mut() => return Ok("shutdown"),
-            _ = tokio::time::sleep_until(timer.next_deadline()) => {
+            _ = sleep_until_precise(timer.next_deadline()) => {
                 let tick = timer.fire(Instant::now());
                 stats.record(&tick, period);
                 let sim_now = CYCLE * u32::try_from(tick.cycle).unwrap_or(u32::MAX);
@@ -384,7 +434,7 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                 let out = shell.plant.step(sim_now, &rx);
                 for f in out.frames {
                     if f.due <= sim_now {
-                        let lt = shell.log_time(wall_clock());
+                        let lt = shell.sent_log_time(f.due);
                         shell.send(&f, lt).await?;
                     } else {
                         let pos = later.partition_point(|g| g.due <= f.due);
@@ -406,7 +456,7 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                 let now_sim = Instant::now().saturating_duration_since(start).mul_f64(speed);
                 while later.first().is_some_and(|f| f.due <= now_sim) {
                     let f = later.remove(0);
-                    let lt = shell.log_time(wall_clock());
+                    let lt = shell.sent_log_time(f.due);
                     shell.send(&f, lt).await?;
                 }
             }
@@ -420,6 +470,72 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                 }
             }
         }
+    }
+}
+
+async fn run_lockstep<B: Bus, S: Future<Output = ()>>(
+    shell: &mut Shell<B>,
+    shutdown: &mut std::pin::Pin<&mut S>,
+    duration: Option<Duration>,
+    ls: Lockstep,
+    stats: &mut LoopStats,
+) -> Result<&'static str, PlantDaemonError> {
+    let speed = shell.speed;
+    let start = Instant::now();
+    shell.start_wall = wall_clock();
+    let mut cycle: u64 = 0;
+    loop {
+        let sim_now = CYCLE * u32::try_from(cycle).unwrap_or(u32::MAX);
+        if duration.is_some_and(|d| sim_now > d) {
+            return Ok("duration");
+        }
+        // Not faster than `speed`: cycle n no earlier than start + n·period.
+        let earliest = start + sim_now.div_f64(speed);
+        let late_by = Instant::now().saturating_duration_since(earliest);
+        if late_by.is_zero() {
+            sleep_until_precise(earliest).await;
+        }
+        stats.cycles += 1;
+        let rx = std::mem::take(&mut shell.pending);
+        let out = shell.plant.step(sim_now, &rx);
+        for f in out.frames {
+            // Fault-delayed frames go out with their cycle (lockstep has no wall time to wait in).
+            shell
+                .send(&f, shell.start_wall + f.due.max(sim_now))
+                .await?;
+        }
+        // Wait for the controller's answer to this cycle; frames received meanwhile act from the
+        // next cycle on (stamped mid-cycle in the log).
+        let stamp = sim_now + CYCLE / 2;
+        let give_up = Instant::now() + ls.timeout;
+        loop {
+            tokio::select! {
+                biased;
+                _ = shutdown.as_mut() => return Ok("shutdown"),
+                rx = shell.bus.recv() => match rx {
+                    Ok(rx) => {
+                        let answer = rx.frame.standard_id() == Some(ls.message);
+                        shell.on_receive(rx, stamp, shell.start_wall + stamp)?;
+                        if answer {
+                            break;
+                        }
+                    }
+                    Err(e) => shell.recv_error(e)?,
+                },
+                _ = tokio::time::sleep_until(give_up) => {
+                    shell.lockstep_timeouts += 1;
+                    break;
+                }
+            }
+        }
+        if cycle % 100 == 0 {
+            if let Some(tap) = shell.tap.as_mut() {
+                if let Err(e) = tap.flush() {
+                    return Err(shell.tap_err(e));
+                }
+            }
+        }
+        cycle += 1;
     }
 }
 

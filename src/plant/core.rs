@@ -1,9 +1,13 @@
 //! The plant core: [`Plant::step`] integrates the powertrain at its 1 ms step up to `now` and
 //! returns the frames due, with the received frames applied at their timestamps.
 //!
-//! Per 1 ms step, in order: received frames with a timestamp up to the step's start are checked
-//! (DLC, CRC, alive counter — a skipped counter is accepted, a repeated one is not — and the
-//! DBC ranges) and latched; the commands of this instant are formed (vehicle: TCU_ClutchCmd,
+//! Received frames are read like an ECU reads its mailboxes at the start of its 10 ms task: at
+//! each cycle boundary t, the frames with a timestamp up to t are checked (DLC, CRC, alive
+//! counter — a skipped counter is accepted, a repeated one is not — and the DBC ranges) and
+//! latched, then the cycle's frames are sampled and sent. So a command sent in answer to the
+//! plant's cycle-n frames acts from cycle n+1 on, whatever its latency within the cycle.
+//!
+//! Per 1 ms step, in order: the commands of this instant are formed (vehicle: TCU_ClutchCmd,
 //! TCU_EngineReq, TCU_GearCmd and the driver from DRV_Pedal or the built-in scenario; rig: the
 //! x_to profile or TCU_ClutchCmd, the dyno speed, fixed gears and the brake); an input silent for
 //! `inputs.timeout_cycles` cycles falls to its safe default (clutch requests 0 mm, engine request
@@ -16,8 +20,9 @@
 //! Rig mode (paper Sect. 3.3): the dyno is an ideal speed source — the flywheel speed is set to
 //! the dyno speed at the start of each step and the engine torque state to the torque the
 //! clutches take (ENG_Status then reports the dyno torque); the output is held by the wheel
-//! brake with both rig gears engaged. A built-in x_to profile is sampled at the 10 ms cycle and
-//! held, as a TCU commanding over the bus would.
+//! brake with both rig gears engaged. A built-in x_to profile is sampled at the 10 ms cycle,
+//! quantised to TCU_ClutchCmd's resolution and held, as a controller commanding over the bus
+//! would.
 
 use super::config::{Mode, PlantConfig};
 use super::faults::{Fault, FaultKind};
@@ -328,9 +333,9 @@ impl Plant {
         &self.pt.hooks
     }
 
-    /// Integrates up to `now` (time since the start; not before the current time) applying the
-    /// frames `rx` at their timestamps (times since the start, like `now`), and returns the frames
-    /// due before the next cycle.
+    /// Integrates up to `now` (time since the start; not before the current time) and returns the
+    /// frames due before the next cycle. The frames `rx` (timestamps are times since the start,
+    /// like `now`) are applied at the first cycle boundary at or after their timestamp.
     pub fn step(&mut self, now: Duration, rx: &[Received]) -> Output {
         if !rx.is_empty() {
             self.pending_rx.extend_from_slice(rx);
@@ -529,7 +534,17 @@ impl Plant {
                 self.x_ref = match &self.cfg.rig_profile {
                     Some(prof) => {
                         let tc = (t.as_nanos() / CYCLE.as_nanos()) as f64 * CYCLE.as_secs_f64();
-                        prof.x_ref(tc)
+                        let x = prof.x_ref(tc);
+                        // At the contract's resolution, as a controller commanding over the bus.
+                        let q = TcuClutchCmd {
+                            clutch1_pos_req: x[0],
+                            clutch2_pos_req: x[1],
+                            ..Default::default()
+                        };
+                        match q.encode().and_then(|d| TcuClutchCmd::decode(&d)) {
+                            Ok(m) => [m.clutch1_pos_req, m.clutch2_pos_req],
+                            Err(_) => x,
+                        }
                     }
                     None => Self::fresh(&mut self.latch.clutch, t, limit, "TCU_ClutchCmd", stats)
                         .map_or([0.0; 2], |m| [m.clutch1_pos_req, m.clutch2_pos_req]),
@@ -590,7 +605,6 @@ impl Plant {
     /// One integration step.
     fn substep(&mut self) {
         let t = self.time();
-        self.apply_rx_until(t);
         let mut u = self.commands(t);
         let d = self.delay_steps;
         self.x_ref_applied = [
@@ -718,6 +732,11 @@ impl Plant {
                 s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
             ),
         };
+        // The driver at this instant (the last step used the one of its start).
+        let driver = match (&self.cfg.mode, &self.cfg.scenario) {
+            (Mode::Vehicle, Some(sc)) => sc.sample(t.as_secs_f64()),
+            _ => self.driver,
+        };
         let vehicle = BenchVehicle {
             vehicle_speed: sat(ids::BENCH_VEHICLE, 0, o.vehicle_speed_mps * 3.6),
             vehicle_accel: sat(
@@ -725,7 +744,7 @@ impl Plant {
                 1,
                 o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
             ),
-            road_grade: sat(ids::BENCH_VEHICLE, 2, self.driver.grade * 100.0),
+            road_grade: sat(ids::BENCH_VEHICLE, 2, driver.grade * 100.0),
         };
         let truth = SimTruth {
             clutch1_temp_true: sat(ids::SIM_TRUTH, 0, s.thermal.c1),
@@ -733,9 +752,9 @@ impl Plant {
         };
         let pedal =
             (self.cfg.mode == Mode::Vehicle && self.cfg.scenario.is_some()).then(|| DrvPedal {
-                accel_pedal: sat(ids::DRV_PEDAL, 0, self.driver.pedal * 100.0),
-                brake_switch: self.driver.brake > 0.0,
-                gear_lever: self.driver.lever,
+                accel_pedal: sat(ids::DRV_PEDAL, 0, driver.pedal * 100.0),
+                brake_switch: driver.brake > 0.0,
+                gear_lever: driver.lever,
                 ..Default::default()
             });
         let mut msgs = CycleMessages {
@@ -798,9 +817,7 @@ impl Plant {
     /// protected messages.
     fn send(&mut self, slot: usize, t: Duration, mut data: [u8; 8]) -> Option<(u8, u8)> {
         let id = self.sent[slot];
-        let Some(def) = message_def(u32::from(id)) else {
-            return None;
-        };
+        let def = message_def(u32::from(id))?;
         let active: Vec<(usize, Fault)> = self
             .cfg
             .faults

@@ -185,7 +185,7 @@ impl FaultSpec {
                 let d = self
                     .delay_ms
                     .ok_or_else(|| err("delay_ms", "missing (delay in ms)".into()))?;
-                if !(d >= 1.0 && d <= 1000.0) {
+                if !(1.0..=1000.0).contains(&d) {
                     return Err(err("delay_ms", "must be in 1 ..= 1000 ms".into()));
                 }
                 fault.delay = Duration::from_secs_f64(d * 1e-3);

@@ -368,7 +368,7 @@ impl RigProfile {
         }
         let count = number(path, eng, "count")?
             .ok_or_else(|| PlantError::key(path, "engagement.count", "missing"))?;
-        if !(count >= 0.0 && count <= 10000.0 && count.fract() == 0.0) {
+        if !((0.0..=10000.0).contains(&count) && count.fract() == 0.0) {
             return Err(PlantError::key(
                 path,
                 "engagement.count",
