@@ -397,6 +397,7 @@ async fn daemon_launches_with_the_plant_and_detects_its_silence() {
         pacing: Pacing::RealTime { speed: 1.0 },
         duration: Some(Duration::from_millis(3000)),
         log: None,
+        lockstep: None,
     };
     let tcu_cfg = TcuDaemonConfig {
         tcu: tcu_config(),

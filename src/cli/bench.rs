@@ -294,6 +294,7 @@ fn bench_run(
         pacing: Pacing::RealTime { speed: 1.0 },
         duration: Some(Duration::from_secs_f64(sc.duration_s)),
         log: None,
+        lockstep: None,
     };
     let rt = runtime()?;
     let plant = rt.block_on(async {

@@ -78,6 +78,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
                 pacing: Pacing::RealTime { speed: 1.0 },
                 duration: Some(d),
                 log: None,
+                lockstep: None,
             };
             let tcu_cfg = TcuDaemonConfig {
                 tcu: cfg,

@@ -103,6 +103,7 @@ pub struct ControlCfg {
     pub clamp_rate_nm_per_s: f64,
     pub blend_rate_nm_per_s: f64,
     pub slip_alarm_radps: f64,
+    pub command_delay_s: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -376,6 +377,7 @@ impl TcuConfig {
             1e5,
         )?;
         range("control.slip_alarm_radps", k.slip_alarm_radps, 0.1, 100.0)?;
+        range("control.command_delay_s", k.command_delay_s, 0.0, 0.1)?;
         let c = &self.creep;
         range("creep.pedal_on_pct", c.pedal_on_pct, 0.0, 50.0)?;
         range("creep.slip_radps", c.slip_radps, 0.0, 100.0)?;

@@ -320,8 +320,9 @@ impl Strategy {
         }
     }
 
-    /// Lead on the position request of a slipping clutch, x + τ_a·ẋ, cancelling the actuator's
-    /// first-order lag τ_a (the nominal actuator of the parameter file), so the torque follows the
+    /// Lead on the position request of a slipping clutch, x + (τ_a + d)·ẋ, cancelling the
+    /// actuator's first-order lag τ_a (the nominal actuator of the parameter file) and, to first
+    /// order, the command delay d (`control.command_delay_s`), so the torque follows the
     /// inverse's position without the lag's error (it matters near lock-up, where the inverse's
     /// position rises steeply as the friction coefficient falls with the slip). Only between two
     /// consecutive requests above the kiss point.
@@ -333,7 +334,7 @@ impl Strategy {
             Some((k, p))
                 if k + 1 == self.steps && p > kiss && x_des > kiss && ctx.dt >= MIN_LEAD_DT_S =>
             {
-                let tau = ctx.cfg.physics.actuator.tau_s;
+                let tau = ctx.cfg.physics.actuator.tau_s + ctx.cfg.control.command_delay_s;
                 x_des + tau * (x_des - p) / ctx.dt
             }
             _ => x_des,
@@ -763,15 +764,21 @@ impl Strategy {
             });
             return cmd;
         }
-        // Shift decision.
-        if d.gear != driveline::REVERSE
-            && d.since_s > 0.3
-            && self.since_shift_s > cfg.shift.min_interval_s
-            && d.blend.is_none()
-        {
+        // Shift decision. A downshift whose engine would otherwise lug toward idle does not wait
+        // for the interval since the last shift nor for the engine-request blend.
+        if d.gear != driveline::REVERSE {
             let g = scheduled_gear(cfg, d.gear, v, ctx.m.pedal);
+            let urgent = g < d.gear && ctx.m.w_e < 1.2 * ctx.idle();
+            let settled = d.since_s > 0.3
+                && self.since_shift_s > cfg.shift.min_interval_s
+                && d.blend.is_none();
             let braking_up = g > d.gear && ctx.m.brake;
-            if g != d.gear && !braking_up && ctx.m.gear[o] == g && shaft(g) == o {
+            if (settled || urgent)
+                && g != d.gear
+                && !braking_up
+                && ctx.m.gear[o] == g
+                && shaft(g) == o
+            {
                 self.start_shift(ctx, d, g);
             }
         }
@@ -1014,14 +1021,17 @@ impl Strategy {
     }
 
     /// PI_e and (24): T_e,ref = J_eq (ω̇_e,ref + kp e + ki ∫e) + ΣT_fc,ref, within the engine's
-    /// range. The feed-forward part J_eq ω̇_e,ref + ΣT_fc,ref gets a lead τ_e·d/dt that cancels the
-    /// engine's first-order torque lag τ_e (the engine ECU's, from the parameter file).
+    /// range. The feed-forward part J_eq ω̇_e,ref + ΣT_fc,ref gets a lead (τ_e + d)·d/dt that
+    /// cancels the engine's first-order torque lag τ_e (the engine ECU's, from the parameter file)
+    /// and, to first order, the command delay d.
     fn engine_law(&mut self, ctx: &Ctx, r: &Reduced, w_ref: f64, w_dot_ref: f64, t_c: f64) -> f64 {
         let e = w_ref - ctx.m.w_e;
         let ff = r.j_eq * w_dot_ref + t_c;
         let lead = match self.ff_prev {
             Some(prev) if ctx.dt >= MIN_LEAD_DT_S => {
-                ctx.cfg.physics.engine.torque_lag_s * (ff - prev) / ctx.dt
+                (ctx.cfg.physics.engine.torque_lag_s + ctx.cfg.control.command_delay_s)
+                    * (ff - prev)
+                    / ctx.dt
             }
             _ => 0.0,
         };
