@@ -56,18 +56,33 @@ FAULTS = [
 ]
 
 
-@pytest.mark.parametrize("message,kind,expected", FAULTS)
-def test_faults_are_detected_and_recovered(ddct, out_dir, message, kind, expected):
+def fault_case(ddct, out_dir, message, kind, expected, attempt):
     f_from, f_to = 3.5, 4.0
-    faults = out_dir / "faults.toml"
+    faults = out_dir / f"faults_{attempt}.toml"
     faults.write_text(f'[[faults]]\nmessage = "{message}"\nkind = "{kind}"\nfrom_s = {f_from}\nto_s = {f_to}\n')
-    run = hil.run_bench(program="launch", pedal=40.0, seconds=6.0, out=out_dir, ddct=ddct, faults=faults, name=f"fault_{kind}")
+    run = hil.run_bench(
+        program="launch", pedal=40.0, seconds=6.0, out=out_dir, ddct=ddct, faults=faults, name=f"fault_{kind}_{attempt}"
+    )
     sensors = hil.frame_id("DCT_Sensors")
     t_plant0 = next(t for t, _, i, _, _ in run.records if i == sensors)
     ft = hil.fault_timing(run.records, message, expected, f_from, t_plant0)
     a = hil.analyse(run.records, hil.target_rpm(40.0))
-    show(f"{kind} on {message} in [{f_from}, {f_to}) s", a, run)
+    show(f"{kind} on {message} in [{f_from}, {f_to}) s (attempt {attempt})", a, run)
     print("fault timing over vcan:", json.dumps(ft))
+    # A fault code before the injection started: the host stalled the bus (a timing hiccup of
+    # User-Mode Linux), so this run cannot time the injected fault.
+    t_inj = f_from + (t_plant0 - run.records[0][0])
+    disturbed = any(e["fault"] != "None" and e["state"] != "Init" and e["t"] < t_inj for e in a["events"])
+    return a, ft, disturbed
+
+
+@pytest.mark.parametrize("message,kind,expected", FAULTS)
+def test_faults_are_detected_and_recovered(ddct, out_dir, message, kind, expected):
+    a, ft, disturbed = fault_case(ddct, out_dir, message, kind, expected, 1)
+    ok = ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MAX_MS
+    if not ok and disturbed:
+        print("the host disturbed the run before the injection: once more")
+        a, ft, disturbed = fault_case(ddct, out_dir, message, kind, expected, 2)
     codes = {e["fault"] for e in a["events"]}
     assert expected in codes, a["events"]
     assert ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MAX_MS, ft
