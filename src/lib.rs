@@ -10,4 +10,5 @@ pub mod gap;
 pub mod model;
 pub mod plant;
 pub mod plot;
+pub mod sim;
 pub mod tcu;

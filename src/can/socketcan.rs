@@ -39,6 +39,22 @@ impl SocketCanBus {
         })
     }
 
+    /// Receives only data frames with these standard ids (one kernel filter per id), so a daemon
+    /// is not woken for frames it ignores — under User-Mode Linux every receive is expensive.
+    pub fn set_filter_ids(&self, ids: &[u16]) -> Result<(), BusError> {
+        let mask = libc::CAN_SFF_MASK | libc::CAN_EFF_FLAG | libc::CAN_RTR_FLAG;
+        let filters: Vec<socketcan::CanFilter> = ids
+            .iter()
+            .map(|&id| socketcan::CanFilter::new(u32::from(id), mask))
+            .collect();
+        self.socket
+            .set_filters(&filters)
+            .map_err(|source| BusError::Io {
+                iface: self.iface.clone(),
+                source,
+            })
+    }
+
     fn convert(&self, frame: socketcan::CanFrame, ts: SystemTime) -> Result<Received, BusError> {
         if let socketcan::CanFrame::Error(e) = &frame {
             return Err(BusError::ErrorFrame {

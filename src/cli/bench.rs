@@ -1,11 +1,620 @@
-//! `ddct bench`: plant + TCU + driver scenario on a bus, with a summary (issue 6).
+//! `ddct bench`: the plant and TCU daemons on a bus (vcan, or the in-process bus with `--iface
+//! sim`), in real time, playing a `ddct sim` scenario (the plant plays its driver), with a
+//! recorder on the bus. Then the same analysis as `ddct sim` on what the recorder saw, next to the
+//! lockstep simulation of the same scenario, plus the timing: latency from a DCT_Sensors frame to
+//! the TCU_ClutchCmd frame it causes (recorder receive timestamps — the kernel's on SocketCAN),
+//! next to a bare frame echo measured on the same bus just before (a responder with the TCU
+//! daemon's stack — tokio, one socket, current-thread runtime — that answers each DCT_Sensors-id
+//! frame of a 10 ms pinger with a TCU_ClutchCmd-id frame), the TCU_ClutchCmd cycle jitter, and
+//! the daemons' overruns and deadline misses.
+//!
+//! Each daemon and the recorder run on their own thread, runtime and socket (endpoint).
+//! `ddct bench --analyze LOG` runs the analysis on a candump log recorded elsewhere.
 
+use super::{runtime, shutdown_signal};
+use anyhow::{bail, Context};
 use clap::Args;
+use ddct::can::candump::{LogReader, LogRecord, LogWriter};
+use ddct::can::messages::{ids, FaultCode, TcuState};
+use ddct::can::socketcan::SocketCanBus;
+use ddct::can::{
+    Bus, BusError, CanFrame, EndpointConfig, InProcessBus, InProcessEndpoint, Received,
+};
+use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig, PlantReport};
+use ddct::daemon::tcu::{
+    run as run_tcu, set_realtime_priority, TcuDaemonConfig, TcuReport, CYCLE, INPUT_IDS,
+};
+use ddct::daemon::Periodic;
+use ddct::sim::buslog::{self, Spread};
+use ddct::sim::metrics::{self, Metrics};
+use ddct::sim::{self, plots, SimOptions, SimScenario};
+use ddct::tcu::TcuConfig;
+use serde::Serialize;
+use std::future::Future;
+use std::io::{BufReader, BufWriter};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
+use tokio::sync::watch;
 
 #[derive(Debug, Args)]
-pub struct BenchArgs {}
+pub struct BenchArgs {
+    /// CAN interface (e.g. vcan0), or `sim` for the in-process bus.
+    #[arg(long, required_unless_present = "analyze")]
+    iface: Option<String>,
+    /// Scenario (a `ddct sim` scenario file).
+    #[arg(long, default_value = "config/scenarios/launch_shift_20s.toml")]
+    scenario: PathBuf,
+    /// TCU calibration.
+    #[arg(long, default_value = "config/tcu.toml")]
+    config: PathBuf,
+    /// Output folder: bench.log (candump -l of the run), echo.log, figures, summary.json.
+    #[arg(long, default_value = "out/bench")]
+    out: PathBuf,
+    /// Seconds of bare frame echo measured before the run (0: none).
+    #[arg(long, default_value_t = 10.0)]
+    echo: f64,
+    /// Analyse a candump -l log instead of running (the scenario still names the launch target).
+    #[arg(long)]
+    analyze: Option<PathBuf>,
+    /// Run the plant, TCU, echo and recorder threads under the real-time FIFO scheduler at this
+    /// priority (1..=99; needs root; a warning when refused).
+    #[arg(long)]
+    rt_priority: Option<i32>,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
 
-pub fn run(_args: BenchArgs) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("`ddct bench` is not implemented yet")
+fn realtime(prio: Option<i32>) {
+    if let Some(p) = prio {
+        if let Err(e) = set_realtime_priority(p) {
+            eprintln!("bench: real-time priority {p} refused ({e}); running at normal priority");
+        }
+    }
+}
+
+/// Either bus, so one set of node functions serves both.
+enum AnyBus {
+    Can(SocketCanBus),
+    Sim(InProcessEndpoint),
+}
+
+#[allow(clippy::manual_async_fn)]
+impl Bus for AnyBus {
+    fn send(&mut self, frame: CanFrame) -> impl Future<Output = Result<(), BusError>> + Send {
+        async move {
+            match self {
+                AnyBus::Can(b) => b.send(frame).await,
+                AnyBus::Sim(b) => b.send(frame).await,
+            }
+        }
+    }
+    fn recv(&mut self) -> impl Future<Output = Result<Received, BusError>> + Send {
+        async move {
+            match self {
+                AnyBus::Can(b) => b.recv().await,
+                AnyBus::Sim(b) => b.recv().await,
+            }
+        }
+    }
+    fn try_recv(&mut self) -> Result<Option<Received>, BusError> {
+        match self {
+            AnyBus::Can(b) => b.try_recv(),
+            AnyBus::Sim(b) => b.try_recv(),
+        }
+    }
+    fn iface(&self) -> &str {
+        match self {
+            AnyBus::Can(b) => b.iface(),
+            AnyBus::Sim(b) => b.iface(),
+        }
+    }
+}
+
+#[derive(Clone)]
+enum Net {
+    Can(String),
+    Sim(InProcessBus),
+}
+
+impl Net {
+    /// A new node; must be called on the runtime (thread) that will use it.
+    fn open(&self) -> anyhow::Result<AnyBus> {
+        self.open_filtered(&[])
+    }
+
+    /// A new node receiving only `ids` (all frames when empty; the filter is the kernel's on
+    /// SocketCAN, none on the in-process bus).
+    fn open_filtered(&self, ids: &[u16]) -> anyhow::Result<AnyBus> {
+        Ok(match self {
+            Net::Can(i) => {
+                let b = SocketCanBus::open(i, false)
+                    .with_context(|| format!("opening CAN interface {i}"))?;
+                if !ids.is_empty() {
+                    b.set_filter_ids(ids)?;
+                }
+                AnyBus::Can(b)
+            }
+            Net::Sim(b) => AnyBus::Sim(b.endpoint(EndpointConfig::default())),
+        })
+    }
+    fn name(&self) -> String {
+        match self {
+            Net::Can(i) => i.clone(),
+            Net::Sim(_) => "sim".into(),
+        }
+    }
+}
+
+async fn stopped(mut rx: watch::Receiver<bool>) {
+    while !*rx.borrow() {
+        if rx.changed().await.is_err() {
+            return;
+        }
+    }
+}
+
+/// A recorder thread: every frame on the bus with its receive timestamp, until `stop`.
+fn spawn_recorder(
+    net: Net,
+    stop: watch::Receiver<bool>,
+    ready: std::sync::mpsc::Sender<()>,
+    prio: Option<i32>,
+) -> std::thread::JoinHandle<anyhow::Result<Vec<(Duration, CanFrame)>>> {
+    std::thread::spawn(move || {
+        realtime(prio);
+        let rt = runtime()?;
+        rt.block_on(async move {
+            let mut bus = net.open()?;
+            let _ = ready.send(());
+            let mut frames = Vec::with_capacity(1 << 16);
+            let stop_fut = stopped(stop);
+            tokio::pin!(stop_fut);
+            loop {
+                tokio::select! {
+                    biased;
+                    rx = bus.recv() => match rx {
+                        Ok(r) => frames.push((r.timestamp, r.frame)),
+                        Err(BusError::ErrorFrame { .. }) | Err(BusError::Unsupported { .. }) => {}
+                        Err(e) => return Err(e.into()),
+                    },
+                    _ = &mut stop_fut => break,
+                }
+            }
+            // Frames already queued.
+            while let Ok(Some(r)) = bus.try_recv() {
+                frames.push((r.timestamp, r.frame));
+            }
+            Ok(frames)
+        })
+    })
+}
+
+/// Bare frame echo: a responder (tokio, one socket) answers each DCT_Sensors-id frame of a 10 ms
+/// pinger with a TCU_ClutchCmd-id frame. Returns the recorded frames.
+fn echo_run(
+    net: &Net,
+    seconds: f64,
+    prio: Option<i32>,
+) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone(), prio);
+    let n2 = net.clone();
+    let stop2 = stop_rx.clone();
+    let responder = std::thread::spawn(move || -> anyhow::Result<u64> {
+        realtime(prio);
+        let rt = runtime()?;
+        rt.block_on(async move {
+            let mut bus = n2.open_filtered(&[ids::DCT_SENSORS])?;
+            let _ = ready_tx.send(());
+            let reply = CanFrame::standard(ids::TCU_CLUTCH_CMD, &[0; 8])?;
+            let stop_fut = stopped(stop2);
+            tokio::pin!(stop_fut);
+            let mut n = 0;
+            loop {
+                tokio::select! {
+                    biased;
+                    rx = bus.recv() => {
+                        if let Ok(r) = rx {
+                            if r.frame.standard_id() == Some(ids::DCT_SENSORS) {
+                                bus.send(reply).await?;
+                                n += 1;
+                            }
+                        }
+                    }
+                    _ = &mut stop_fut => break,
+                }
+            }
+            Ok(n)
+        })
+    });
+    for _ in 0..2 {
+        let _ = ready_rx.recv_timeout(Duration::from_secs(5));
+    }
+    let rt = runtime()?;
+    rt.block_on(async {
+        let mut bus = net.open()?;
+        let ping = CanFrame::standard(ids::DCT_SENSORS, &[0; 8])?;
+        let mut timer = Periodic::new(tokio::time::Instant::now(), CYCLE);
+        let n = (seconds / CYCLE.as_secs_f64()).round() as u64;
+        for _ in 0..n {
+            timer.tick().await;
+            bus.send(ping).await?;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        anyhow::Ok(())
+    })?;
+    let _ = stop_tx.send(true);
+    responder
+        .join()
+        .map_err(|_| anyhow::anyhow!("echo responder panicked"))??;
+    rec.join()
+        .map_err(|_| anyhow::anyhow!("recorder panicked"))?
+}
+
+struct RunResult {
+    frames: Vec<(Duration, CanFrame)>,
+    plant: PlantReport,
+    tcu: TcuReport,
+}
+
+fn bench_run(
+    net: &Net,
+    sc: &SimScenario,
+    cfg: &TcuConfig,
+    prio: Option<i32>,
+) -> anyhow::Result<RunResult> {
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone(), prio);
+    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
+    let mut tcu_cfg = cfg.clone();
+    sc.tcu.apply(&mut tcu_cfg);
+    let n2 = net.clone();
+    let stop2 = stop_rx.clone();
+    let tcu = std::thread::spawn(move || -> anyhow::Result<TcuReport> {
+        realtime(prio);
+        let rt = runtime()?;
+        rt.block_on(async move {
+            let bus = n2.open_filtered(&INPUT_IDS)?;
+            let c = TcuDaemonConfig {
+                tcu: tcu_cfg,
+                duration: None,
+                log: None,
+            };
+            Ok(run_tcu(bus, stopped(stop2), c).await?)
+        })
+    });
+    // Give the TCU a moment to open its socket before the plant starts talking.
+    std::thread::sleep(Duration::from_millis(50));
+    let plant_cfg = PlantDaemonConfig {
+        plant: sc.plant.clone(),
+        pacing: Pacing::RealTime { speed: 1.0 },
+        duration: Some(Duration::from_secs_f64(sc.duration_s)),
+        log: None,
+        lockstep: None,
+    };
+    let rt = runtime()?;
+    let plant = rt.block_on(async {
+        let bus =
+            net.open_filtered(&[ids::TCU_CLUTCH_CMD, ids::TCU_ENGINE_REQ, ids::TCU_GEAR_CMD])?; // the plant plays the driver itself
+        anyhow::Ok(run_plant(bus, shutdown_signal(), plant_cfg).await?)
+    })?;
+    std::thread::sleep(Duration::from_millis(50));
+    let _ = stop_tx.send(true);
+    let tcu = tcu
+        .join()
+        .map_err(|_| anyhow::anyhow!("TCU daemon panicked"))??;
+    let frames = rec
+        .join()
+        .map_err(|_| anyhow::anyhow!("recorder panicked"))??;
+    Ok(RunResult { frames, plant, tcu })
+}
+
+fn write_log(path: &Path, iface: &str, frames: &[(Duration, CanFrame)]) -> anyhow::Result<()> {
+    let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = LogWriter::new(BufWriter::new(f));
+    for (t, fr) in frames {
+        w.write(&LogRecord {
+            timestamp: *t,
+            iface: iface.to_string(),
+            frame: *fr,
+            direction: None,
+        })?;
+    }
+    w.flush()?;
+    Ok(())
+}
+
+fn read_log(path: &Path) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
+    let f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let mut out = Vec::new();
+    for r in LogReader::new(BufReader::new(f)) {
+        match r {
+            Ok(rec) => out.push((rec.timestamp, rec.frame)),
+            Err(e) => eprintln!("{}: {e}", path.display()),
+        }
+    }
+    out.sort_by_key(|x| x.0);
+    Ok(out)
+}
+
+/// Timing figures of a recorded run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Timing {
+    /// DCT_Sensors → TCU_ClutchCmd latency (µs).
+    pub tcu_latency: Spread,
+    pub tcu_latency_missed: usize,
+    /// The bare echo on the same bus (µs), if measured.
+    pub echo_latency: Option<Spread>,
+    /// TCU_ClutchCmd intervals and |interval − 10 ms| (µs).
+    pub clutch_cmd_interval: Spread,
+    pub clutch_cmd_jitter: Spread,
+    /// DCT_Sensors intervals and jitter (the plant's cycle, for comparison).
+    pub sensors_interval: Spread,
+    pub sensors_jitter: Spread,
+}
+
+fn timing(frames: &[(Duration, CanFrame)], echo: Option<&[(Duration, CanFrame)]>) -> Timing {
+    let (tcu_latency, tcu_latency_missed) =
+        buslog::latency(frames, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD);
+    let echo_latency = echo.map(|e| buslog::latency(e, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD).0);
+    let (clutch_cmd_interval, clutch_cmd_jitter) =
+        buslog::cycle_jitter(frames, ids::TCU_CLUTCH_CMD, CYCLE);
+    let (sensors_interval, sensors_jitter) = buslog::cycle_jitter(frames, ids::DCT_SENSORS, CYCLE);
+    Timing {
+        tcu_latency,
+        tcu_latency_missed,
+        echo_latency,
+        clutch_cmd_interval,
+        clutch_cmd_jitter,
+        sensors_interval,
+        sensors_jitter,
+    }
+}
+
+/// What `ddct bench` prints with `--json`.
+#[derive(Debug, Serialize)]
+pub struct BenchSummary {
+    pub iface: String,
+    pub scenario: String,
+    pub description: String,
+    pub duration_s: f64,
+    pub bus: Metrics,
+    pub sim: Option<Metrics>,
+    pub sim_wall_s: Option<f64>,
+    pub timing: Timing,
+    pub plant: Option<PlantReport>,
+    pub tcu: Option<TcuReport>,
+    pub log: PathBuf,
+    pub plots: Vec<PathBuf>,
+    /// First and last DCT_Sensors frame, relative to the first frame of the log (s).
+    pub plant_window: Option<(f64, f64)>,
+}
+
+pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
+    let cfg = TcuConfig::load(&a.config).context("loading the TCU calibration")?;
+    let sc = SimScenario::load(&a.scenario)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let mut plots = Vec::new();
+    let (iface, frames, echo, plant, tcu, log) = match &a.analyze {
+        Some(p) => ("log".to_string(), read_log(p)?, None, None, None, p.clone()),
+        None => {
+            let iface = a.iface.clone().unwrap_or_default();
+            let net = if iface == "sim" {
+                Net::Sim(InProcessBus::new("sim"))
+            } else {
+                Net::Can(iface.clone())
+            };
+            if !(a.echo.is_finite() && a.echo >= 0.0 && a.echo <= 600.0) {
+                bail!("--echo {}: must be 0 ..= 600 seconds", a.echo);
+            }
+            let echo = if a.echo > 0.0 {
+                eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
+                let e = echo_run(&net, a.echo, a.rt_priority)?;
+                write_log(&a.out.join("echo.log"), &net.name(), &e)?;
+                Some(e)
+            } else {
+                None
+            };
+            eprintln!(
+                "bench: plant + TCU daemons on {} for {} s ({})",
+                net.name(),
+                sc.duration_s,
+                sc.name
+            );
+            realtime(a.rt_priority);
+            let r = bench_run(&net, &sc, &cfg, a.rt_priority)?;
+            let log = a.out.join("bench.log");
+            write_log(&log, &net.name(), &r.frames)?;
+            (net.name(), r.frames, echo, Some(r.plant), Some(r.tcu), log)
+        }
+    };
+    let rows = buslog::rows(&frames);
+    let mut tcfg = cfg.clone();
+    sc.tcu.apply(&mut tcfg);
+    let bus = metrics::compute(&rows, &tcfg);
+    let p = a.out.join(format!("{}_bus.svg", sc.name));
+    std::fs::write(
+        &p,
+        plots::run_figure(
+            &format!("{} on {iface} (recorded): {}", sc.name, sc.description),
+            &rows,
+        ),
+    )?;
+    plots.push(p);
+    std::fs::write(
+        a.out.join(format!("{}_bus.csv", sc.name)),
+        sim::rows_csv(&rows),
+    )?;
+    // The same scenario in lockstep simulation, for comparison.
+    let t0 = Instant::now();
+    let srun = sim::run_scenario(&sc, &cfg, &SimOptions::default());
+    let sim_wall = t0.elapsed().as_secs_f64();
+    let simm = metrics::compute(&srun.rows, &tcfg);
+    let p = a.out.join(format!("{}_sim.svg", sc.name));
+    std::fs::write(
+        &p,
+        plots::run_figure(
+            &format!("{} in lockstep simulation: {}", sc.name, sc.description),
+            &srun.rows,
+        ),
+    )?;
+    plots.push(p);
+    let t0 = frames.first().map_or(Duration::ZERO, |f| f.0);
+    let sensors: Vec<f64> = frames
+        .iter()
+        .filter(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
+        .map(|(t, _)| t.saturating_sub(t0).as_secs_f64())
+        .collect();
+    let plant_window = sensors.first().zip(sensors.last()).map(|(a, b)| (*a, *b));
+    let summary = BenchSummary {
+        plant_window,
+        iface,
+        scenario: sc.name.clone(),
+        description: sc.description.clone(),
+        duration_s: sc.duration_s,
+        bus,
+        sim: Some(simm),
+        sim_wall_s: Some(sim_wall),
+        timing: timing(&frames, echo.as_deref()),
+        plant,
+        tcu,
+        log,
+        plots,
+    };
+    std::fs::write(
+        a.out.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        print_summary(&summary);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn f1(v: Option<f64>) -> String {
+    v.map_or("-".into(), |x| format!("{x:.2}"))
+}
+
+fn print_summary(s: &BenchSummary) {
+    println!(
+        "== ddct bench: {} on {} ({:.0} s): {}",
+        s.scenario, s.iface, s.duration_s, s.description
+    );
+    println!();
+    println!(
+        "{:<10} {:>7} {:>9} {:>8} {:>8} {:>6} {:>10} {:>9}",
+        "run", "pedal%", "lockup_s", "flare", "spike", "stall", "|Terr|300", "a_pk600"
+    );
+    let launch_rows = |name: &str, m: &Metrics| {
+        for l in &m.launches {
+            println!(
+                "{:<10} {:>7.0} {:>9} {:>8.0} {:>8} {:>6} {:>10.1} {:>9.2}",
+                name,
+                l.pedal_pct,
+                f1(l.lockup_s),
+                l.flare_rpm,
+                f1(l.lockup_spike_mps2),
+                l.stall,
+                l.peak_torque_error_300ms_nm,
+                l.peak_accel_600ms_mps2
+            );
+        }
+    };
+    launch_rows("bus", &s.bus);
+    if let Some(m) = &s.sim {
+        launch_rows("sim", m);
+    }
+    println!();
+    println!(
+        "{:<10} {:>7} {:>10} {:>10} {:>10}",
+        "run", "shift", "duration", "min_accel", "completed"
+    );
+    for (name, m) in [("bus", Some(&s.bus)), ("sim", s.sim.as_ref())] {
+        if let Some(m) = m {
+            for x in &m.shifts {
+                println!(
+                    "{:<10} {:>4}->{:<2} {:>10.2} {:>10.2} {:>10}",
+                    name, x.from, x.to, x.duration_s, x.min_accel_mps2, x.completed
+                );
+            }
+        }
+    }
+    println!();
+    let e = &s.bus.estimator;
+    println!(
+        "estimator vs SIM_Truth (bus): RMSE {:.2} / {:.2} °C, max {:.2} / {:.2} °C",
+        e.rmse_c[0], e.rmse_c[1], e.max_abs_c[0], e.max_abs_c[1]
+    );
+    // While the plant ran (the TCU starts before it and stops after it, and reports the missing
+    // plant as a timeout then).
+    let faults: Vec<_> = s
+        .bus
+        .status_events
+        .iter()
+        .filter(|x| x.fault != FaultCode::None && x.state != TcuState::Init)
+        .filter(|x| s.plant_window.is_none_or(|(a, b)| x.t_s >= a && x.t_s <= b))
+        .map(|x| format!("{:.2}s {:?}", x.t_s, x.fault))
+        .collect();
+    println!(
+        "fault codes on the bus: {}",
+        if faults.is_empty() {
+            "none".into()
+        } else {
+            faults.join(", ")
+        }
+    );
+    let t = &s.timing;
+    println!();
+    println!(
+        "{:<44} {:>6} {:>9} {:>9} {:>9}",
+        "timing (recorder receive timestamps)", "n", "p50_us", "p99_us", "max_us"
+    );
+    let line = |name: &str, x: &Spread| {
+        println!(
+            "{:<44} {:>6} {:>9.0} {:>9.0} {:>9.0}",
+            name, x.n, x.p50_us, x.p99_us, x.max_us
+        )
+    };
+    line("DCT_Sensors -> TCU_ClutchCmd (TCU daemon)", &t.tcu_latency);
+    if let Some(e) = &t.echo_latency {
+        line("bare frame echo, same bus", e);
+    }
+    line("TCU_ClutchCmd |interval - 10 ms|", &t.clutch_cmd_jitter);
+    line("DCT_Sensors |interval - 10 ms| (plant)", &t.sensors_jitter);
+    if let Some(tc) = &s.tcu {
+        println!(
+            "TCU daemon: {} computations ({} sync, {} fallback), overruns {}, deadline misses {}, compute p99 {} us",
+            tc.computations,
+            tc.sync_computations,
+            tc.fallback_computations,
+            tc.overruns,
+            tc.deadline_misses,
+            tc.compute_p99_us.map_or("-".into(), |v| format!("{v:.0}"))
+        );
+    }
+    if let Some(p) = &s.plant {
+        println!(
+            "plant daemon: {} cycles, overruns {}, deadline misses {}",
+            p.cycles, p.overruns, p.deadline_misses
+        );
+    }
+    if let Some(w) = s.sim_wall_s {
+        println!(
+            "lockstep simulation of the same scenario: {:.3} s wall for {:.0} s simulated ({:.0}x real time)",
+            w,
+            s.duration_s,
+            s.duration_s / w.max(1e-9)
+        );
+    }
+    println!();
+    println!("log: {}", s.log.display());
+    for p in &s.plots {
+        println!("plot: {}", p.display());
+    }
 }

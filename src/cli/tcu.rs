@@ -1,11 +1,127 @@
 //! `ddct tcu`: the TCU daemon (issue 6).
 
+use super::{runtime, shutdown_signal};
+use anyhow::{bail, Context};
 use clap::Args;
+use ddct::can::socketcan::SocketCanBus;
+use ddct::can::{EndpointConfig, InProcessBus};
+use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
+use ddct::daemon::tcu::{
+    run as run_tcu, set_realtime_priority, TcuDaemonConfig, TcuReport, INPUT_IDS,
+};
+use ddct::plant::{PlantConfig, Scenario};
+use ddct::tcu::TcuConfig;
+use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
 
 #[derive(Debug, Args)]
-pub struct TcuArgs {}
+pub struct TcuArgs {
+    /// CAN interface (e.g. vcan0), or `sim`: an in-process bus with the plant daemon (built-in
+    /// driver) alongside in the same process, in real time.
+    #[arg(long)]
+    iface: String,
+    /// TCU calibration (its `params` names the physical parameter file).
+    #[arg(long, default_value = "config/tcu.toml")]
+    config: PathBuf,
+    /// Record every frame sent and received into this candump -l log.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Stop after this many seconds (default: until SIGINT/SIGTERM; on `sim` the driver
+    /// scenario's length).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// `--iface sim` only: the plant's driver scenario (default: the built-in
+    /// config/scenarios/driver_launch.toml).
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Run under the real-time FIFO scheduler at this priority (1..=99; needs root).
+    #[arg(long)]
+    rt_priority: Option<i32>,
+    /// Print the exit report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
 
-pub fn run(_args: TcuArgs) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("`ddct tcu` is not implemented yet")
+pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
+    let cfg = TcuConfig::load(&a.config)?;
+    let duration = match a.duration {
+        Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
+        Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
+        None => None,
+    };
+    if a.scenario.is_some() && a.iface != "sim" {
+        bail!("--scenario is for --iface sim (on a real bus the driver is on the bus)");
+    }
+    if let Some(p) = a.rt_priority {
+        set_realtime_priority(p).with_context(|| format!("--rt-priority {p}"))?;
+    }
+    let rt = runtime()?;
+    let report: TcuReport = rt.block_on(async {
+        if a.iface == "sim" {
+            let bus = InProcessBus::new("sim");
+            let plant = PlantConfig {
+                scenario: Some(match &a.scenario {
+                    Some(p) => Scenario::load(p)?,
+                    None => Scenario::builtin(),
+                }),
+                ..PlantConfig::default()
+            };
+            let d = duration.unwrap_or_else(|| {
+                Duration::from_secs_f64(plant.scenario.as_ref().map_or(10.0, |s| s.duration_s))
+            });
+            let stop = Arc::new(tokio::sync::Notify::new());
+            let stop2 = stop.clone();
+            let plant_cfg = PlantDaemonConfig {
+                plant,
+                pacing: Pacing::RealTime { speed: 1.0 },
+                duration: Some(d),
+                log: None,
+                lockstep: None,
+            };
+            let tcu_cfg = TcuDaemonConfig {
+                tcu: cfg,
+                duration: Some(d),
+                log: a.log.clone(),
+            };
+            let plant_ep = bus.endpoint(EndpointConfig::default());
+            let tcu_ep = bus.endpoint(EndpointConfig::default());
+            let (p, t) = tokio::join!(
+                async {
+                    let r = run_plant(plant_ep, shutdown_signal(), plant_cfg).await;
+                    stop2.notify_one();
+                    r
+                },
+                run_tcu(
+                    tcu_ep,
+                    async {
+                        tokio::select! {
+                            _ = shutdown_signal() => {}
+                            _ = stop.notified() => {}
+                        }
+                    },
+                    tcu_cfg
+                )
+            );
+            let p = p?;
+            eprint!("{}", p.summary());
+            anyhow::Ok(t?)
+        } else {
+            let bus = SocketCanBus::open(&a.iface, false)
+                .with_context(|| format!("opening CAN interface {}", a.iface))?;
+            bus.set_filter_ids(&INPUT_IDS)?;
+            let c = TcuDaemonConfig {
+                tcu: cfg,
+                duration,
+                log: a.log.clone(),
+            };
+            anyhow::Ok(run_tcu(bus, shutdown_signal(), c).await?)
+        }
+    })?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    eprint!("{}", report.summary());
+    Ok(ExitCode::SUCCESS)
 }

@@ -4,6 +4,7 @@
 //! clock; the cores (`plant`, `tcu`) get `now` as an argument.
 
 pub mod plant;
+pub mod tcu;
 
 use crate::can::candump::{LogRecord, LogWriter};
 use crate::can::{CanFrame, Received};

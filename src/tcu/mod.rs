@@ -1,2 +1,445 @@
-//! The virtual transmission control unit as a pure core `Tcu::step(now, inputs) -> outputs`:
-//! thermal estimator (17), decoupling controller (23)–(27), strategy and safety.
+//! The virtual transmission control unit as a pure core `Tcu::step(now, inputs) -> outputs`
+//! (paper Sects. 4–5): thermal estimator (17) ([`estimator`]), decoupling controller (23)–(27)
+//! with the torque-characteristic inverse of (13) ([`control`]), launch and shift strategy
+//! ([`strategy`]) and safety, around the bus contract's frames.
+//!
+//! One step:
+//! 1. every frame received since the previous step goes through E2E, decoding and plausibility
+//!    ([`inputs`]);
+//! 2. input health: a message without a valid frame for `timeout_cycles` cycles puts the TCU in
+//!    the **safe state** — both clutches opened at a controlled rate, the engine torque request
+//!    released, the fault code (which message, and why: timeout, CRC, counter, implausible value)
+//!    in TCU_Status. The safe state is commanded in the same step that detects the fault, i.e. in
+//!    the first output after it. When every input is fresh again with `recovery_frames` valid
+//!    frames in a row, the strategy restarts from the measurements;
+//! 3. the thermal estimator advances by the time since the previous step;
+//! 4. over-temperature: above `over_temp_warn_c` the fault code says ClutchOverTempWarning, above
+//!    `over_temp_limit_c` ClutchOverTempLimit and the engine torque request and launch targets are
+//!    limited;
+//! 5. the strategy computes positions, torque references, engine request and gear requests;
+//! 6. the outputs are made finite and clamped to the DBC ranges (a non-finite internal value gives
+//!    FaultCode InternalNonFinite and holds the previous finite command), encoded and E2E
+//!    protected.
+//!
+//! No clock, no socket: `now` is the time since the TCU started, and frames carry their arrival
+//! time on the same time base.
+
+pub mod config;
+pub mod control;
+pub mod estimator;
+pub mod inputs;
+pub mod strategy;
+
+pub use config::{TcuConfig, TcuConfigError};
+pub use inputs::{Input, Measurements, TimedFrame, Verdict};
+
+use crate::can::codec::MessageDef;
+use crate::can::e2e::E2eSender;
+use crate::can::messages::{
+    ids, FaultCode, GearActive, GearEvenReq, GearOddReq, TcuClutchCmd, TcuEngineReq, TcuEstimates,
+    TcuGearCmd, TcuState, TcuStatus,
+};
+use crate::can::CanFrame;
+use control::{approach, ClutchModel};
+use estimator::{EstimatorInputs, ThermalEstimator};
+use inputs::{Health, InputCounters, InputMonitor};
+use std::time::Duration;
+use strategy::{Command, Ctx, Strategy};
+
+/// Inputs of one step: the frames received since the previous step, in arrival order.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TcuInputs<'a> {
+    pub frames: &'a [TimedFrame],
+}
+
+/// Internal values of one step, for traces, plots and tests.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct TcuTrace {
+    pub t_s: f64,
+    pub state: TcuState,
+    pub fault: FaultCode,
+    pub phase: &'static str,
+    pub x_ref_mm: [f64; 2],
+    pub t_ref_nm: [f64; 2],
+    pub engine_req_nm: Option<f64>,
+    pub w_e_ref_radps: f64,
+    pub w_c_ref_radps: f64,
+    pub theta_est_c: [f64; 2],
+    pub theta_body_c: f64,
+    pub power_est_w: [f64; 2],
+    pub torque_est_nm: [f64; 2],
+    pub measurements: Measurements,
+}
+
+/// Outputs of one step: the five TCU messages (typed) and their encoded, E2E-protected frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TcuOutputs {
+    pub clutch_cmd: TcuClutchCmd,
+    pub engine_req: TcuEngineReq,
+    pub gear_cmd: TcuGearCmd,
+    pub status: TcuStatus,
+    pub estimates: TcuEstimates,
+    /// The frames to send, in the order above.
+    pub frames: Vec<CanFrame>,
+    pub trace: TcuTrace,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Top {
+    Init,
+    Run,
+    Safe,
+}
+
+/// The TCU core.
+#[derive(Debug, Clone)]
+pub struct Tcu {
+    cfg: TcuConfig,
+    model: ClutchModel,
+    inputs: InputMonitor,
+    est: ThermalEstimator,
+    strategy: Strategy,
+    tx: E2eSender,
+    top: Top,
+    last_now: Option<Duration>,
+    start: Duration,
+    safe_fault: FaultCode,
+    safe_x: [f64; 2],
+    last_x: [f64; 2],
+    warn: bool,
+    limit: bool,
+    w_out_prev: Option<f64>,
+    w_out_dot: f64,
+    nonfinite: bool,
+    steps: u64,
+    safe_entries: u64,
+}
+
+impl Tcu {
+    /// A TCU starting at time `start` (timeouts of never-seen inputs count from here).
+    pub fn new(cfg: TcuConfig, start: Duration) -> Self {
+        let model = ClutchModel::with_effects(cfg.physics.clutch, cfg.compensation, cfg.effect_set);
+        Self {
+            inputs: InputMonitor::new(cfg.inputs, cfg.physics.driveline, start),
+            est: ThermalEstimator::new(
+                cfg.physics.thermal3,
+                cfg.estimator.initial_temp_c,
+                cfg.estimator.slip_deadband_radps,
+            ),
+            strategy: Strategy::new(&cfg),
+            tx: E2eSender::new(),
+            top: Top::Init,
+            last_now: None,
+            start,
+            safe_fault: FaultCode::None,
+            safe_x: [0.0; 2],
+            last_x: [0.0; 2],
+            warn: false,
+            limit: false,
+            w_out_prev: None,
+            w_out_dot: 0.0,
+            nonfinite: false,
+            steps: 0,
+            safe_entries: 0,
+            model,
+            cfg,
+        }
+    }
+
+    pub fn config(&self) -> &TcuConfig {
+        &self.cfg
+    }
+
+    /// Latest accepted measurements.
+    pub fn measurements(&self) -> &Measurements {
+        self.inputs.measurements()
+    }
+
+    /// Per-input accepted/rejected frame counts.
+    pub fn input_counters(&self) -> InputCounters {
+        self.inputs.counters()
+    }
+
+    /// Input health at `now`.
+    pub fn health(&self, now: Duration) -> Health {
+        self.inputs.health(now)
+    }
+
+    /// Number of times the safe state was entered.
+    pub fn safe_entries(&self) -> u64 {
+        self.safe_entries
+    }
+
+    /// Whether the TCU is in the safe state.
+    pub fn in_safe_state(&self) -> bool {
+        self.top == Top::Safe
+    }
+
+    /// Estimated clutch temperatures (°C).
+    pub fn temperatures(&self) -> [f64; 2] {
+        self.est.clutch_temps(f64::NAN)
+    }
+
+    /// Feeds frames without computing (the daemon calls this between computations so frame
+    /// arrival times are checked as they come).
+    pub fn receive(&mut self, frames: &[TimedFrame]) {
+        for f in frames {
+            self.inputs.accept(f);
+        }
+    }
+
+    /// One TCU cycle at `now`.
+    pub fn step(&mut self, now: Duration, inputs: &TcuInputs) -> TcuOutputs {
+        self.steps += 1;
+        self.receive(inputs.frames);
+        let dt = match self.last_now {
+            Some(prev) => now.saturating_sub(prev).as_secs_f64().min(0.1),
+            None => 0.0,
+        };
+        self.last_now = Some(now);
+        let health = self.inputs.health(now);
+        let m = *self.inputs.measurements();
+        // Output-shaft acceleration, filtered (time constant 40 ms).
+        if self.inputs.all_seen() && dt > 0.0 {
+            if let Some(prev) = self.w_out_prev {
+                let raw = (m.w_out - prev) / dt;
+                let a = dt / (0.04 + dt);
+                if raw.is_finite() {
+                    self.w_out_dot += a * (raw - self.w_out_dot);
+                }
+            }
+            self.w_out_prev = Some(m.w_out);
+        }
+        // Estimator (needs the sensor values).
+        if self.inputs.all_seen() && health.all_fresh {
+            let u = EstimatorInputs {
+                x_mm: m.x_mm,
+                slip_radps: [m.slip(0), m.slip(1)],
+                theta_h_c: m.theta_h,
+            };
+            self.est.update(&self.model, &u, dt);
+        }
+        let theta = self.est.clutch_temps(if m.theta_h.is_finite() {
+            m.theta_h
+        } else {
+            self.cfg.compensation.calibration_temp_c
+        });
+        // Over-temperature with hysteresis.
+        let tmax = theta[0].max(theta[1]);
+        let s = self.cfg.safety;
+        let hys = s.over_temp_hysteresis_c;
+        self.warn = tmax > s.over_temp_warn_c || (self.warn && tmax > s.over_temp_warn_c - hys);
+        self.limit = tmax > s.over_temp_limit_c || (self.limit && tmax > s.over_temp_limit_c - hys);
+        // Top-level state.
+        let grace = now.saturating_sub(self.start)
+            >= Duration::from_millis(10) * self.cfg.inputs.timeout_cycles;
+        match self.top {
+            Top::Init => {
+                if self.inputs.all_seen() && health.all_fresh {
+                    self.top = Top::Run;
+                    let ctx = Ctx {
+                        cfg: &self.cfg,
+                        model: &self.model,
+                        m: &m,
+                        theta,
+                        dt,
+                        w_out_dot: self.w_out_dot,
+                        limit_torque: self.limit,
+                    };
+                    self.strategy.restart(&ctx);
+                }
+            }
+            Top::Run => {
+                if !health.all_fresh {
+                    self.enter_safe(health.fault.unwrap_or(FaultCode::InternalNonFinite));
+                }
+            }
+            Top::Safe => {
+                if let Some(f) = health.fault {
+                    self.safe_fault = f;
+                }
+                if health.recovered {
+                    self.top = Top::Run;
+                    let ctx = Ctx {
+                        cfg: &self.cfg,
+                        model: &self.model,
+                        m: &m,
+                        theta,
+                        dt,
+                        w_out_dot: self.w_out_dot,
+                        limit_torque: self.limit,
+                    };
+                    self.strategy.restart(&ctx);
+                }
+            }
+        }
+        let mut cmd = match self.top {
+            Top::Init => Command {
+                x_ref: [self.cfg.control.open_position_mm; 2],
+                state: TcuState::Init,
+                phase: "init",
+                ..Default::default()
+            },
+            Top::Safe => {
+                for i in 0..2 {
+                    self.safe_x[i] = approach(
+                        self.safe_x[i],
+                        self.cfg.control.open_position_mm,
+                        s.open_rate_mm_per_s,
+                        dt,
+                    );
+                }
+                let last = *self.strategy.last();
+                Command {
+                    x_ref: self.safe_x,
+                    gear_req: last.gear_req,
+                    state: TcuState::SafeState,
+                    phase: "safe",
+                    ..Default::default()
+                }
+            }
+            Top::Run => {
+                let ctx = Ctx {
+                    cfg: &self.cfg,
+                    model: &self.model,
+                    m: &m,
+                    theta,
+                    dt,
+                    w_out_dot: self.w_out_dot,
+                    limit_torque: self.limit,
+                };
+                self.strategy.step(&ctx)
+            }
+        };
+        // Finite outputs, always.
+        self.nonfinite = !(cmd.x_ref.iter().all(|v| v.is_finite())
+            && cmd.t_ref.iter().all(|v| v.is_finite())
+            && cmd.engine_req.is_none_or(f64::is_finite));
+        if self.nonfinite {
+            cmd.x_ref = self.last_x;
+            cmd.t_ref = [0.0; 2];
+            cmd.engine_req = None;
+        }
+        let xmax = self.cfg.physics.actuator.x_max_mm;
+        for x in cmd.x_ref.iter_mut() {
+            *x = x.clamp(self.cfg.physics.actuator.x_min_mm, xmax);
+        }
+        self.last_x = cmd.x_ref;
+        if self.top != Top::Safe {
+            self.safe_x = cmd.x_ref;
+        }
+        let fault = if self.top == Top::Safe {
+            self.safe_fault
+        } else if self.top == Top::Init {
+            if grace {
+                health.fault.unwrap_or(FaultCode::None)
+            } else {
+                FaultCode::None
+            }
+        } else if self.nonfinite {
+            FaultCode::InternalNonFinite
+        } else if self.limit {
+            FaultCode::ClutchOverTempLimit
+        } else if self.warn {
+            FaultCode::ClutchOverTempWarning
+        } else {
+            FaultCode::None
+        };
+        let trace = TcuTrace {
+            t_s: now.as_secs_f64(),
+            state: cmd.state,
+            fault,
+            phase: cmd.phase,
+            x_ref_mm: cmd.x_ref,
+            t_ref_nm: cmd.t_ref,
+            engine_req_nm: cmd.engine_req,
+            w_e_ref_radps: cmd.w_e_ref,
+            w_c_ref_radps: cmd.w_c_ref,
+            theta_est_c: theta,
+            theta_body_c: self.est.state().map_or(f64::NAN, |s| s.body),
+            power_est_w: self.est.power_w,
+            torque_est_nm: self.est.torque_nm,
+            measurements: m,
+        };
+        self.encode(&cmd, fault, theta, trace)
+    }
+
+    fn enter_safe(&mut self, fault: FaultCode) {
+        self.top = Top::Safe;
+        self.safe_fault = fault;
+        self.safe_x = self.last_x;
+        self.safe_entries += 1;
+    }
+
+    fn encode(
+        &mut self,
+        cmd: &Command,
+        fault: FaultCode,
+        theta: [f64; 2],
+        trace: TcuTrace,
+    ) -> TcuOutputs {
+        let clutch_cmd = TcuClutchCmd {
+            clutch1_pos_req: fit(TcuClutchCmd::def(), 0, cmd.x_ref[0]),
+            clutch2_pos_req: fit(TcuClutchCmd::def(), 1, cmd.x_ref[1]),
+            ..Default::default()
+        };
+        let engine_req = TcuEngineReq {
+            eng_torque_req: fit(TcuEngineReq::def(), 0, cmd.engine_req.unwrap_or(0.0)),
+            eng_torque_req_active: cmd.engine_req.is_some(),
+            ..Default::default()
+        };
+        let gear_cmd = TcuGearCmd {
+            gear_odd_req: GearOddReq::from_raw(u64::from(cmd.gear_req[0])).unwrap_or(GearOddReq::N),
+            gear_even_req: GearEvenReq::from_raw(u64::from(cmd.gear_req[1]))
+                .unwrap_or(GearEvenReq::N),
+            ..Default::default()
+        };
+        let status = TcuStatus {
+            gear_active: GearActive::from_raw(u64::from(cmd.gear_active)).unwrap_or(GearActive::N),
+            tcu_state: cmd.state,
+            fault_code: fault,
+            ..Default::default()
+        };
+        let estimates = TcuEstimates {
+            clutch1_temp_est: fit(TcuEstimates::def(), 0, theta[0]),
+            clutch2_temp_est: fit(TcuEstimates::def(), 1, theta[1]),
+            clutch1_torque_req: fit(TcuEstimates::def(), 2, cmd.t_ref[0]),
+            clutch2_torque_req: fit(TcuEstimates::def(), 3, cmd.t_ref[1]),
+        };
+        let mut frames = Vec::with_capacity(5);
+        let encoded = [
+            (ids::TCU_CLUTCH_CMD, clutch_cmd.encode()),
+            (ids::TCU_ENGINE_REQ, engine_req.encode()),
+            (ids::TCU_GEAR_CMD, gear_cmd.encode()),
+            (ids::TCU_STATUS, status.encode()),
+            (ids::TCU_ESTIMATES, estimates.encode()),
+        ];
+        for (id, data) in encoded {
+            // Every value was fitted to its DBC range above, so encoding cannot fail; a failure
+            // would drop that one frame (the receiver's timeout then reports it), never panic.
+            if let Ok(mut d) = data {
+                self.tx.protect(id, &mut d);
+                if let Ok(f) = CanFrame::standard(id, &d) {
+                    frames.push(f);
+                }
+            }
+        }
+        TcuOutputs {
+            clutch_cmd,
+            engine_req,
+            gear_cmd,
+            status,
+            estimates,
+            frames,
+            trace,
+        }
+    }
+}
+
+/// A value made finite and clamped into signal `si`'s DBC range (NaN → the range's value nearest
+/// zero).
+fn fit(def: &MessageDef, si: usize, v: f64) -> f64 {
+    let s = &def.signals[si];
+    let v = if v.is_finite() { v } else { 0.0 };
+    v.clamp(s.min, s.max)
+}

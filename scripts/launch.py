@@ -1,0 +1,488 @@
+#!/usr/bin/env python3
+"""Plays the driver of a launch (or a launch with upshifts) on a CAN bus against the plant and TCU
+daemons, records the bus into a candump log, computes the launch, shift, estimator, fault and
+timing metrics from the log and prints them as a table.
+
+    .venv/bin/python scripts/launch.py --iface vcan0 --pedal 50            # daemons started here
+    .venv/bin/python scripts/launch.py --program shifts --pedal 50 --seconds 14
+    .venv/bin/python scripts/launch.py --faults faults.toml                 # plant fault injection
+    .venv/bin/python scripts/launch.py --no-daemons ...                     # daemons already running
+
+The driver sends DRV_Pedal every 10 ms (absolute deadlines) with the E2E counter and CRC of the
+contract: lever N, then D at 0.5 s, brake held until the launch at 1.0 s, then the pedal; the
+`shifts` program releases the pedal and brakes for the last 4 s. The plant runs without a built-in
+driver (it reads DRV_Pedal), the TCU with config/tcu.toml. `ddct log record` records the bus with
+kernel receive timestamps. Everything about the frames comes from dbc/ddct.dbc (cantools, through
+scripts/ddct_can.py): no ID, scale or offset is written here.
+
+Run it inside scripts/vcan-run where the host has no vcan0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import ddct_can  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+
+# The driver's timeline (s), relative to the start of the driver.
+LEVER_D_S = 0.5
+LAUNCH_S = 1.0
+CYCLE_S = 0.01
+
+
+def choice(message: str, signal_name: str, label: str) -> int:
+    """Raw value of a value-table entry, from the DBC."""
+    sig = ddct_can.message(message).get_signal_by_name(signal_name)
+    for raw, name in sig.choices.items():
+        if str(name) == label:
+            return int(raw)
+    raise KeyError(f"{message}.{signal_name} has no value {label!r}")
+
+
+def label(message: str, signal_name: str, raw: int) -> str:
+    sig = ddct_can.message(message).get_signal_by_name(signal_name)
+    return str(sig.choices.get(int(raw), raw)) if sig.choices else str(raw)
+
+
+def frame_id(name: str) -> int:
+    return ddct_can.message(name).frame_id
+
+
+# ---------------------------------------------------------------------------------------------
+# The driver
+
+
+def driver_sample(program: str, pedal: float, seconds: float, t: float) -> dict:
+    """DRV_Pedal signals at time t of a program."""
+    lever = "N" if t < LEVER_D_S else "D"
+    if t < LAUNCH_S:
+        return {"AccelPedal": 0.0, "BrakeSwitch": 1, "GearLever": lever}
+    if program == "shifts" and t > seconds - 4.0:
+        return {"AccelPedal": 0.0, "BrakeSwitch": 1, "GearLever": lever}
+    return {"AccelPedal": pedal, "BrakeSwitch": 0, "GearLever": lever}
+
+
+def play_driver(bus, program: str, pedal: float, seconds: float) -> int:
+    """Sends DRV_Pedal every 10 ms on absolute deadlines; returns the number of frames sent."""
+    import can
+
+    fid = frame_id("DRV_Pedal")
+    start = time.monotonic()
+    n = 0
+    while True:
+        t = n * CYCLE_S
+        if t > seconds:
+            return n
+        delay = start + t - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        data = ddct_can.encode("DRV_Pedal", driver_sample(program, pedal, seconds, t), counter=n)
+        try:
+            bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+        except can.CanError:
+            pass  # a full transmit queue drops one frame; the TCU's E2E sees a skipped counter
+        n += 1
+
+
+# ---------------------------------------------------------------------------------------------
+# Analysis of a recorded log
+
+
+@dataclass
+class Series:
+    """Latest decoded value of every signal at each TCU_Status frame (one row per TCU cycle)."""
+
+    t: list = field(default_factory=list)
+    rows: list = field(default_factory=list)
+
+
+def rows_of(records) -> list[dict]:
+    """records: [(t, iface, id, ext, data)] -> one dict per TCU_Status frame, with the latest
+    value of every signal seen so far (message.signal keys) and `t` relative to the first frame."""
+    by_id = {m.frame_id: m for m in ddct_can.load_dbc().messages}
+    status_id = frame_id("TCU_Status")
+    sensors_id = frame_id("DCT_Sensors")
+    latest: dict = {}
+    rows = []
+    t0 = records[0][0] if records else 0.0
+    plant_seen = False
+    for t, _, fid, ext, data in records:
+        m = by_id.get(fid)
+        if ext or m is None or len(data) != m.length:
+            continue
+        try:
+            vals = m.decode(bytes(data), decode_choices=False)
+        except Exception:  # noqa: BLE001 - a frame outside the DBC ranges is skipped
+            continue
+        for k, v in vals.items():
+            latest[f"{m.name}.{k}"] = v
+        plant_seen |= fid == sensors_id
+        if fid == status_id and plant_seen:
+            row = dict(latest)
+            row["t"] = t - t0
+            rows.append(row)
+    return rows
+
+
+def pct(values, q):
+    v = sorted(x for x in values if math.isfinite(x))
+    if not v:
+        return float("nan")
+    return v[min(len(v) - 1, max(0, math.ceil(q * len(v)) - 1))]
+
+
+def latency_us(records, cause: str, effect: str) -> list[float]:
+    c_id, e_id = frame_id(cause), frame_id(effect)
+    out, pending = [], None
+    for t, _, fid, _, _ in records:
+        if fid == c_id:
+            pending = t
+        elif fid == e_id and pending is not None:
+            out.append((t - pending) * 1e6)
+            pending = None
+    return out
+
+
+def intervals_us(records, name: str) -> list[float]:
+    ts = [t for t, _, fid, _, _ in records if fid == frame_id(name)]
+    return [(b - a) * 1e6 for a, b in zip(ts, ts[1:])]
+
+
+def launch_metrics(rows: list[dict], target_rpm=None) -> dict | None:
+    """The first launch: lock-up time, engine flare, stall, lock-up acceleration spike."""
+    launch = choice("TCU_Status", "TcuState", "Launch")
+    k0 = next((k for k, r in enumerate(rows) if r.get("TCU_Status.TcuState") == launch), None)
+    if k0 is None:
+        return None
+    t0 = rows[k0]["t"]
+    pedal = rows[k0].get("DRV_Pedal.AccelPedal", float("nan"))
+    lock = None
+    for r in rows[k0:]:
+        slip = r.get("ENG_Status.EngSpeed", 0) - r.get("DCT_Sensors.InShaft1Speed", 0)
+        if abs(slip) < 5.0:
+            lock = r["t"]
+            break
+    seg = [r for r in rows if t0 <= r["t"] <= (lock if lock is not None else t0 + 5.0)]
+    eng = [r.get("ENG_Status.EngSpeed", 0.0) for r in seg]
+    acc = lambda a, b: [r.get("BENCH_Vehicle.VehicleAccel", 0.0) for r in rows if a <= r["t"] < b]  # noqa: E731
+    spike = None
+    if lock is not None:
+        pre = acc(lock - 0.1, lock)
+        post = acc(lock, lock + 0.3)
+        if pre and post:
+            spike = max(post) - sum(pre) / len(pre)
+    out = {
+        "t_start_s": t0,
+        "pedal_pct": pedal,
+        "lockup_s": None if lock is None else lock - t0,
+        "min_engine_rpm": min(eng) if eng else float("nan"),
+        "max_engine_rpm": max(eng) if eng else float("nan"),
+        "lockup_spike_mps2": spike,
+    }
+    if target_rpm is not None:
+        out["flare_rpm"] = out["max_engine_rpm"] - target_rpm
+    return out
+
+
+def shift_metrics(rows: list[dict]) -> list[dict]:
+    up, down = choice("TCU_Status", "TcuState", "Upshift"), choice("TCU_Status", "TcuState", "Downshift")
+    drive = choice("TCU_Status", "TcuState", "Drive")
+    shifts, k = [], 1
+    while k < len(rows):
+        st = rows[k].get("TCU_Status.TcuState")
+        if st in (up, down) and rows[k - 1].get("TCU_Status.TcuState") != st:
+            g_from = rows[k - 1].get("TCU_Status.GearActive")
+            j = k
+            while j < len(rows) and rows[j].get("TCU_Status.TcuState") == st:
+                j += 1
+            end = rows[min(j, len(rows) - 1)]
+            accs = [r.get("BENCH_Vehicle.VehicleAccel", 0.0) for r in rows[k : j + 20]]
+            shifts.append(
+                {
+                    "t_start_s": rows[k]["t"],
+                    "up": st == up,
+                    "from": g_from,
+                    "to": end.get("TCU_Status.GearActive"),
+                    "duration_s": end["t"] - rows[k]["t"],
+                    "completed": end.get("TCU_Status.TcuState") == drive,
+                    "min_accel_mps2": min(accs) if accs else float("nan"),
+                }
+            )
+            k = j
+        else:
+            k += 1
+    return shifts
+
+
+def estimator_metrics(rows: list[dict]) -> dict:
+    out = {}
+    for i in (1, 2):
+        err = [
+            r[f"TCU_Estimates.Clutch{i}TempEst"] - r[f"SIM_Truth.Clutch{i}TempTrue"]
+            for r in rows
+            if f"TCU_Estimates.Clutch{i}TempEst" in r and f"SIM_Truth.Clutch{i}TempTrue" in r
+        ]
+        out[f"clutch{i}_rmse_c"] = math.sqrt(sum(e * e for e in err) / len(err)) if err else float("nan")
+        out[f"clutch{i}_max_c"] = max((abs(e) for e in err), default=float("nan"))
+    return out
+
+
+def fault_events(rows: list[dict]) -> list[dict]:
+    """Changes of (TcuState, FaultCode) with names."""
+    out, prev = [], None
+    for r in rows:
+        key = (r.get("TCU_Status.TcuState"), r.get("TCU_Status.FaultCode"))
+        if key != prev:
+            out.append(
+                {
+                    "t": r["t"],
+                    "state": label("TCU_Status", "TcuState", key[0] or 0),
+                    "fault": label("TCU_Status", "FaultCode", key[1] or 0),
+                }
+            )
+            prev = key
+    return out
+
+
+def fault_timing(records, message: str, expected: str, fault_from_s: float, t_plant0: float) -> dict:
+    """Detection and recovery of a fault injected on `message` from `fault_from_s` of plant time
+    (t_plant0: the plant's first frame): the first TCU_Status carrying the `expected` fault code
+    after the injection started is the detection; it is measured from the last valid frame of
+    the message before it (CRC and counter sequence checked here); recovery is from the first
+    valid frame after the detection to the first TCU_Status in normal operation (not SafeState or
+    Init, no fault code)."""
+    fid = frame_id(message)
+    status_id = frame_id("TCU_Status")
+    safe = choice("TCU_Status", "TcuState", "SafeState")
+    init = choice("TCU_Status", "TcuState", "Init")
+    code = choice("TCU_Status", "FaultCode", expected)
+    start = t_plant0 + fault_from_s - 0.05
+    status = []
+    for t, _, i, _, data in records:
+        if i == status_id:
+            s = ddct_can.decode(i, data)
+            status.append((t, s["TcuState"], s["FaultCode"]))
+    detected = next((t for t, _, f in status if t >= start and f == code), None)
+    # Valid: CRC right and the counter moved on. After a gap the counter may jump (frames were
+    # lost), which still counts as back.
+    valid, prev = [], None
+    for t, _, i, _, data in records:
+        if i != fid or ddct_can.check(i, data) != ddct_can.OK:
+            continue
+        c = ddct_can.counter_of(i, data)
+        if c != prev:
+            valid.append(t)
+        prev = c
+    last_valid = first_back = safe_t = recovered = None
+    if detected is not None:
+        last_valid = max((t for t in valid if t < detected), default=None)
+        first_back = min((t for t in valid if t > detected), default=None)
+        safe_t = next((t for t, st, _ in status if t >= detected and st == safe), None)
+    if first_back is not None:
+        recovered = next(
+            (t for t, st, f in status if t >= first_back and f == 0 and st not in (safe, init)),
+            None,
+        )
+    ms = lambda a, b: None if a is None or b is None else (a - b) * 1e3  # noqa: E731
+    return {
+        "message": message,
+        "fault": expected if detected is not None else None,
+        "detection_ms": ms(detected, last_valid),
+        "safe_state_after_detection_ms": ms(safe_t, detected),
+        "recovery_ms": ms(recovered, first_back),
+    }
+
+
+def analyse(records, tcu_cfg_target=None) -> dict:
+    rows = rows_of(records)
+    lat = latency_us(records, "DCT_Sensors", "TCU_ClutchCmd")
+    iv = intervals_us(records, "TCU_ClutchCmd")
+    jit = [abs(x - CYCLE_S * 1e6) for x in iv]
+    return {
+        "rows": len(rows),
+        "launch": launch_metrics(rows, tcu_cfg_target),
+        "shifts": shift_metrics(rows),
+        "estimator": estimator_metrics(rows),
+        "events": fault_events(rows),
+        "latency_us": {"n": len(lat), "p50": pct(lat, 0.5), "p99": pct(lat, 0.99), "max": pct(lat, 1.0)},
+        "clutch_cmd_jitter_us": {"n": len(jit), "p50": pct(jit, 0.5), "p99": pct(jit, 0.99), "max": pct(jit, 1.0)},
+    }
+
+
+def target_rpm(pedal: float) -> float:
+    """The launch target n(p) of config/tcu.toml."""
+    import tomllib
+
+    cfg = tomllib.loads((REPO / "config" / "tcu.toml").read_text())
+    lo, hi = cfg["launch"]["engine_rpm_0"], cfg["launch"]["engine_rpm_100"]
+    return lo + (hi - lo) * pedal / 100.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Running
+
+
+@dataclass
+class Run:
+    log: Path
+    records: list
+    tcu_report: dict | None
+    plant_stderr: str
+    tcu_stderr: str
+    driver_frames: int
+    plant_start_wall: float
+
+
+def wait_for_file(p: Path, timeout: float = 10.0):
+    t = time.monotonic() + timeout
+    while not p.exists() and time.monotonic() < t:
+        time.sleep(0.02)
+
+
+def run_bench(
+    iface: str = "vcan0",
+    program: str = "launch",
+    pedal: float = 50.0,
+    seconds: float = 6.0,
+    out: Path = REPO / "out" / "hil",
+    ddct: Path = REPO / "target" / "release" / "ddct",
+    faults: Path | None = None,
+    daemons: bool = True,
+    name: str = "launch",
+) -> Run:
+    import can
+
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / f"{name}.log"
+    if log.exists():
+        log.unlink()
+    procs = []
+    tcu_json = out / f"{name}_tcu.json"
+    rec = subprocess.Popen(
+        [str(ddct), "log", "record", "--iface", iface, "--out", str(log), "--duration", str(seconds + 3.0)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    procs.append(rec)
+    tcu = plant = None
+    try:
+        time.sleep(0.3)
+        if daemons:
+            tcu = subprocess.Popen(
+                [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json"],
+                stdout=open(tcu_json, "w"),
+                stderr=subprocess.PIPE,
+                text=True,
+                cwd=REPO,
+            )
+            procs.append(tcu)
+            time.sleep(0.3)
+            cmd = [str(ddct), "plant", "--iface", iface, "--duration", str(seconds + 0.5)]
+            if faults is not None:
+                cmd += ["--faults", str(faults)]
+            plant = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=REPO)
+            procs.append(plant)
+        plant_start = time.time()
+        bus = can.Bus(interface="socketcan", channel=iface, receive_own_messages=False)
+        try:
+            n = play_driver(bus, program, pedal, seconds)
+        finally:
+            bus.shutdown()
+        plant_err = tcu_err = ""
+        if plant is not None:
+            _, plant_err = plant.communicate(timeout=30)
+        if tcu is not None:
+            tcu.send_signal(signal.SIGTERM)
+            _, tcu_err = tcu.communicate(timeout=30)
+        rec.send_signal(signal.SIGTERM)
+        rec.communicate(timeout=30)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    records = ddct_can.read_candump(log)
+    report = None
+    if daemons and tcu_json.exists() and tcu_json.stat().st_size:
+        try:
+            report = json.loads(tcu_json.read_text())
+        except json.JSONDecodeError:
+            report = None
+    return Run(log, records, report, plant_err, tcu_err, n, plant_start)
+
+
+def fmt(v, p=2):
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else f"{v:.{p}f}"
+    return str(v)
+
+
+def print_table(a: dict, run: Run):
+    print(f"log: {run.log} ({len(run.records)} frames, {a['rows']} TCU cycles, {run.driver_frames} driver frames)")
+    la = a["launch"]
+    print("\nlaunch:")
+    if la is None:
+        print("  no launch seen")
+    else:
+        for k in ("pedal_pct", "lockup_s", "min_engine_rpm", "max_engine_rpm", "flare_rpm", "lockup_spike_mps2"):
+            if k in la:
+                print(f"  {k:<22} {fmt(la[k])}")
+    if a["shifts"]:
+        print("\nshifts:")
+        print(f"  {'t_s':>7} {'shift':>6} {'dur_s':>6} {'min_acc':>8} completed")
+        for s in a["shifts"]:
+            print(f"  {s['t_start_s']:7.2f} {s['from']}->{s['to']:<3} {s['duration_s']:6.2f} {s['min_accel_mps2']:8.2f} {s['completed']}")
+    e = a["estimator"]
+    print(f"\nestimator vs SIM_Truth: RMSE {fmt(e['clutch1_rmse_c'])} / {fmt(e['clutch2_rmse_c'])} °C, max {fmt(e['clutch1_max_c'])} / {fmt(e['clutch2_max_c'])} °C")
+    print("\nTCU state / fault code changes:")
+    for ev in a["events"]:
+        print(f"  {ev['t']:7.3f} s  {ev['state']:<10} {ev['fault']}")
+    la, jt = a["latency_us"], a["clutch_cmd_jitter_us"]
+    print(f"\nDCT_Sensors -> TCU_ClutchCmd latency: n {la['n']} p50 {fmt(la['p50'],0)} us p99 {fmt(la['p99'],0)} us max {fmt(la['max'],0)} us")
+    print(f"TCU_ClutchCmd |interval - 10 ms|:     n {jt['n']} p50 {fmt(jt['p50'],0)} us p99 {fmt(jt['p99'],0)} us max {fmt(jt['max'],0)} us")
+    if run.tcu_report:
+        r = run.tcu_report
+        print(f"TCU daemon: {r['computations']} computations, overruns {r['overruns']}, deadline misses {r['deadline_misses']}, safe-state entries {r['safe_entries']}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--iface", default="vcan0")
+    ap.add_argument("--program", choices=["launch", "shifts"], default="launch")
+    ap.add_argument("--pedal", type=float, default=50.0, help="accelerator pedal after the launch (%%)")
+    ap.add_argument("--seconds", type=float, default=None, help="length of the driver program (s)")
+    ap.add_argument("--out", type=Path, default=REPO / "out" / "hil")
+    ap.add_argument("--ddct", type=Path, default=REPO / "target" / "release" / "ddct")
+    ap.add_argument("--faults", type=Path, default=None, help="plant fault-injection file ([[faults]])")
+    ap.add_argument("--no-daemons", action="store_true", help="the plant and TCU daemons are already running")
+    ap.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    a = ap.parse_args(argv)
+    seconds = a.seconds or (6.0 if a.program == "launch" else 16.0)
+    run = run_bench(a.iface, a.program, a.pedal, seconds, a.out, a.ddct, a.faults, not a.no_daemons, a.program)
+    if not run.records:
+        print(f"nothing recorded on {a.iface}\n{run.plant_stderr}\n{run.tcu_stderr}", file=sys.stderr)
+        return 1
+    result = analyse(run.records, target_rpm(a.pedal))
+    if a.json:
+        print(json.dumps(result, indent=2, default=str))
+    else:
+        print_table(result, run)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,406 @@
+//! `ddct sim`: the plant and TCU cores in one process, in lockstep and simulated time —
+//! deterministic and far faster than real time. They exchange the encoded, E2E-protected frames
+//! of the bus contract directly (no bus, no clock): every millisecond the plant integrates and
+//! hands over the frames due; the TCU computes on each DCT_Sensors frame (the bench's sync) or,
+//! when none came, 10 ms after its previous computation (the daemon's fallback), and its frames
+//! reach the plant's next integration step.
+//!
+//! Every TCU cycle a [`Row`] is recorded from the frames on the "bus" (decoded with the generated
+//! types, so exactly what a bench sees: ENG_Status, DCT_Sensors, DCT_Actuators, BENCH_*, SIM_Truth,
+//! DRV_Pedal and the TCU's own messages) plus the TCU's internal references ([`crate::tcu::TcuTrace`]).
+//! [`metrics`] turns the rows into the acceptance figures; [`plots`] into SVG figures.
+//!
+//! Frame faults for safety tests ([`Injection`]) act between the plant and the TCU.
+
+pub mod buslog;
+pub mod metrics;
+pub mod plots;
+pub mod scenario;
+
+pub use scenario::{ScenarioError, SimScenario, TcuOverrides};
+
+use crate::can::e2e::CRC_BYTE;
+use crate::can::messages::{
+    ids, BenchTemps, BenchTorque, BenchVehicle, DctActuators, DctSensors, DrvPedal, EngStatus,
+    FaultCode, SimTruth, TcuClutchCmd, TcuEngineReq, TcuEstimates, TcuGearCmd, TcuState, TcuStatus,
+};
+use crate::can::{CanFrame, Received};
+use crate::plant::Plant;
+use crate::tcu::{Tcu, TcuConfig, TcuInputs, TimedFrame};
+use serde::Serialize;
+use std::time::Duration;
+
+/// A plant as the simulation drives it: integrate to `now` with the frames received (stamped on
+/// the same time base), return the frames it sends with their due times (a due time may lie up to
+/// one cycle after `now`; the runner holds them until then).
+pub trait PlantNode {
+    fn advance(&mut self, now: Duration, rx: &[Received]) -> Vec<(Duration, CanFrame)>;
+}
+
+impl PlantNode for Plant {
+    fn advance(&mut self, now: Duration, rx: &[Received]) -> Vec<(Duration, CanFrame)> {
+        self.step(now, rx)
+            .frames
+            .into_iter()
+            .map(|f| (f.due, f.frame))
+            .collect()
+    }
+}
+
+/// A frame fault between the plant and the TCU, active in [from_s, to_s).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Injection {
+    pub id: u16,
+    pub kind: InjectionKind,
+    pub from_s: f64,
+    pub to_s: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum InjectionKind {
+    /// The message is not delivered.
+    Stop,
+    /// Delivered with a corrupted CRC byte.
+    CorruptCrc,
+    /// Delivered with the alive counter frozen at its value when the fault started (CRC valid).
+    FreezeCounter,
+}
+
+/// One TCU cycle as seen on the bus (SI-ish units as named).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub struct Row {
+    pub t_s: f64,
+    pub pedal_pct: f64,
+    pub brake: bool,
+    pub n_e_rpm: f64,
+    pub t_e_nm: f64,
+    pub n_c_rpm: [f64; 2],
+    pub n_out_rpm: f64,
+    pub housing_c: f64,
+    pub x_mm: [f64; 2],
+    pub gear_act: [u8; 2],
+    pub x_ref_mm: [f64; 2],
+    pub eng_req_nm: Option<f64>,
+    pub gear_req: [u8; 2],
+    pub state: TcuState,
+    pub fault: FaultCode,
+    pub gear_active: u8,
+    pub theta_est_c: [f64; 2],
+    pub t_ref_nm: [f64; 2],
+    pub t_act_nm: [f64; 2],
+    pub theta_pp_c: [f64; 2],
+    pub theta_cd_c: f64,
+    pub theta_true_c: [f64; 2],
+    pub v_kmh: f64,
+    pub accel_mps2: f64,
+    pub grade_pct: f64,
+    /// TCU internals.
+    pub n_e_ref_rpm: f64,
+    pub n_c_ref_rpm: f64,
+    pub phase: &'static str,
+}
+
+impl Row {
+    /// Measured slip of clutch `i` from the bus (rpm).
+    pub fn slip_rpm(&self, i: usize) -> f64 {
+        self.n_e_rpm - self.n_c_rpm[i]
+    }
+}
+
+/// Latest decoded value of every message.
+#[derive(Debug, Clone, Default)]
+struct BusView {
+    row: Row,
+}
+
+impl BusView {
+    fn take(&mut self, f: &CanFrame) {
+        let d = f.bytes();
+        let r = &mut self.row;
+        match f.standard_id() {
+            Some(ids::DRV_PEDAL) => {
+                if let Ok(m) = DrvPedal::decode(d) {
+                    r.pedal_pct = m.accel_pedal;
+                    r.brake = m.brake_switch;
+                }
+            }
+            Some(ids::ENG_STATUS) => {
+                if let Ok(m) = EngStatus::decode(d) {
+                    r.n_e_rpm = m.eng_speed;
+                    r.t_e_nm = m.eng_torque_act;
+                }
+            }
+            Some(ids::DCT_SENSORS) => {
+                if let Ok(m) = DctSensors::decode(d) {
+                    r.n_c_rpm = [m.in_shaft1_speed, m.in_shaft2_speed];
+                    r.n_out_rpm = m.out_shaft_speed;
+                    r.housing_c = m.housing_temp;
+                }
+            }
+            Some(ids::DCT_ACTUATORS) => {
+                if let Ok(m) = DctActuators::decode(d) {
+                    r.x_mm = [m.clutch1_pos, m.clutch2_pos];
+                    r.gear_act = [m.gear_odd_act as u8, m.gear_even_act as u8];
+                }
+            }
+            Some(ids::BENCH_TORQUE) => {
+                if let Ok(m) = BenchTorque::decode(d) {
+                    r.t_act_nm = [m.clutch1_torque, m.clutch2_torque];
+                }
+            }
+            Some(ids::BENCH_TEMPS) => {
+                if let Ok(m) = BenchTemps::decode(d) {
+                    r.theta_pp_c = [m.pressure_plate1_temp, m.pressure_plate2_temp];
+                    r.theta_cd_c = m.central_disk_temp;
+                }
+            }
+            Some(ids::BENCH_VEHICLE) => {
+                if let Ok(m) = BenchVehicle::decode(d) {
+                    r.v_kmh = m.vehicle_speed;
+                    r.accel_mps2 = m.vehicle_accel;
+                    r.grade_pct = m.road_grade;
+                }
+            }
+            Some(ids::SIM_TRUTH) => {
+                if let Ok(m) = SimTruth::decode(d) {
+                    r.theta_true_c = [m.clutch1_temp_true, m.clutch2_temp_true];
+                }
+            }
+            Some(ids::TCU_CLUTCH_CMD) => {
+                if let Ok(m) = TcuClutchCmd::decode(d) {
+                    r.x_ref_mm = [m.clutch1_pos_req, m.clutch2_pos_req];
+                }
+            }
+            Some(ids::TCU_ENGINE_REQ) => {
+                if let Ok(m) = TcuEngineReq::decode(d) {
+                    r.eng_req_nm = m.eng_torque_req_active.then_some(m.eng_torque_req);
+                }
+            }
+            Some(ids::TCU_GEAR_CMD) => {
+                if let Ok(m) = TcuGearCmd::decode(d) {
+                    r.gear_req = [m.gear_odd_req as u8, m.gear_even_req as u8];
+                }
+            }
+            Some(ids::TCU_STATUS) => {
+                if let Ok(m) = TcuStatus::decode(d) {
+                    r.state = m.tcu_state;
+                    r.fault = m.fault_code;
+                    r.gear_active = m.gear_active as u8;
+                }
+            }
+            Some(ids::TCU_ESTIMATES) => {
+                if let Ok(m) = TcuEstimates::decode(d) {
+                    r.theta_est_c = [m.clutch1_temp_est, m.clutch2_temp_est];
+                    r.t_ref_nm = [m.clutch1_torque_req, m.clutch2_torque_req];
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Options of a run.
+#[derive(Debug, Clone, Default)]
+pub struct SimOptions {
+    pub injections: Vec<Injection>,
+}
+
+/// Everything a run produced.
+#[derive(Debug, Clone, Serialize)]
+pub struct SimRun {
+    pub scenario: String,
+    pub description: String,
+    pub duration_s: f64,
+    pub rows: Vec<Row>,
+    /// Every frame the plant sent (after injections) and the TCU sent, with its time.
+    #[serde(skip)]
+    pub frames: Vec<(Duration, CanFrame)>,
+    pub tcu_steps: u64,
+    pub safe_entries: u64,
+    pub config: SimConfigSummary,
+}
+
+/// The switches a run used.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct SimConfigSummary {
+    pub temperature_compensation: bool,
+    pub slip_compensation: bool,
+    pub tcu_initial_temp_c: Option<f64>,
+    pub plant_temperature_c: f64,
+}
+
+fn apply_injection(
+    inj: &[Injection],
+    frozen: &mut [Option<u8>],
+    t: Duration,
+    f: CanFrame,
+) -> Option<CanFrame> {
+    let ts = t.as_secs_f64();
+    let mut data = [0u8; 8];
+    let b = f.bytes();
+    data[..b.len()].copy_from_slice(b);
+    let mut out = Some(f);
+    for (k, i) in inj.iter().enumerate() {
+        if f.standard_id() != Some(i.id) {
+            continue;
+        }
+        let active = ts >= i.from_s && ts < i.to_s;
+        if !active {
+            frozen[k] = None;
+            continue;
+        }
+        match i.kind {
+            InjectionKind::Stop => out = None,
+            InjectionKind::CorruptCrc => {
+                data[CRC_BYTE] ^= 0xA5;
+                out = CanFrame::standard(i.id, &data[..b.len()]).ok();
+            }
+            InjectionKind::FreezeCounter => {
+                let c = *frozen[k].get_or_insert(crate::can::e2e::counter_of(&data));
+                crate::can::e2e::protect(i.id, &mut data, c);
+                out = CanFrame::standard(i.id, &data[..b.len()]).ok();
+            }
+        }
+    }
+    out
+}
+
+/// Runs a plant node and a TCU in lockstep for `duration`.
+pub fn run_with(
+    plant: &mut dyn PlantNode,
+    tcu: &mut Tcu,
+    duration: Duration,
+    opts: &SimOptions,
+) -> (Vec<Row>, Vec<(Duration, CanFrame)>, u64) {
+    let ms = Duration::from_millis(1);
+    let mut to_plant: Vec<Received> = Vec::new();
+    let mut pending: Vec<(Duration, CanFrame)> = Vec::new();
+    let mut inbox: Vec<TimedFrame> = Vec::new();
+    let mut view = BusView::default();
+    let mut rows = Vec::with_capacity((duration.as_millis() / 10 + 2) as usize);
+    let mut log = Vec::new();
+    let mut frozen = vec![None; opts.injections.len()];
+    let mut last_step: Option<Duration> = None;
+    let mut steps = 0;
+    let n = duration.as_millis() as u64;
+    for k in 0..=n {
+        let t = ms * k as u32;
+        let out = plant.advance(t, &to_plant);
+        to_plant.clear();
+        pending.extend(out);
+        pending.sort_by_key(|(due, _)| *due);
+        let due = pending.partition_point(|(d, _)| *d <= t);
+        let mut sync = false;
+        for (d, f) in pending.drain(..due) {
+            let Some(f) = apply_injection(&opts.injections, &mut frozen, d, f) else {
+                continue;
+            };
+            view.take(&f);
+            log.push((d, f));
+            if f.standard_id() == Some(ids::DCT_SENSORS) {
+                sync = true;
+            }
+            inbox.push(TimedFrame { at: d, frame: f });
+        }
+        let fallback = last_step.is_none_or(|p| t.saturating_sub(p) >= Duration::from_millis(10));
+        if sync || fallback {
+            let o = tcu.step(t, &TcuInputs { frames: &inbox });
+            inbox.clear();
+            steps += 1;
+            last_step = Some(t);
+            for f in &o.frames {
+                view.take(f);
+                log.push((t, *f));
+                to_plant.push(Received {
+                    frame: *f,
+                    timestamp: t,
+                });
+            }
+            let mut r = view.row;
+            r.t_s = t.as_secs_f64();
+            r.n_e_ref_rpm = o.trace.w_e_ref_radps / crate::model::engine::RPM;
+            r.n_c_ref_rpm = o.trace.w_c_ref_radps / crate::model::engine::RPM;
+            r.phase = o.trace.phase;
+            rows.push(r);
+        }
+    }
+    (rows, log, steps)
+}
+
+/// Runs a scenario: the plant core of `plant` with the scenario's configuration and the TCU core
+/// with `base` plus the scenario's overrides.
+pub fn run_scenario(sc: &SimScenario, base: &TcuConfig, opts: &SimOptions) -> SimRun {
+    let mut cfg = base.clone();
+    sc.tcu.apply(&mut cfg);
+    let mut plant = Plant::new(sc.plant.clone());
+    let mut tcu = Tcu::new(cfg.clone(), Duration::ZERO);
+    let duration = Duration::from_secs_f64(sc.duration_s);
+    let (rows, frames, tcu_steps) = run_with(&mut plant, &mut tcu, duration, opts);
+    SimRun {
+        scenario: sc.name.clone(),
+        description: sc.description.clone(),
+        duration_s: sc.duration_s,
+        rows,
+        frames,
+        tcu_steps,
+        safe_entries: tcu.safe_entries(),
+        config: SimConfigSummary {
+            temperature_compensation: cfg.compensation.temperature,
+            slip_compensation: cfg.compensation.slip,
+            tcu_initial_temp_c: cfg.estimator.initial_temp_c,
+            plant_temperature_c: sc.plant.initial.temperature_c,
+        },
+    }
+}
+
+/// The rows of a run as CSV (one header line; `-` for an inactive engine request).
+pub fn rows_csv(rows: &[Row]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from(
+        "t_s,state,phase,fault,pedal_pct,brake,gear_active,gear_odd,gear_even,n_e_rpm,n_e_ref_rpm,\
+         n_c1_rpm,n_c2_rpm,n_c_ref_rpm,n_out_rpm,x1_mm,x1_ref_mm,x2_mm,x2_ref_mm,t_ref1_nm,\
+         t_act1_nm,t_ref2_nm,t_act2_nm,eng_req_nm,t_e_nm,accel_mps2,v_kmh,grade_pct,housing_c,\
+         theta_est1_c,theta_true1_c,theta_est2_c,theta_true2_c\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{:.3},{},{},{},{:.1},{},{},{},{},{:.1},{:.1},{:.1},{:.1},{:.1},{:.1},{:.3},{:.3},{:.3},{:.3},\
+             {:.1},{:.1},{:.1},{:.1},{},{:.1},{:.3},{:.2},{:.1},{:.0},{:.1},{:.1},{:.1},{:.1}",
+            r.t_s,
+            r.state.label(),
+            r.phase,
+            r.fault.label(),
+            r.pedal_pct,
+            u8::from(r.brake),
+            r.gear_active,
+            r.gear_act[0],
+            r.gear_act[1],
+            r.n_e_rpm,
+            r.n_e_ref_rpm,
+            r.n_c_rpm[0],
+            r.n_c_rpm[1],
+            r.n_c_ref_rpm,
+            r.n_out_rpm,
+            r.x_mm[0],
+            r.x_ref_mm[0],
+            r.x_mm[1],
+            r.x_ref_mm[1],
+            r.t_ref_nm[0],
+            r.t_act_nm[0],
+            r.t_ref_nm[1],
+            r.t_act_nm[1],
+            r.eng_req_nm.map_or("-".to_string(), |v| format!("{v:.1}")),
+            r.t_e_nm,
+            r.accel_mps2,
+            r.v_kmh,
+            r.grade_pct,
+            r.housing_c,
+            r.theta_est_c[0],
+            r.theta_true_c[0],
+            r.theta_est_c[1],
+            r.theta_true_c[1],
+        );
+    }
+    s
+}

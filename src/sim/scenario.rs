@@ -1,0 +1,311 @@
+//! `ddct sim` scenario files. A scenario is a plant configuration (the plant daemon's format,
+//! `config/plant.toml`) with a built-in driver (the plant's driver-scenario format,
+//! `config/scenarios/driver_*.toml`: `t_s`, `pedal_pct`, `brake`, `lever`, `grade_pct`), plus
+//! overrides of the TCU calibration and the simulated duration:
+//!
+//! ```toml
+//! description = "launch at 50 % pedal on the flat"
+//! duration_s = 6.0
+//! # plant = "../plant.toml"   # base plant configuration (default: the built-in config/plant.toml)
+//! driver = "driver_launch_50.toml"   # a driver-scenario file, or an inline [driver] table
+//! [initial]                # merged key by key into the plant configuration's [initial]
+//! temperature_c = 40.0
+//! [tcu]
+//! temperature_compensation = true
+//! slip_compensation = true
+//! initial_temp_c = 40.0    # the TCU's estimate at its start (a TCU that kept it across a restart)
+//! ```
+//!
+//! The plant tables `[initial]`, `[housing]`, `[sensors]` and `[inputs]` merge key by key into the
+//! base configuration; `[effects]` and `[[faults]]` replace the base's. Relative file names are
+//! relative to the scenario file.
+
+use crate::plant::config::{sent_ids, PlantConfig, DEFAULT_TOML};
+use crate::plant::faults::parse_faults;
+use crate::plant::{Mode, PlantError, Scenario};
+use crate::tcu::TcuConfig;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Errors of scenario files; `key` names the offending key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("cannot read scenario {path}: {message}")]
+    Io { path: PathBuf, message: String },
+    #[error("scenario {path}: not valid TOML: {message}")]
+    Syntax { path: PathBuf, message: String },
+    #[error("scenario {path}: `{key}`: {reason}")]
+    Key {
+        path: PathBuf,
+        key: String,
+        reason: String,
+    },
+    #[error("scenario {path}: {source}")]
+    Plant {
+        path: PathBuf,
+        #[source]
+        source: PlantError,
+    },
+}
+
+fn key_err(path: &Path, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
+    ScenarioError::Key {
+        path: path.to_path_buf(),
+        key: key.into(),
+        reason: reason.into(),
+    }
+}
+
+/// Overrides of the TCU calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TcuOverrides {
+    pub temperature_compensation: Option<bool>,
+    pub slip_compensation: Option<bool>,
+    pub initial_temp_c: Option<f64>,
+}
+
+impl TcuOverrides {
+    /// Applies the overrides to a calibration.
+    pub fn apply(&self, cfg: &mut TcuConfig) {
+        if let Some(v) = self.temperature_compensation {
+            cfg.compensation.temperature = v;
+        }
+        if let Some(v) = self.slip_compensation {
+            cfg.compensation.slip = v;
+        }
+        if let Some(v) = self.initial_temp_c {
+            cfg.estimator.initial_temp_c = Some(v);
+        }
+    }
+}
+
+/// A `ddct sim` scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimScenario {
+    pub name: String,
+    pub description: String,
+    pub duration_s: f64,
+    /// The plant configuration, with the driver as its built-in scenario.
+    pub plant: PlantConfig,
+    pub tcu: TcuOverrides,
+}
+
+const SCENARIO_KEYS: [&str; 11] = [
+    "description",
+    "duration_s",
+    "plant",
+    "driver",
+    "tcu",
+    "initial",
+    "housing",
+    "sensors",
+    "inputs",
+    "effects",
+    "faults",
+];
+
+impl SimScenario {
+    pub fn load(path: &Path) -> Result<Self, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        Self::from_toml_str(path, &text)
+    }
+
+    pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, ScenarioError> {
+        let plant_err = |source| ScenarioError::Plant {
+            path: path.to_path_buf(),
+            source,
+        };
+        let doc: toml::Table =
+            text.parse()
+                .map_err(|e: toml::de::Error| ScenarioError::Syntax {
+                    path: path.to_path_buf(),
+                    message: e.to_string().trim().replace('\n', " "),
+                })?;
+        for k in doc.keys() {
+            if !SCENARIO_KEYS.contains(&k.as_str()) {
+                return Err(key_err(
+                    path,
+                    k.clone(),
+                    format!("unknown key (allowed: {})", SCENARIO_KEYS.join(", ")),
+                ));
+            }
+        }
+        let dir = path.parent().unwrap_or(Path::new("."));
+        // Base plant configuration.
+        let (base_path, base_text) = match doc.get("plant") {
+            None => (PathBuf::from("config/plant.toml"), DEFAULT_TOML.to_string()),
+            Some(toml::Value::String(f)) => {
+                let p = dir.join(f);
+                let t = std::fs::read_to_string(&p).map_err(|e| ScenarioError::Io {
+                    path: p.clone(),
+                    message: e.to_string(),
+                })?;
+                (p, t)
+            }
+            Some(_) => return Err(key_err(path, "plant", "must be a file name")),
+        };
+        let mut base: toml::Table =
+            base_text
+                .parse()
+                .map_err(|e: toml::de::Error| ScenarioError::Syntax {
+                    path: base_path.clone(),
+                    message: e.to_string(),
+                })?;
+        for t in ["initial", "housing", "sensors", "inputs"] {
+            match doc.get(t) {
+                None => {}
+                Some(toml::Value::Table(over)) => {
+                    let entry = base
+                        .entry(t.to_string())
+                        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                    if let toml::Value::Table(bt) = entry {
+                        for (k, v) in over {
+                            bt.insert(k.clone(), v.clone());
+                        }
+                    }
+                }
+                Some(_) => return Err(key_err(path, t, "must be a table")),
+            }
+        }
+        if let Some(e) = doc.get("effects") {
+            base.insert("effects".into(), e.clone());
+        }
+        // Faults are parsed once the driver is known (DRV_Pedal is then one of the plant's).
+        let faults_doc = match doc.get("faults") {
+            Some(f) => {
+                let mut t = toml::Table::new();
+                t.insert("faults".into(), f.clone());
+                Some(t)
+            }
+            None => base.remove("faults").map(|f| {
+                let mut t = toml::Table::new();
+                t.insert("faults".into(), f);
+                t
+            }),
+        };
+        base.remove("faults");
+        if let Some(toml::Value::Table(p)) = base.get_mut("plant") {
+            p.remove("scenario");
+        }
+        let merged = toml::to_string(&base).map_err(|e| key_err(path, "plant", e.to_string()))?;
+        let mut plant =
+            PlantConfig::from_toml_str(path, &merged, Some(&base_path)).map_err(plant_err)?;
+        if plant.mode != Mode::Vehicle {
+            return Err(key_err(
+                path,
+                "plant.mode",
+                "a sim scenario needs vehicle mode",
+            ));
+        }
+        let driver = match doc.get("driver") {
+            Some(toml::Value::Table(t)) => {
+                let text =
+                    toml::to_string(t).map_err(|e| key_err(path, "driver", e.to_string()))?;
+                Scenario::from_toml_str(path, &text).map_err(plant_err)?
+            }
+            Some(toml::Value::String(f)) => Scenario::load(&dir.join(f)).map_err(plant_err)?,
+            _ => {
+                return Err(key_err(
+                    path,
+                    "driver",
+                    "missing (a driver-scenario file name or an inline [driver] table)",
+                ))
+            }
+        };
+        plant.scenario = Some(driver);
+        if let Some(fd) = faults_doc {
+            plant.faults =
+                parse_faults(path, &fd, &sent_ids(Mode::Vehicle, true)).map_err(plant_err)?;
+        }
+        let tcu: TcuOverrides = match doc.get("tcu") {
+            None => TcuOverrides::default(),
+            Some(v) => v
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| key_err(path, "tcu", e.message().to_string()))?,
+        };
+        let duration_s = match doc.get("duration_s") {
+            None => plant.scenario.as_ref().map_or(0.0, |s| s.duration_s),
+            Some(toml::Value::Float(f)) => *f,
+            Some(toml::Value::Integer(n)) => *n as f64,
+            Some(_) => return Err(key_err(path, "duration_s", "must be a number")),
+        };
+        if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
+            return Err(key_err(
+                path,
+                "duration_s",
+                format!("{duration_s} is outside 0 < d <= 3600"),
+            ));
+        }
+        let description = doc
+            .get("description")
+            .and_then(|v| v.as_str())
+            .unwrap_or("")
+            .to_string();
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scenario".into());
+        Ok(SimScenario {
+            name,
+            description,
+            duration_s,
+            plant,
+            tcu,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEXT: &str = r#"
+description = "t"
+duration_s = 2.0
+[driver]
+t_s = [0.0, 1.0]
+pedal_pct = [0.0, 50.0]
+lever = ["D", "D"]
+[initial]
+temperature_c = 140.0
+[sensors]
+speed_rpm = 0.0
+[tcu]
+temperature_compensation = false
+initial_temp_c = 140.0
+"#;
+
+    #[test]
+    fn merges_into_the_plant_configuration() {
+        let s = SimScenario::from_toml_str(Path::new("x.toml"), TEXT).unwrap();
+        assert_eq!(s.plant.initial.temperature_c, 140.0);
+        // Keys not overridden keep the base configuration's value.
+        let base = PlantConfig::default();
+        assert_eq!(s.plant.initial.housing_c, base.initial.housing_c);
+        assert_eq!(s.plant.sensors.speed_rpm, 0.0);
+        assert_eq!(s.plant.sensors.position_mm, base.sensors.position_mm);
+        assert!(s.plant.scenario.is_some());
+        let mut c = TcuConfig::default();
+        s.tcu.apply(&mut c);
+        assert!(!c.compensation.temperature && c.compensation.slip);
+        assert_eq!(c.estimator.initial_temp_c, Some(140.0));
+    }
+
+    #[test]
+    fn errors_name_the_key() {
+        let bad = TEXT.replace("duration_s = 2.0", "duration_s = 2.0\nfoo = 1");
+        let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
+        assert!(e.to_string().contains("`foo`"), "{e}");
+        let bad = TEXT.replace("pedal_pct = [0.0, 50.0]", "pedal_pct = [0.0, 150.0]");
+        let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
+        assert!(e.to_string().contains("pedal_pct"), "{e}");
+        let bad = TEXT.replace("initial_temp_c = 140.0", "initial_tmp_c = 140.0");
+        let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
+        assert!(e.to_string().contains("tcu"), "{e}");
+    }
+}

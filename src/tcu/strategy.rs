@@ -1,0 +1,1162 @@
+//! Launch and shift strategy on top of the decoupling controller (`control`, (23)–(27)).
+//!
+//! Modes (reported as `TcuState`):
+//! - **Neutral** (lever P/N): both clutches wait just before their kiss point, gear 1 (or R) and
+//!   its neighbour preselected.
+//! - **Creep** (lever D/R, pedal released): with the brake on at standstill the start clutch waits
+//!   at its kiss point; otherwise the clutch-speed loop PI_c + (27) drives the clutch shaft toward
+//!   idle speed minus a creep slip with a limited torque, the engine on its own idle governor.
+//! - **Launch** (pedal pressed): engine-speed target from the pedal, clutch-speed reference with a
+//!   pedal-dependent acceleration (ramped in with a jerk limit). PI_c + (27) give T_fc,ref and the
+//!   inverse of (13) gives x_to,ref; PI_e + (24) give the engine torque request. When the slip to
+//!   the engine's profile falls to `sync_slip_radps` a synchronisation phase brings the slip to
+//!   zero along s(τ) = (s0 + δ)(1 − τ/T)² − δ with T = 2 s0/α (continuous slip rate at its start,
+//!   zero slip rate at lock-up: the engine and clutch accelerations match, so there is no jolt).
+//! - **Drive**: lock-up detected (|slip| below a threshold for a few cycles), the clutch is clamped
+//!   with capacity (1 + margin)·|T_e| + offset (raised at once, lowered at a rate), the engine
+//!   request blends to the driver's demand and is then released. The other shaft preselects the
+//!   next gear; the shift schedule (vehicle speed × pedal tables) decides up- and downshifts.
+//! - **Upshift** (clutch to clutch): torque phase (on-coming torque ramps up to the transmitted
+//!   torque while the off-going capacity ramps to zero), then inertia phase (off-going open, the
+//!   on-coming clutch carries the driver's torque and PI_e with an engine torque request pulls the
+//!   engine down to the new shaft along a smoothstep slip profile), lock-up, Drive.
+//! - **Downshift**: inertia phase first (the off-going clutch keeps part of the demand while the
+//!   engine torque request raises the engine to the new shaft's speed), then the torque phase
+//!   hands over to the on-coming clutch, lock-up, Drive.
+//!
+//! Everything is computed from measurements and the estimated temperatures; time is an argument.
+
+use super::config::TcuConfig;
+use super::control::{
+    approach, driver_demand, engine_range, load_estimate, ClutchModel, Pi, Reduced,
+};
+use super::inputs::Measurements;
+use crate::can::messages::{GearLever, TcuState};
+use crate::model::driveline;
+use crate::model::engine::RPM;
+
+/// What the strategy asks for in one cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Command {
+    /// Bearing position requests (mm).
+    pub x_ref: [f64; 2],
+    /// Clutch torque references (N·m): slipping clutches T_fc,ref, clamped clutches the capacity.
+    pub t_ref: [f64; 2],
+    /// Engine torque request, `None` when released.
+    pub engine_req: Option<f64>,
+    /// Gear requests (odd, even shaft).
+    pub gear_req: [u8; 2],
+    /// Gear transmitting torque (0 neutral, 7 reverse).
+    pub gear_active: u8,
+    pub state: TcuState,
+    /// References for diagnostics (rad/s).
+    pub w_e_ref: f64,
+    pub w_c_ref: f64,
+    /// Short name of the phase, for traces.
+    pub phase: &'static str,
+}
+
+/// Inputs of one strategy step.
+#[derive(Debug, Clone, Copy)]
+pub struct Ctx<'a> {
+    pub cfg: &'a TcuConfig,
+    pub model: &'a ClutchModel,
+    pub m: &'a Measurements,
+    /// Estimated clutch temperatures (°C).
+    pub theta: [f64; 2],
+    /// Time since the previous step (s).
+    pub dt: f64,
+    /// Filtered output-shaft acceleration (rad/s²).
+    pub w_out_dot: f64,
+    /// Over-temperature torque limitation active.
+    pub limit_torque: bool,
+}
+
+impl Ctx<'_> {
+    fn reduced(&self) -> Reduced {
+        Reduced::new(&self.cfg.physics.driveline, self.m.gear[0], self.m.gear[1])
+    }
+    fn k(&self, gear: u8) -> f64 {
+        driveline::overall_ratio(&self.cfg.physics.driveline, gear).unwrap_or(0.0)
+    }
+    /// Vehicle speed (km/h, signed).
+    fn v_kmh(&self) -> f64 {
+        self.m.w_out * self.cfg.physics.driveline.wheel_radius_m * 3.6
+    }
+    fn idle(&self) -> f64 {
+        self.cfg.physics.engine.idle_speed_rpm * RPM
+    }
+    fn demand(&self) -> f64 {
+        let d = driver_demand(&self.cfg.physics.engine, self.m.pedal, self.m.w_e);
+        if self.limit_torque {
+            d.min(self.cfg.safety.over_temp_engine_torque_nm)
+        } else {
+            d
+        }
+    }
+    fn load(&self) -> f64 {
+        load_estimate(&self.cfg.physics.driveline, self.m.w_out)
+    }
+    fn standby(&self, i: usize) -> f64 {
+        (self.model.kiss_point(self.theta[i]) - self.cfg.control.standby_gap_mm).max(0.0)
+    }
+    fn engine_limits(&self) -> (f64, f64) {
+        let (lo, hi) = engine_range(&self.cfg.physics.engine, self.m.w_e);
+        let hi = if self.limit_torque {
+            hi.min(self.cfg.safety.over_temp_engine_torque_nm)
+        } else {
+            hi
+        };
+        (lo, hi.max(lo))
+    }
+    fn pedal_on(&self) -> bool {
+        self.m.pedal * 100.0 > self.cfg.creep.pedal_on_pct
+    }
+    /// Largest clutch torque reference at the measured slip.
+    fn t_max(&self, i: usize) -> f64 {
+        self.cfg
+            .control
+            .max_torque_nm
+            .min(self.model.max_torque(self.m.slip(i), self.theta[i]))
+            .max(0.0)
+    }
+    /// Position for a slipping clutch's torque reference.
+    fn x_slip(&self, i: usize, t: f64) -> f64 {
+        if t <= 0.0 {
+            return self.standby(i);
+        }
+        self.model.position_for(t, self.m.slip(i), self.theta[i])
+    }
+    /// Position for a locked clutch's capacity reference.
+    fn x_clamp(&self, i: usize, cap: f64) -> f64 {
+        if cap <= 0.0 {
+            return self.standby(i);
+        }
+        self.model.clamp_position_for(cap, self.theta[i])
+    }
+    /// Anti-stall limit on a slipping clutch's torque: unlimited above 95 % of idle; below it the
+    /// clutch may take at most a share of the engine's full-load torque that falls from 90 % at
+    /// 95 % of idle to 0 at 70 % of idle, so the engine always keeps torque to recover.
+    fn stall_limit(&self) -> f64 {
+        let idle = self.idle();
+        if self.m.w_e >= 0.95 * idle {
+            return f64::INFINITY;
+        }
+        let share = 0.9 * ((self.m.w_e - 0.7 * idle) / (0.25 * idle)).clamp(0.0, 1.0);
+        share * crate::model::engine::full_load(&self.cfg.physics.engine, self.m.w_e)
+    }
+}
+
+/// The start gear of a lever position: 1 (odd shaft) for D, reverse (even shaft) for R.
+pub fn start_gear(lever: GearLever) -> Option<u8> {
+    match lever {
+        GearLever::D => Some(1),
+        GearLever::R => Some(driveline::REVERSE),
+        _ => None,
+    }
+}
+
+/// The lead terms differentiate over the time between two steps; steps closer than this (a burst
+/// of late frames) get no lead rather than a huge one (s).
+const MIN_LEAD_DT_S: f64 = 0.005;
+
+/// Smallest on-coming clutch torque in an upshift's inertia phase (N·m).
+const MIN_ONCOMING_NM: f64 = 10.0;
+
+/// Largest rise of the creep torque (N·m/s).
+const CREEP_TORQUE_RATE_NM_PER_S: f64 = 80.0;
+
+fn shaft(gear: u8) -> usize {
+    driveline::shaft_of(gear).unwrap_or(0)
+}
+
+/// Shift schedule: the gear the tables want from gear `g` at speed `v_kmh` and pedal `p` (0..1);
+/// one step at a time.
+pub fn scheduled_gear(cfg: &TcuConfig, g: u8, v_kmh: f64, p: f64) -> u8 {
+    if !(1..=6).contains(&g) {
+        return g;
+    }
+    let s = &cfg.shift;
+    let lerp = |a: f64, b: f64| a + (b - a) * p.clamp(0.0, 1.0);
+    let gi = usize::from(g);
+    if g < 6 && v_kmh > lerp(s.up_kmh_0[gi - 1], s.up_kmh_100[gi - 1]) {
+        return g + 1;
+    }
+    if g > 1 && v_kmh < lerp(s.down_kmh_0[gi - 2], s.down_kmh_100[gi - 2]) {
+        return g - 1;
+    }
+    g
+}
+
+/// The gear to preselect on the idle shaft while driving in `g`.
+fn preselect(cfg: &TcuConfig, g: u8, v_kmh: f64, p: f64) -> u8 {
+    if g == driveline::REVERSE {
+        return 1;
+    }
+    if g <= 1 {
+        return 2;
+    }
+    if g >= 6 {
+        return 5;
+    }
+    let s = &cfg.shift;
+    let lerp = |a: f64, b: f64| a + (b - a) * p.clamp(0.0, 1.0);
+    let gi = usize::from(g);
+    let up = lerp(s.up_kmh_0[gi - 1], s.up_kmh_100[gi - 1]);
+    let down = lerp(s.down_kmh_0[gi - 2], s.down_kmh_100[gi - 2]);
+    if v_kmh >= 0.5 * (up + down) {
+        g + 1
+    } else {
+        g - 1
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Sync {
+    tau: f64,
+    s0: f64,
+    duration: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Launch {
+    a: usize,
+    gear: u8,
+    /// Clutch-shaft speed at the start (rad/s).
+    w_c0: f64,
+    w_c_ref: f64,
+    alpha: f64,
+    w_e_prof: f64,
+    sync: Option<Sync>,
+    lock_count: u32,
+    pedal_off_s: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Drive {
+    a: usize,
+    gear: u8,
+    cap: f64,
+    blend: Option<f64>,
+    since_s: f64,
+    slip_count: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Creep {
+    a: usize,
+    gear: u8,
+    w_c_ref: f64,
+    t_ref: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ShiftPhase {
+    Torque,
+    Inertia,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Shift {
+    up: bool,
+    /// Off-going clutch and gear.
+    a: usize,
+    from: u8,
+    /// On-coming clutch and gear.
+    o: usize,
+    to: u8,
+    phase: ShiftPhase,
+    tau: f64,
+    /// Torque the shift hands over (N·m, ≥ 0).
+    t_tr: f64,
+    /// Off-going torque at the start of the current phase.
+    t_a0: f64,
+    /// Slip of the on-coming clutch at the start of the inertia phase and its duration.
+    s0: f64,
+    duration: f64,
+    lock_count: u32,
+    total_s: f64,
+    t_e_req: f64,
+    /// Inertia phase: when the slip was released toward lock-up.
+    release: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mode {
+    Neutral,
+    Creep(Creep),
+    Launch(Launch),
+    Drive(Drive),
+    Shift(Shift),
+}
+
+/// The strategy's state: mode, PI controllers and the last command.
+#[derive(Debug, Clone)]
+pub struct Strategy {
+    mode: Mode,
+    pi_c: [Pi; 2],
+    pi_e: Pi,
+    last: Command,
+    since_shift_s: f64,
+    /// Previous engine feed-forward (for the lag compensation); `None` after a reset.
+    ff_prev: Option<f64>,
+    /// Step counter and, per clutch, the step and position of the last lead-compensated request.
+    steps: u64,
+    lead_prev: [Option<(u64, f64)>; 2],
+}
+
+impl Strategy {
+    pub fn new(cfg: &TcuConfig) -> Self {
+        let k = &cfg.control;
+        Self {
+            mode: Mode::Neutral,
+            pi_c: [Pi::new(k.clutch_kp_per_s, k.clutch_ki_per_s2, 200.0); 2],
+            pi_e: Pi::new(k.engine_kp_per_s, k.engine_ki_per_s2, 400.0),
+            last: Command::default(),
+            since_shift_s: 1e9,
+            ff_prev: None,
+            steps: 0,
+            lead_prev: [None; 2],
+        }
+    }
+
+    /// Lead on the position request of a slipping clutch, x + (τ_a + d)·ẋ, cancelling the
+    /// actuator's first-order lag τ_a (the nominal actuator of the parameter file) and, to first
+    /// order, the command delay d (`control.command_delay_s`), so the torque follows the
+    /// inverse's position without the lag's error (it matters near lock-up, where the inverse's
+    /// position rises steeply as the friction coefficient falls with the slip). Only between two
+    /// consecutive requests above the kiss point.
+    fn lead(&mut self, ctx: &Ctx, i: usize, x_des: f64) -> f64 {
+        let kiss = ctx.model.kiss_point(ctx.theta[i]);
+        let prev = self.lead_prev[i];
+        self.lead_prev[i] = Some((self.steps, x_des));
+        match prev {
+            Some((k, p))
+                if k + 1 == self.steps && p > kiss && x_des > kiss && ctx.dt >= MIN_LEAD_DT_S =>
+            {
+                let tau = ctx.cfg.physics.actuator.tau_s + ctx.cfg.control.command_delay_s;
+                x_des + tau * (x_des - p) / ctx.dt
+            }
+            _ => x_des,
+        }
+    }
+
+    fn reset_engine(&mut self) {
+        self.pi_e.reset(0.0);
+        self.ff_prev = None;
+    }
+
+    /// The last command.
+    pub fn last(&self) -> &Command {
+        &self.last
+    }
+
+    /// Restarts from the measurements (after Init or the safe state): the mode follows the lever
+    /// and the vehicle speed; integrators are cleared.
+    pub fn restart(&mut self, ctx: &Ctx) {
+        self.pi_c.iter_mut().for_each(|p| p.reset(0.0));
+        self.reset_engine();
+        self.mode = Self::initial_mode(ctx);
+    }
+
+    fn initial_mode(ctx: &Ctx) -> Mode {
+        let Some(g0) = start_gear(ctx.m.lever) else {
+            return Mode::Neutral;
+        };
+        let a = shaft(g0);
+        let creep = Mode::Creep(Creep {
+            a,
+            gear: g0,
+            w_c_ref: ctx.m.w_c[a],
+            t_ref: 0.0,
+        });
+        if ctx.v_kmh().abs() < 2.0 * ctx.cfg.creep.standstill_kmh.max(1.0) || g0 != 1 {
+            return creep;
+        }
+        // Moving forward: engage the engaged gear closest to the schedule's, else creep/wait.
+        let want = scheduled_from_speed(ctx);
+        let mut best: Option<(u8, usize)> = None;
+        for (i, &g) in ctx.m.gear.iter().enumerate() {
+            if (1..=6).contains(&g) {
+                let d = (i32::from(g) - i32::from(want)).unsigned_abs();
+                if best.is_none_or(|(bg, _)| d < (i32::from(bg) - i32::from(want)).unsigned_abs()) {
+                    best = Some((g, i));
+                }
+            }
+        }
+        match best {
+            Some((g, i)) => Mode::Launch(Launch::new(ctx, i, g)),
+            None => creep,
+        }
+    }
+
+    /// One strategy step.
+    pub fn step(&mut self, ctx: &Ctx) -> Command {
+        // Lever changes.
+        let want_start = start_gear(ctx.m.lever);
+        match (&self.mode, want_start) {
+            (Mode::Neutral, Some(_)) => self.mode = Self::initial_mode(ctx),
+            (Mode::Neutral, None) => {}
+            (_, None) => self.mode = Mode::Neutral,
+            (Mode::Creep(c), Some(g0)) if c.gear != g0 => self.mode = Mode::Neutral,
+            (Mode::Launch(l), Some(g0))
+                if (g0 == driveline::REVERSE) != (l.gear == driveline::REVERSE) =>
+            {
+                self.mode = Mode::Neutral
+            }
+            (Mode::Drive(d), Some(g0))
+                if (g0 == driveline::REVERSE) != (d.gear == driveline::REVERSE) =>
+            {
+                self.mode = Mode::Neutral
+            }
+            _ => {}
+        }
+        self.since_shift_s += ctx.dt;
+        self.steps += 1;
+        let mut cmd = match self.mode {
+            Mode::Neutral => self.neutral(ctx),
+            Mode::Creep(c) => self.creep(ctx, c),
+            Mode::Launch(l) => self.launch(ctx, l),
+            Mode::Drive(d) => self.drive(ctx, d),
+            Mode::Shift(s) => self.shift(ctx, s),
+        };
+        // Anti-stall: near idle the engine's own idle governor gets the engine back unless the
+        // request asks for more than the driver would.
+        if ctx.m.w_e < 1.05 * ctx.idle()
+            && cmd.engine_req.is_some_and(|t| t < ctx.demand().max(0.0))
+        {
+            cmd.engine_req = None;
+        }
+        self.last = cmd;
+        cmd
+    }
+
+    fn neutral(&mut self, ctx: &Ctx) -> Command {
+        let g0 = start_gear(ctx.m.lever).unwrap_or(1);
+        let mut gear_req = [1, 2];
+        if g0 == driveline::REVERSE {
+            gear_req[1] = driveline::REVERSE;
+        }
+        Command {
+            x_ref: [ctx.standby(0), ctx.standby(1)],
+            gear_req: self.safe_gear_req(ctx, gear_req),
+            state: TcuState::Neutral,
+            phase: "neutral",
+            ..Default::default()
+        }
+    }
+
+    /// Gear requests only change on a shaft whose clutch is open (measured position before the
+    /// kiss point); otherwise the previous request stays.
+    fn safe_gear_req(&self, ctx: &Ctx, want: [u8; 2]) -> [u8; 2] {
+        let mut out = want;
+        for i in 0..2 {
+            let open = ctx.m.x_mm[i] < ctx.model.kiss_point(ctx.theta[i]);
+            if !open && ctx.m.gear[i] != want[i] {
+                out[i] = self.last.gear_req[i];
+            }
+        }
+        out
+    }
+
+    fn creep(&mut self, ctx: &Ctx, mut c: Creep) -> Command {
+        let a = c.a;
+        let o = 1 - a;
+        let cfg = ctx.cfg;
+        let mut want = [0u8; 2];
+        want[a] = c.gear;
+        want[o] = if c.gear == driveline::REVERSE { 1 } else { 2 };
+        let gear_req = self.safe_gear_req(ctx, want);
+        let engaged = ctx.m.gear[a] == c.gear;
+        if ctx.pedal_on() && engaged {
+            let l = Launch::new(ctx, a, c.gear);
+            self.pi_c[a].reset(0.0);
+            self.reset_engine();
+            self.mode = Mode::Launch(l);
+            return self.launch(ctx, l);
+        }
+        // The brake releases the creep torque (at standstill and while rolling).
+        let hold = !engaged || ctx.m.brake;
+        let r = ctx.reduced();
+        let k = ctx.k(c.gear);
+        let mut t = 0.0;
+        let phase;
+        if hold {
+            c.w_c_ref = ctx.m.w_c[a];
+            c.t_ref = approach(c.t_ref, 0.0, 200.0, ctx.dt);
+            self.pi_c[a].reset(0.0);
+            phase = "hold";
+            if c.t_ref > 0.5 && engaged {
+                t = c.t_ref;
+            }
+        } else {
+            // Clutch-speed reference toward idle minus the creep slip, at the creep acceleration.
+            let target = (ctx.m.w_e.min(ctx.idle()) - cfg.creep.slip_radps).max(0.0);
+            let alpha = cfg.creep.accel_mps2 / cfg.physics.driveline.wheel_radius_m * k.abs();
+            let prev = c.w_c_ref;
+            c.w_c_ref = approach(c.w_c_ref, target, alpha, ctx.dt);
+            c.w_c_ref = c.w_c_ref.clamp(ctx.m.w_c[a] - 10.0, ctx.m.w_c[a] + 10.0);
+            let w_dot_ref = if ctx.dt > 0.0 {
+                (c.w_c_ref - prev) / ctx.dt
+            } else {
+                0.0
+            };
+            // Half the launch gains: the creep torque sits near the kiss point, where the
+            // actuator lag matters most; the torque rises at most at the creep torque rate so
+            // the idle governor keeps up.
+            let e = c.w_c_ref - ctx.m.w_c[a];
+            let pi = self.pi_c[a];
+            let w_dot_cmd = w_dot_ref + 0.5 * (pi.kp * e + pi.integral);
+            let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
+            let hi = cfg
+                .creep
+                .max_torque_nm
+                .min(ctx.t_max(a))
+                .min(c.t_ref + CREEP_TORQUE_RATE_NM_PER_S * ctx.dt)
+                .min(ctx.stall_limit());
+            t = raw.clamp(0.0, hi.max(0.0));
+            self.pi_c[a].integrate(e, ctx.dt, raw >= hi, raw <= 0.0);
+            c.t_ref = t;
+            phase = "creep";
+        }
+        let x_a = if t > 0.0 {
+            ctx.x_slip(a, t)
+        } else {
+            ctx.standby(a)
+        };
+        self.mode = Mode::Creep(c);
+        let mut x_ref = [0.0; 2];
+        x_ref[a] = x_a;
+        x_ref[o] = ctx.standby(o);
+        let mut t_ref = [0.0; 2];
+        t_ref[a] = t;
+        Command {
+            x_ref,
+            t_ref,
+            engine_req: None,
+            gear_req,
+            gear_active: if engaged { c.gear } else { 0 },
+            state: TcuState::Creep,
+            w_e_ref: ctx.idle(),
+            w_c_ref: c.w_c_ref,
+            phase,
+        }
+    }
+
+    fn launch(&mut self, ctx: &Ctx, mut l: Launch) -> Command {
+        let cfg = ctx.cfg;
+        let a = l.a;
+        let o = 1 - a;
+        let r = ctx.reduced();
+        let k = r.k[a];
+        if k == 0.0 || ctx.m.gear[a] != l.gear {
+            // Lost the gear: back to creep, which waits for it.
+            self.mode = Mode::Creep(Creep {
+                a,
+                gear: start_gear(ctx.m.lever).unwrap_or(1),
+                w_c_ref: ctx.m.w_c[a],
+                t_ref: 0.0,
+            });
+            return self.creep_now(ctx);
+        }
+        // Pedal released for a while at low speed: creep.
+        l.pedal_off_s = if ctx.pedal_on() {
+            0.0
+        } else {
+            l.pedal_off_s + ctx.dt
+        };
+        if l.pedal_off_s > 0.3 && l.sync.is_none() && l.gear == start_gear(ctx.m.lever).unwrap_or(1)
+        {
+            self.mode = Mode::Creep(Creep {
+                a,
+                gear: l.gear,
+                w_c_ref: ctx.m.w_c[a],
+                t_ref: self.last.t_ref[a],
+            });
+            return self.creep_now(ctx);
+        }
+        let w_c = ctx.m.w_c[a];
+        let slip = ctx.m.slip(a);
+        let (w_tgt, alpha_tgt) = Launch::targets(ctx, a, l.gear, l.w_c0);
+        // The clutch may only take what the engine has left after following its own profile:
+        // α ≤ (0.95 T_full(ω_e) − J_eq ω̇_prof − T̂_L/k)·k²/J_eq2 (the engine flares first).
+        let rate = cfg.launch.engine_rate_rpm_per_s * RPM;
+        let w_dot_prof = ((w_tgt - l.w_e_prof) / 0.12).clamp(-rate, rate);
+        let (_, t_full) = ctx.engine_limits();
+        let alpha_avail =
+            (0.95 * t_full - r.j_eq * w_dot_prof.max(0.0) - ctx.load() / k) * k * k / r.j_eq2;
+        let alpha_tgt = alpha_tgt.min(alpha_avail.max(0.1 * alpha_tgt));
+        // Jerk-limited clutch acceleration reference.
+        let jerk = alpha_tgt.max(1.0) / cfg.launch.jerk_time_s.max(1e-3);
+        l.alpha = approach(l.alpha, alpha_tgt, jerk, ctx.dt);
+        l.w_c_ref += l.alpha * ctx.dt;
+        l.w_c_ref = l.w_c_ref.clamp(w_c - 15.0, w_c + 15.0);
+        // Engine reference: profile toward the target, then the synchronisation phase.
+        let prof_prev = l.w_e_prof;
+        // Rate-limited first-order approach (time constant 0.12 s): the engine torque request
+        // falls smoothly as the target nears, so the engine's torque lag does not flare it.
+        l.w_e_prof += w_dot_prof * ctx.dt;
+        let mut w_e_dot_ref = if ctx.dt > 0.0 {
+            (l.w_e_prof - prof_prev) / ctx.dt
+        } else {
+            0.0
+        };
+        let mut w_e_ref = l.w_e_prof;
+        if l.sync.is_none() && l.w_e_prof - w_c <= cfg.launch.sync_slip_radps && l.alpha > 0.0 {
+            let s0 = slip.max(1.0);
+            l.sync = Some(Sync {
+                tau: 0.0,
+                s0,
+                duration: (2.0 * s0 / l.alpha.max(1.0)).max(cfg.launch.min_sync_time_s),
+            });
+        }
+        let delta = cfg.control.lock_undershoot_radps;
+        if let Some(s) = l.sync.as_mut() {
+            s.tau += ctx.dt;
+            let u = (s.tau / s.duration).min(1.0);
+            // After the profile, a slip still above zero is pulled down further at 5 rad/s²
+            // (up to 10 rad/s below zero) so that it crosses and the clutch locks.
+            let tail = (s.tau - s.duration).max(0.0);
+            let s_ref = (s.s0 + delta) * (1.0 - u) * (1.0 - u) - delta - (5.0 * tail).min(10.0);
+            let ds = -2.0 * (s.s0 + delta) * (1.0 - u) / s.duration
+                - if tail > 0.0 && 5.0 * tail < 10.0 {
+                    5.0
+                } else {
+                    0.0
+                };
+            w_e_ref = w_c + s_ref;
+            w_e_dot_ref = l.alpha + ds;
+        }
+        // PI_c and the decoupling law (27).
+        let e_c = l.w_c_ref - w_c;
+        let w_dot_cmd = self.pi_c[a].output(l.alpha, e_c);
+        let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
+        let hi = ctx.t_max(a).min(ctx.stall_limit());
+        let t_a = raw.clamp(0.0, hi);
+        self.pi_c[a].integrate(e_c, ctx.dt, raw >= hi, raw <= 0.0);
+        // PI_e and (24).
+        let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t_a);
+        // Lock-up detection.
+        if slip.abs() < cfg.control.lock_slip_radps && l.sync.is_some() {
+            l.lock_count += 1;
+        } else {
+            l.lock_count = 0;
+        }
+        let x_a = self.lead(ctx, a, ctx.x_slip(a, t_a));
+        let mut x_ref = [0.0; 2];
+        x_ref[a] = x_a;
+        x_ref[o] = ctx.standby(o);
+        let mut t_ref = [0.0; 2];
+        t_ref[a] = t_a;
+        let mut want = [0u8; 2];
+        want[a] = l.gear;
+        want[o] = preselect(ctx.cfg, l.gear, ctx.v_kmh(), ctx.m.pedal);
+        let gear_req = self.safe_gear_req(ctx, want);
+        let cmd = Command {
+            x_ref,
+            t_ref,
+            engine_req: Some(t_e),
+            gear_req,
+            gear_active: l.gear,
+            state: TcuState::Launch,
+            w_e_ref,
+            w_c_ref: l.w_c_ref,
+            phase: if l.sync.is_some() { "sync" } else { "launch" },
+        };
+        if l.lock_count >= cfg.control.lock_cycles {
+            self.mode = Mode::Drive(Drive {
+                a,
+                gear: l.gear,
+                cap: t_a,
+                blend: Some(t_e),
+                since_s: 0.0,
+                slip_count: 0,
+            });
+        } else {
+            self.mode = Mode::Launch(l);
+        }
+        cmd
+    }
+
+    fn creep_now(&mut self, ctx: &Ctx) -> Command {
+        match self.mode {
+            Mode::Creep(c) => self.creep(ctx, c),
+            _ => self.neutral(ctx),
+        }
+    }
+
+    fn drive(&mut self, ctx: &Ctx, mut d: Drive) -> Command {
+        let cfg = ctx.cfg;
+        let k = &cfg.control;
+        let a = d.a;
+        let o = 1 - a;
+        d.since_s += ctx.dt;
+        if ctx.m.gear[a] != d.gear {
+            // The gear fell out (should not happen): re-engage through creep/launch.
+            self.mode = Self::initial_mode(ctx);
+            return self.step_mode(ctx);
+        }
+        let demand = ctx.demand();
+        // Engine request: blend to the driver's demand, then release.
+        if let Some(req) = d.blend {
+            let next = approach(req, demand, k.blend_rate_nm_per_s, ctx.dt);
+            d.blend = if (next - demand).abs() < 1.0 {
+                None
+            } else {
+                Some(next)
+            };
+        }
+        let slip = ctx.m.slip(a);
+        if slip.abs() > k.slip_alarm_radps {
+            d.slip_count += 1;
+        } else {
+            d.slip_count = 0;
+        }
+        let boost = if d.slip_count >= 2 { 2.0 } else { 1.0 };
+        let t_e = ctx
+            .m
+            .t_e
+            .abs()
+            .max(demand.abs())
+            .max(d.blend.unwrap_or(0.0).abs());
+        let target = (1.0 + k.clamp_margin * boost) * t_e + k.clamp_offset_nm * boost;
+        d.cap = if target > d.cap {
+            target.min(k.max_torque_nm)
+        } else {
+            approach(d.cap, target, k.clamp_rate_nm_per_s, ctx.dt)
+        };
+        let mut x_ref = [0.0; 2];
+        x_ref[a] = ctx.x_clamp(a, d.cap);
+        x_ref[o] = ctx.standby(o);
+        let mut t_ref = [0.0; 2];
+        t_ref[a] = d.cap;
+        let v = ctx.v_kmh();
+        let mut want = [0u8; 2];
+        want[a] = d.gear;
+        want[o] = preselect(cfg, d.gear, v, ctx.m.pedal);
+        let gear_req = self.safe_gear_req(ctx, want);
+        let cmd = Command {
+            x_ref,
+            t_ref,
+            engine_req: d.blend,
+            gear_req,
+            gear_active: d.gear,
+            state: TcuState::Drive,
+            w_e_ref: ctx.m.w_e,
+            w_c_ref: ctx.m.w_c[a],
+            phase: "drive",
+        };
+        self.mode = Mode::Drive(d);
+        // Stop: start gear, pedal off, engine near idle -> creep. Any gear with the engine near
+        // stalling -> open and creep/wait.
+        let start = start_gear(ctx.m.lever).unwrap_or(1);
+        let low = ctx.m.w_e < cfg.creep.stop_engine_rpm * RPM;
+        if (d.gear == start && low && !ctx.pedal_on()) || ctx.m.w_e < 0.85 * ctx.idle() {
+            self.mode = Mode::Creep(Creep {
+                a: shaft(start),
+                gear: start,
+                w_c_ref: ctx.m.w_c[shaft(start)],
+                t_ref: if d.gear == start {
+                    d.cap.min(cfg.creep.max_torque_nm)
+                } else {
+                    0.0
+                },
+            });
+            return cmd;
+        }
+        // Shift decision. A downshift whose engine would otherwise lug toward idle does not wait
+        // for the interval since the last shift nor for the engine-request blend.
+        if d.gear != driveline::REVERSE {
+            let g = scheduled_gear(cfg, d.gear, v, ctx.m.pedal);
+            let urgent = g < d.gear && ctx.m.w_e < 1.2 * ctx.idle();
+            let settled = d.since_s > 0.3
+                && self.since_shift_s > cfg.shift.min_interval_s
+                && d.blend.is_none();
+            let braking_up = g > d.gear && ctx.m.brake;
+            if (settled || urgent)
+                && g != d.gear
+                && !braking_up
+                && ctx.m.gear[o] == g
+                && shaft(g) == o
+            {
+                self.start_shift(ctx, d, g);
+            }
+        }
+        cmd
+    }
+
+    fn step_mode(&mut self, ctx: &Ctx) -> Command {
+        match self.mode {
+            Mode::Neutral => self.neutral(ctx),
+            Mode::Creep(c) => self.creep(ctx, c),
+            Mode::Launch(l) => self.launch(ctx, l),
+            Mode::Drive(d) => self.drive(ctx, d),
+            Mode::Shift(s) => self.shift(ctx, s),
+        }
+    }
+
+    fn start_shift(&mut self, ctx: &Ctx, d: Drive, to: u8) {
+        let up = to > d.gear;
+        let t_tr = ctx.demand().max(0.0);
+        self.reset_engine();
+        self.pi_c[1 - d.a].reset(0.0);
+        let mut s = Shift {
+            up,
+            a: d.a,
+            from: d.gear,
+            o: 1 - d.a,
+            to,
+            phase: if up {
+                ShiftPhase::Torque
+            } else {
+                ShiftPhase::Inertia
+            },
+            tau: 0.0,
+            t_tr,
+            t_a0: d.cap,
+            s0: 0.0,
+            duration: ctx.cfg.shift.torque_phase_s,
+            lock_count: 0,
+            total_s: 0.0,
+            t_e_req: ctx.m.t_e,
+            release: None,
+        };
+        if !up {
+            Self::begin_inertia(ctx, &mut s);
+        }
+        self.mode = Mode::Shift(s);
+    }
+
+    /// Inertia-phase duration: the smoothstep's peak engine acceleration 1.5·|s0|/T must stay
+    /// within `engine_authority` of what the engine torque range leaves after the clutch torque.
+    fn begin_inertia(ctx: &Ctx, s: &mut Shift) {
+        let cfg = ctx.cfg;
+        let w_co = ctx.m.w_c[s.o];
+        s.phase = ShiftPhase::Inertia;
+        s.tau = 0.0;
+        s.s0 = ctx.m.w_e - w_co;
+        let (lo, hi) = ctx.engine_limits();
+        let j = cfg.physics.driveline.j_eq_kgm2;
+        let avail = if s.up {
+            // Engine pulled down: clutch torque plus engine drag.
+            s.t_tr - lo
+        } else {
+            // Engine pushed up: full load minus what the off-going clutch keeps.
+            hi - cfg.shift.downshift_offgoing_fraction * s.t_tr
+        }
+        .max(5.0);
+        let t_needed = 1.5 * s.s0.abs() * j / (cfg.shift.engine_authority * avail);
+        s.duration = t_needed.clamp(cfg.shift.min_inertia_phase_s, cfg.shift.max_inertia_phase_s);
+        s.t_a0 = if s.up {
+            0.0
+        } else {
+            cfg.shift.downshift_offgoing_fraction * s.t_tr
+        };
+    }
+
+    fn shift(&mut self, ctx: &Ctx, mut s: Shift) -> Command {
+        let cfg = ctx.cfg;
+        let k = &cfg.control;
+        let (a, o) = (s.a, s.o);
+        let r = ctx.reduced();
+        s.tau += ctx.dt;
+        s.total_s += ctx.dt;
+        // The vehicle is slowing too fast for the shift (hard braking toward a stop): open both
+        // clutches and let creep/hold take over in the start gear.
+        let start = start_gear(ctx.m.lever).unwrap_or(1);
+        if ctx.m.w_c[s.o] < 0.9 * ctx.idle() || ctx.m.w_e < 0.8 * ctx.idle() {
+            self.since_shift_s = 0.0;
+            self.mode = Mode::Creep(Creep {
+                a: shaft(start),
+                gear: start,
+                w_c_ref: ctx.m.w_c[shaft(start)],
+                t_ref: 0.0,
+            });
+            return self.creep_now(ctx);
+        }
+        let demand = ctx.demand();
+        s.t_tr = demand.max(0.0);
+        let slip_o = ctx.m.slip(o);
+        let w_co = ctx.m.w_c[o];
+        let alpha_co = r.k[o] * ctx.w_out_dot;
+        let delta = k.lock_undershoot_radps;
+        let mut t = [0.0; 2];
+        let mut x = [ctx.standby(0), ctx.standby(1)];
+        let mut engine_req = None;
+        let mut w_e_ref = ctx.m.w_e;
+        let phase;
+        match (s.up, s.phase) {
+            (true, ShiftPhase::Torque) => {
+                // On-coming ramps up to the transmitted torque, off-going capacity to zero.
+                let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
+                t[o] = u * s.t_tr;
+                let cap_a = (1.0 - u) * ((1.0 + k.clamp_margin) * s.t_tr + k.clamp_offset_nm);
+                t[a] = cap_a;
+                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
+                x[a] = ctx.x_clamp(a, cap_a);
+                phase = "upshift-torque";
+                if u >= 1.0 {
+                    Self::begin_inertia(ctx, &mut s);
+                }
+            }
+            (true, ShiftPhase::Inertia) => {
+                // Off-going open; on-coming carries the demand; PI_e pulls the engine down along
+                // a smoothstep to a small positive slip, holds it until the engine torque is back
+                // near the on-coming clutch's torque (so lock-up does not drop the acceleration),
+                // then lets the slip cross zero.
+                // (At least a little torque: with the pedal off the on-coming clutch still has to
+                // pull the engine down to its shaft.)
+                t[o] = s.t_tr.max(MIN_ONCOMING_NM).min(ctx.t_max(o));
+                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
+                let hold = k.lock_hold_slip_radps;
+                let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
+                if s.tau >= s.duration {
+                    let recovered = ctx.m.t_e >= t[o] - (0.1 * t[o]).max(8.0);
+                    if s.release.is_none() && (recovered || s.tau >= s.duration + 0.3) {
+                        s.release = Some(s.tau);
+                    }
+                    if let Some(t_rel) = s.release {
+                        let u = ((s.tau - t_rel) / 0.08).min(1.0);
+                        s_ref = hold - (hold + delta) * u;
+                        ds = if u < 1.0 { -(hold + delta) / 0.08 } else { 0.0 };
+                    }
+                }
+                w_e_ref = w_co + s_ref;
+                let w_e_dot_ref = alpha_co + ds;
+                let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t[o]);
+                s.t_e_req = t_e;
+                engine_req = Some(t_e);
+                phase = "upshift-inertia";
+            }
+            (false, ShiftPhase::Inertia) => {
+                // Off-going keeps part of the demand while the engine rises to the new shaft.
+                t[a] = s.t_a0.min(ctx.t_max(a));
+                x[a] = if t[a] > 0.0 {
+                    ctx.x_slip(a, t[a])
+                } else {
+                    ctx.standby(a)
+                };
+                let (s_ref, ds) = smoothstep(s.s0, delta, s.tau, s.duration);
+                w_e_ref = w_co + s_ref;
+                let w_e_dot_ref = alpha_co + ds;
+                let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t[a]);
+                s.t_e_req = t_e;
+                engine_req = Some(t_e);
+                phase = "downshift-inertia";
+                if s.tau >= s.duration && (slip_o - delta).abs() < 3.0 || s.tau >= s.duration + 0.5
+                {
+                    s.phase = ShiftPhase::Torque;
+                    s.tau = 0.0;
+                }
+            }
+            (false, ShiftPhase::Torque) => {
+                // Hand over to the on-coming clutch near synchronism; engine held just above it.
+                let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
+                t[o] = u * (s.t_tr + k.clamp_offset_nm);
+                t[a] = (1.0 - u) * s.t_a0;
+                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
+                x[a] = if t[a] > 0.0 {
+                    ctx.x_slip(a, t[a])
+                } else {
+                    ctx.standby(a)
+                };
+                w_e_ref = w_co + delta * (1.0 - 2.0 * u);
+                let t_e = self.engine_law(ctx, &r, w_e_ref, alpha_co, t[o] + t[a]);
+                s.t_e_req = t_e;
+                engine_req = Some(t_e);
+                phase = "downshift-torque";
+            }
+        }
+        let locking = !(s.up && s.phase == ShiftPhase::Torque);
+        if locking && slip_o.abs() < k.lock_slip_radps && (s.phase == ShiftPhase::Torque || s.up) {
+            s.lock_count += 1;
+        } else {
+            s.lock_count = 0;
+        }
+        let mut gear_req = [0u8; 2];
+        gear_req[a] = s.from;
+        gear_req[o] = s.to;
+        let cmd = Command {
+            x_ref: x,
+            t_ref: t,
+            engine_req,
+            gear_req,
+            gear_active: if s.phase == ShiftPhase::Inertia && s.up
+                || !s.up && s.phase == ShiftPhase::Torque
+            {
+                s.to
+            } else {
+                s.from
+            },
+            state: if s.up {
+                TcuState::Upshift
+            } else {
+                TcuState::Downshift
+            },
+            w_e_ref,
+            w_c_ref: w_co,
+            phase,
+        };
+        if s.lock_count >= k.lock_cycles || (s.total_s > 3.0 && slip_o.abs() < 2.0) {
+            self.since_shift_s = 0.0;
+            self.mode = Mode::Drive(Drive {
+                a: o,
+                gear: s.to,
+                cap: t[o].max(s.t_tr),
+                blend: Some(s.t_e_req),
+                since_s: 0.0,
+                slip_count: 0,
+            });
+        } else if s.total_s > 4.0 {
+            // The shift did not complete: re-engage an engaged gear like a launch (or creep when
+            // slow), from the measurements.
+            self.since_shift_s = 0.0;
+            self.pi_c.iter_mut().for_each(|p| p.reset(0.0));
+            self.reset_engine();
+            self.mode = Self::initial_mode(ctx);
+        } else {
+            self.mode = Mode::Shift(s);
+        }
+        cmd
+    }
+
+    /// PI_e and (24): T_e,ref = J_eq (ω̇_e,ref + kp e + ki ∫e) + ΣT_fc,ref, within the engine's
+    /// range. The feed-forward part J_eq ω̇_e,ref + ΣT_fc,ref gets a lead (τ_e + d)·d/dt that
+    /// cancels the engine's first-order torque lag τ_e (the engine ECU's, from the parameter file)
+    /// and, to first order, the command delay d.
+    fn engine_law(&mut self, ctx: &Ctx, r: &Reduced, w_ref: f64, w_dot_ref: f64, t_c: f64) -> f64 {
+        let e = w_ref - ctx.m.w_e;
+        let ff = r.j_eq * w_dot_ref + t_c;
+        let lead = match self.ff_prev {
+            Some(prev) if ctx.dt >= MIN_LEAD_DT_S => {
+                (ctx.cfg.physics.engine.torque_lag_s + ctx.cfg.control.command_delay_s)
+                    * (ff - prev)
+                    / ctx.dt
+            }
+            _ => 0.0,
+        };
+        self.ff_prev = Some(ff);
+        let raw = ff + lead + r.j_eq * self.pi_e.output(0.0, e);
+        let (lo, hi) = ctx.engine_limits();
+        let t = raw.clamp(lo, hi);
+        self.pi_e.integrate(e, ctx.dt, raw >= hi, raw <= lo);
+        t
+    }
+}
+
+/// Smoothstep from `s0` to `s1` over `duration`: value and rate at `tau`.
+fn smoothstep(s0: f64, s1: f64, tau: f64, duration: f64) -> (f64, f64) {
+    let u = (tau / duration.max(1e-6)).clamp(0.0, 1.0);
+    let h = u * u * (3.0 - 2.0 * u);
+    let dh = if tau >= duration {
+        0.0
+    } else {
+        6.0 * u * (1.0 - u) / duration.max(1e-6)
+    };
+    (s0 + (s1 - s0) * h, (s1 - s0) * dh)
+}
+
+fn scheduled_from_speed(ctx: &Ctx) -> u8 {
+    let v = ctx.v_kmh();
+    let mut g = 1;
+    for _ in 0..5 {
+        let n = scheduled_gear(ctx.cfg, g, v, ctx.m.pedal);
+        if n <= g {
+            break;
+        }
+        g = n;
+    }
+    g
+}
+
+impl Launch {
+    fn new(ctx: &Ctx, a: usize, gear: u8) -> Launch {
+        Launch {
+            a,
+            gear,
+            w_c0: ctx.m.w_c[a],
+            w_c_ref: ctx.m.w_c[a],
+            alpha: 0.0,
+            w_e_prof: ctx.m.w_e,
+            sync: None,
+            lock_count: 0,
+            pedal_off_s: 0.0,
+        }
+    }
+
+    /// Engine-speed target and clutch acceleration target of a launch at the current pedal:
+    /// target n(p); acceleration the larger of the pedal-consistent one (the driver's demand at
+    /// the target speed would hold it after lock-up) and the one that locks up in
+    /// `lockup_time_s` from the clutch speed `w_c0` at the start.
+    fn targets(ctx: &Ctx, a: usize, gear: u8, w_c0: f64) -> (f64, f64) {
+        let cfg = ctx.cfg;
+        let l = &cfg.launch;
+        let p = ctx.m.pedal;
+        let n = if ctx.limit_torque {
+            l.engine_rpm_0
+        } else {
+            l.engine_rpm_0 + (l.engine_rpm_100 - l.engine_rpm_0) * p
+        };
+        let w_tgt = (n * RPM).max(w_c0 + 2.0 * l.sync_slip_radps);
+        let r = Reduced::new(
+            &cfg.physics.driveline,
+            if a == 0 { gear } else { 0 },
+            if a == 1 { gear } else { 0 },
+        );
+        let k = r.k[a];
+        let d = driver_demand(&cfg.physics.engine, p, w_tgt);
+        let d = if ctx.limit_torque {
+            d.min(cfg.safety.over_temp_engine_torque_nm)
+        } else {
+            d
+        };
+        let tl = ctx.load();
+        let alpha_cons = if k != 0.0 {
+            (d - tl / k) / (r.j_eq + r.j_eq2 / (k * k))
+        } else {
+            0.0
+        };
+        let alpha_min = (w_tgt - w_c0).max(0.0) / l.lockup_time_s;
+        // At lock-up the engine has to accelerate with the clutch: leave it 5 % of its full-load
+        // torque at the target speed for that, or the lock-up comes with a jolt.
+        let mut t_full = crate::model::engine::full_load(&cfg.physics.engine, w_tgt);
+        if ctx.limit_torque {
+            t_full = t_full.min(cfg.safety.over_temp_engine_torque_nm);
+        }
+        let alpha_cap = if k != 0.0 {
+            (0.95 * t_full - tl / k) / (r.j_eq + r.j_eq2 / (k * k))
+        } else {
+            0.0
+        };
+        (w_tgt, alpha_cons.max(alpha_min).min(alpha_cap).max(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schedule_has_hysteresis_and_one_step() {
+        let c = TcuConfig::default();
+        assert_eq!(scheduled_gear(&c, 1, 10.0, 0.5), 1);
+        assert_eq!(scheduled_gear(&c, 1, 40.0, 0.5), 2);
+        // Between the down and up speeds of 2: stays.
+        let up = 0.5 * (c.shift.up_kmh_0[1] + c.shift.up_kmh_100[1]);
+        let down = 0.5 * (c.shift.down_kmh_0[0] + c.shift.down_kmh_100[0]);
+        let mid = 0.5 * (up + down);
+        assert_eq!(scheduled_gear(&c, 2, mid, 0.5), 2);
+        assert_eq!(scheduled_gear(&c, 2, down - 1.0, 0.5), 1);
+        assert_eq!(scheduled_gear(&c, 6, 0.0, 0.0), 5, "one step at a time");
+    }
+
+    #[test]
+    fn smoothstep_ends_flat() {
+        let (s, ds) = smoothstep(10.0, -1.0, 0.0, 0.5);
+        assert_eq!((s, ds), (10.0, 0.0));
+        let (s, ds) = smoothstep(10.0, -1.0, 0.5, 0.5);
+        assert_eq!((s, ds), (-1.0, 0.0));
+        let (_, ds) = smoothstep(10.0, -1.0, 0.25, 0.5);
+        assert!((ds + 1.5 * 11.0 / 0.5).abs() < 1e-9, "peak rate 1.5 Δ/T");
+    }
+}
