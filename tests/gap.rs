@@ -416,3 +416,67 @@ fn cli_experiment_and_diagnose() {
     assert!(set.is_active(ddct::model::effects::EffectId::KissPointWear));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Closing the loop: the TCU with the calibration `ddct gap diagnose` wrote launches against the
+/// plant that carries the effect with a smaller torque error than the nominal TCU.
+#[test]
+fn diagnosed_calibration_closes_the_loop() {
+    let bin = env!("CARGO_BIN_EXE_ddct");
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("ddct_gap_loop_{}", std::process::id()));
+    let (logs, out) = (dir.join("logs"), dir.join("diag"));
+    let run = |cmd: &mut std::process::Command| -> Vec<u8> {
+        let o = cmd.current_dir(repo).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o.stdout
+    };
+    run(std::process::Command::new(bin)
+        .args(["gap", "experiment", "--truth", "friction_pressure", "--out"])
+        .arg(&logs));
+    let files = |prefix: &str| -> Vec<std::path::PathBuf> {
+        ["rig", "low_slip", "launches"]
+            .iter()
+            .map(|k| logs.join(format!("{prefix}_{k}.log")))
+            .collect()
+    };
+    let report = run(std::process::Command::new(bin)
+        .args(["gap", "diagnose", "--json", "--out"])
+        .arg(&out)
+        .arg("--train")
+        .args(files("train"))
+        .arg("--validate")
+        .args(files("validate")));
+    let j: serde_json::Value = serde_json::from_slice(&report).unwrap();
+    assert_eq!(j["verdict"]["effect"], "friction_pressure");
+    // Mean |T_ref − T_actual| over the launch's slip bins, weighted by their samples.
+    let launch_error = |tcu_config: &std::path::Path| -> f64 {
+        let stdout = run(std::process::Command::new(bin)
+            .args([
+                "sim",
+                "--scenario",
+                "config/gap_closed_loop_friction_pressure.toml",
+                "--json",
+                "--config",
+            ])
+            .arg(tcu_config));
+        let s: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
+        let launch = &s[0]["metrics"]["launches"][0];
+        assert_eq!(launch["stall"], false);
+        let bins = launch["torque_error_by_slip"].as_array().unwrap();
+        let (mut sum, mut n) = (0.0, 0.0);
+        for b in bins {
+            let k = b["n"].as_f64().unwrap();
+            sum += b["mean_error_nm"].as_f64().unwrap().abs() * k;
+            n += k;
+        }
+        assert!(n > 50.0, "too few launch samples: {n}");
+        sum / n
+    };
+    let nominal = launch_error(&repo.join("config/tcu.toml"));
+    let diagnosed = launch_error(&out.join("tcu.toml"));
+    eprintln!("launch torque error: nominal {nominal:.2} N·m, diagnosed {diagnosed:.2} N·m");
+    // The effect costs the nominal TCU ~10 % of the clutch torque (exponent 0.88 at 50 % pedal).
+    assert!(nominal > 5.0, "nominal error {nominal}");
+    assert!(diagnosed < 0.3 * nominal, "{diagnosed} vs {nominal}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -7,6 +7,7 @@ use ddct::gap::blind::{self, TrialResult};
 use ddct::gap::dataset::Dataset;
 use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
 use ddct::gap::identify::{identify, IdentifyOptions};
+use ddct::gap::keys;
 use ddct::gap::report;
 use ddct::model::effects::EffectId;
 use ddct::model::Params;
@@ -35,6 +36,10 @@ pub struct IdentifyArgs {
     /// Skip the joint refinement (step 5): the paper's staged procedure only.
     #[arg(long)]
     staged_only: bool,
+    /// Reference parameter file (e.g. the plant's truth) shown beside every estimate, with
+    /// whether it lies inside the 95 % interval and the relative error.
+    #[arg(long)]
+    reference: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -136,6 +141,10 @@ fn load_all(files: &[PathBuf]) -> anyhow::Result<Vec<Dataset>> {
 
 pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
     let p0 = load_params(&a.params)?;
+    let reference = match &a.reference {
+        Some(f) => Some(Params::load(f).with_context(|| format!("reading {}", f.display()))?),
+        None => None,
+    };
     let train = load_all(&a.train)?;
     let val = load_all(&a.validate)?;
     let opts = IdentifyOptions {
@@ -169,24 +178,49 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
         println!("{n}");
     }
     println!();
-    println!(
-        "{:<28} {:>12} {:>12} {:>27}  step",
+    let reference_of = |key: &str| reference.as_ref().and_then(|r| keys::get(r, key));
+    print!(
+        "{:<28} {:>12} {:>12} {:>27}",
         "parameter", "initial", "identified", "95 % interval"
     );
+    if reference.is_some() {
+        print!(" {:>12} {:>7} {:>6}", "reference", "error", "in CI");
+    }
+    println!("  step");
+    // The final estimate of a key is its last step's.
+    let mut final_hit = std::collections::BTreeMap::new();
     for e in &id.estimates {
+        print!(
+            "{:<28} {:>12.4e} {:>12.4e} [{:>11.4e}, {:>11.4e}]",
+            e.key, e.initial, e.value, e.ci95.0, e.ci95.1
+        );
+        if let Some(r) = reference_of(&e.key) {
+            let hit = e.ci95.0 <= r && r <= e.ci95.1;
+            let err = if r != 0.0 {
+                format!("{:+.1}%", 100.0 * (e.value - r) / r.abs())
+            } else {
+                format!("{:+.1e}", e.value)
+            };
+            if e.identifiable {
+                final_hit.insert(e.key.as_str(), hit);
+            }
+            print!(" {r:>12.4e} {err:>7} {:>6}", if hit { "yes" } else { "no" });
+        }
         println!(
-            "{:<28} {:>12.4e} {:>12.4e} [{:>11.4e}, {:>11.4e}]  {}{}",
-            e.key,
-            e.initial,
-            e.value,
-            e.ci95.0,
-            e.ci95.1,
+            "  {}{}",
             e.step,
             if e.identifiable {
                 ""
             } else {
                 " (not identifiable)"
             }
+        );
+    }
+    if !final_hit.is_empty() {
+        println!(
+            "reference inside the final 95 % interval: {} of {} identifiable parameters",
+            final_hit.values().filter(|h| **h).count(),
+            final_hit.len()
         );
     }
     if !id.validation.is_empty() {
