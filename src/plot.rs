@@ -190,8 +190,9 @@ impl Figure {
         if !self.title.is_empty() {
             let _ = writeln!(
                 s,
-                r#"<text x="{}" y="26" font-size="17" text-anchor="middle" font-weight="bold">{}</text>"#,
+                r#"<text x="{}" y="26" font-size="{:.1}" text-anchor="middle" font-weight="bold">{}</text>"#,
                 w / 2.0,
+                fitted_font_size(&self.title, 17.0, w - 20.0),
                 esc(&self.title)
             );
         }
@@ -202,6 +203,17 @@ impl Figure {
         }
         s.push_str("</svg>\n");
         s
+    }
+}
+
+/// The font size (≤ `size`) at which `text` fits `width` pixels (average glyph ≈ 0.6 em), so a
+/// long title shrinks instead of running off the figure.
+fn fitted_font_size(text: &str, size: f64, width: f64) -> f64 {
+    let em = 0.6 * text.chars().count() as f64;
+    if em * size <= width || em == 0.0 {
+        size
+    } else {
+        (width / em).max(7.0)
     }
 }
 
@@ -251,7 +263,7 @@ fn fmt_tick(v: f64, step: f64) -> String {
         (-step.log10().floor()) as usize
     };
     let a = v.abs();
-    if a != 0.0 && (a >= 1e5 || a < 1e-3) {
+    if a != 0.0 && !(1e-3..1e5).contains(&a) {
         format!("{v:.1e}")
     } else {
         format!("{v:.decimals$}")
@@ -289,9 +301,10 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
     let sy = |v: f64| py + ph - (v - yl) / (yh - yl) * ph;
     let _ = writeln!(
         s,
-        r#"<text x="{}" y="{}" font-size="14" text-anchor="middle">{}</text>"#,
+        r#"<text x="{}" y="{}" font-size="{:.1}" text-anchor="middle">{}</text>"#,
         px + pw / 2.0,
         y0 + 22.0,
+        fitted_font_size(&p.title, 14.0, w - 10.0),
         esc(&p.title)
     );
     // Grid and ticks.
@@ -445,6 +458,14 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn long_titles_shrink_to_fit() {
+        assert_eq!(fitted_font_size("short", 17.0, 400.0), 17.0);
+        let long = "x".repeat(100);
+        let f = fitted_font_size(&long, 17.0, 800.0);
+        assert!(f < 17.0 && 0.6 * 100.0 * f <= 800.0 + 1e-9, "{f}");
+    }
 
     #[test]
     fn nice_ticks() {

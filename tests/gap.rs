@@ -314,10 +314,24 @@ fn small_blind_run_scores_every_trial() {
             assert_eq!(r.subsystem_correct, Some(true), "{r:?}");
         }
         if r.truth.kind == "library" {
-            // The gap above the sensor noise shrinks by more than half on held-out data.
-            assert!(r.gap_reduction_pct > 50.0, "{r:?}");
+            // The gap above the sensor noise shrinks on held-out data in every trial (a small
+            // mu_static_temp acts only at low slip, so its share of the torque gap is smaller) …
+            assert!(r.gap_reduction_pct > 25.0, "{r:?}");
         }
     }
+    // … and by the acceptance figure's 70 % in the median.
+    let mut library: Vec<f64> = results
+        .iter()
+        .filter(|r| r.truth.kind == "library")
+        .map(|r| r.gap_reduction_pct)
+        .collect();
+    library.sort_by(f64::total_cmp);
+    assert!(!library.is_empty());
+    let median = library[library.len() / 2];
+    assert!(
+        median >= 70.0,
+        "median gap reduction {median} %: {library:?}"
+    );
     let s = blind::summarize(&results);
     assert!(s.all_correct);
 }

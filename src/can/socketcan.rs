@@ -103,6 +103,8 @@ impl Bus for SocketCanBus {
         }
     }
 
+    // Written out (not `async fn`) so that the trait's `Send` bound on the future is visible.
+    #[allow(clippy::manual_async_fn)]
     fn recv(&mut self) -> impl Future<Output = Result<Received, BusError>> + Send {
         async move {
             let (f, ts) = self

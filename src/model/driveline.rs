@@ -179,12 +179,10 @@ impl Groups {
             jg[g] += self.r[i] * self.r[i] * j[i];
             tg[g] += self.r[i] * t[i];
         }
-        let mut a = [0.0; 4];
-        for i in 0..4 {
+        std::array::from_fn(|i| {
             let g = self.root[i];
-            a[i] = self.r[i] * tg[g] / jg[g];
-        }
-        a
+            self.r[i] * tg[g] / jg[g]
+        })
     }
 
     /// Torque carried by link `edge` (0: clutch 1, 1: clutch 2, 2: odd gear, 3: even gear) from
@@ -233,11 +231,10 @@ impl Groups {
             pg[g] += self.r[i] * j[i] * w[i];
             jg[g] += self.r[i] * self.r[i] * j[i];
         }
-        let mut out = [0.0; 4];
-        for i in 0..4 {
+        let out: [f64; 4] = std::array::from_fn(|i| {
             let g = self.root[i];
-            out[i] = self.r[i] * pg[g] / jg[g];
-        }
+            self.r[i] * pg[g] / jg[g]
+        });
         let ke = |w: &[f64; 4]| 0.5 * (0..4).map(|i| j[i] * w[i] * w[i]).sum::<f64>();
         let loss = (ke(w) - ke(&out)).max(0.0);
         (out, loss)

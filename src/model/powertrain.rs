@@ -668,8 +668,8 @@ impl<H: Hooks> Powertrain<H> {
             // (sign change) or from the slip rate at the start (the cube-root friction makes
             // RK4's own stages straddle zero, so the end point alone can miss a crossing).
             let mut first: Option<(usize, f64)> = None;
-            for i in 0..2 {
-                if s0.locked(i) || skip[i] {
+            for (i, &skipped) in skip.iter().enumerate() {
+                if s0.locked(i) || skipped {
                     continue;
                 }
                 let (a, b) = (s0.slip(i), s1.slip(i));

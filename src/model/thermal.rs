@@ -341,8 +341,8 @@ pub fn fit_thermal3(
             } else {
                 let best = simplex[0].0;
                 for item in simplex.iter_mut().skip(1) {
-                    for i in 0..4 {
-                        item.0[i] = best[i] + 0.5 * (item.0[i] - best[i]);
+                    for (x, b) in item.0.iter_mut().zip(best) {
+                        *x = b + 0.5 * (*x - b);
                     }
                     item.1 = f(&item.0);
                     evals += 1;
