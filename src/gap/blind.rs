@@ -189,7 +189,7 @@ pub fn experiment_records(
     seed: u64,
     plant_params: &Params,
 ) -> Vec<(String, Vec<LogRecord>)> {
-    let mut c = PlantConfig {
+    let c = PlantConfig {
         effects: truth.set(),
         params: *plant_params,
         ..PlantConfig::default()
@@ -203,58 +203,58 @@ pub fn experiment_records(
     rig_cfg
         .effects
         .remove(EffectId::SlidingAccelerationFriction);
-    let mut out = Vec::new();
-    let mut k = 0u64;
-    let mut next_seed = |c: &mut PlantConfig| {
-        k += 1;
-        c.seed = seed.wrapping_mul(7).wrapping_add(k);
-    };
-    next_seed(&mut c);
-    rig_cfg.seed = c.seed;
-    out.push((
-        "train_rig".to_string(),
-        experiment::rig(rig_cfg.clone(), &train_rig()).expect("valid rig"),
-    ));
-    next_seed(&mut c);
-    rig_cfg.seed = c.seed;
-    out.push((
-        "train_low_slip".to_string(),
-        experiment::rig(rig_cfg.clone(), &train_low_slip()).expect("valid rig"),
-    ));
-    next_seed(&mut c);
-    out.push((
-        "train_launches".to_string(),
-        experiment::launches(
-            c.clone(),
-            &launches(
+    enum Run {
+        Rig(RigExperiment),
+        Launches(LaunchPlan),
+    }
+    let plan = [
+        ("train_rig", Run::Rig(train_rig())),
+        ("train_low_slip", Run::Rig(train_low_slip())),
+        (
+            "train_launches",
+            Run::Launches(launches(
                 &[25.0, 35.0, 45.0, 30.0, 40.0],
                 &[5.3, 5.5, 5.8, 5.6, 5.4],
                 2.0,
                 120.0,
-            ),
+            )),
         ),
-    ));
-    next_seed(&mut c);
-    rig_cfg.seed = c.seed;
-    out.push((
-        "validate_rig".to_string(),
-        experiment::rig(rig_cfg.clone(), &validate_rig()).expect("valid rig"),
-    ));
-    next_seed(&mut c);
-    rig_cfg.seed = c.seed;
-    out.push((
-        "validate_low_slip".to_string(),
-        experiment::rig(rig_cfg.clone(), &validate_low_slip()).expect("valid rig"),
-    ));
-    next_seed(&mut c);
-    out.push((
-        "validate_launches".to_string(),
-        experiment::launches(
-            c,
-            &launches(&[30.0, 50.0, 38.0, 27.0], &[5.6, 5.9, 5.5, 5.2], 1.5, 150.0),
+        ("validate_rig", Run::Rig(validate_rig())),
+        ("validate_low_slip", Run::Rig(validate_low_slip())),
+        (
+            "validate_launches",
+            Run::Launches(launches(
+                &[30.0, 50.0, 38.0, 27.0],
+                &[5.6, 5.9, 5.5, 5.2],
+                1.5,
+                150.0,
+            )),
         ),
-    ));
-    out
+    ];
+    plan.into_iter()
+        .zip(1u64..)
+        .map(|((name, run), k)| {
+            // Every record its own sensor-noise seed.
+            let noise_seed = seed.wrapping_mul(7).wrapping_add(k);
+            let records = match run {
+                Run::Rig(exp) => {
+                    let cfg = PlantConfig {
+                        seed: noise_seed,
+                        ..rig_cfg.clone()
+                    };
+                    experiment::rig(cfg, &exp).expect("valid rig")
+                }
+                Run::Launches(plan) => {
+                    let cfg = PlantConfig {
+                        seed: noise_seed,
+                        ..c.clone()
+                    };
+                    experiment::launches(cfg, &plan)
+                }
+            };
+            (name.to_string(), records)
+        })
+        .collect()
 }
 
 /// Generates the experiments of a trial with the plant carrying `truth`, decoded.

@@ -414,6 +414,15 @@ fn cooling_fit(
     )
 }
 
+/// Every `dec`-th sample of a record that is valid: the temperature samples of the thermal fits.
+fn valid_samples(m: &Measured, dec: usize) -> impl Iterator<Item = usize> + '_ {
+    (0..m.n).step_by(dec.max(1)).filter(|&k| m.valid[k])
+}
+
+fn thermal_samples(ms: &[Measured], dec: usize) -> Vec<Vec<usize>> {
+    ms.iter().map(|m| valid_samples(m, dec).collect()).collect()
+}
+
 /// Step 3: thermal NLS on the plate and central-disk temperatures.
 fn thermal_fit(
     p: &Params,
@@ -422,15 +431,7 @@ fn thermal_fit(
     keys_v: &[&'static str],
     dec: usize,
 ) -> lsq::Fit {
-    let idx: Vec<Vec<usize>> = ms
-        .iter()
-        .map(|m| {
-            (0..m.n)
-                .step_by(dec.max(1))
-                .filter(|&k| m.valid[k])
-                .collect()
-        })
-        .collect();
+    let idx = thermal_samples(ms, dec);
     let n: usize = idx.iter().map(|v| 3 * v.len()).sum();
     let off = block_ids(ms);
     let clusters: Vec<usize> = ms
@@ -500,7 +501,7 @@ pub fn joint_residuals(q: &Params, ms: &[Measured], dec: usize) -> Vec<f64> {
     let mut r = Vec::new();
     for m in ms {
         let tr = replay::thermal_replay(q, &Nominal, m);
-        for k in (0..m.n).step_by(dec.max(1)).filter(|&k| m.valid[k]) {
+        for k in valid_samples(m, dec) {
             r.push(m.pp[0][k] - tr[k].pp1);
             r.push(m.pp[1][k] - tr[k].pp2);
             r.push(m.cd[k] - tr[k].cd);
@@ -531,15 +532,7 @@ fn joint_fit(
     parity: Option<usize>,
     max_iter: usize,
 ) -> lsq::Fit {
-    let idx: Vec<Vec<usize>> = ms
-        .iter()
-        .map(|m| {
-            (0..m.n)
-                .step_by(dec.max(1))
-                .filter(|&k| m.valid[k])
-                .collect()
-        })
-        .collect();
+    let idx = thermal_samples(ms, dec);
     let n: usize = idx.iter().map(|v| 3 * v.len()).sum::<usize>()
         + ms.iter()
             .map(|m| m.torque_idx[0].len() + m.torque_idx[1].len())

@@ -22,6 +22,7 @@ use super::dataset::{Col, Dataset};
 use super::events::{segment, SegmentOptions, Segmentation};
 use crate::model::actuator;
 use crate::model::clutch;
+use crate::model::integrator::rk4_step_with;
 use crate::model::params::{ActuatorParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5, Thermal5State, ThermalInputs};
@@ -315,16 +316,7 @@ pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5St
         let th = mid(&m.th);
         let ctx = [m.context(0, k, s.c1), m.context(1, k, s.c2)];
         let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, ctx, pw, th);
-        let dt = m.dt;
-        let k1 = f(&s);
-        let k2 = f(&s.axpy(0.5 * dt, &k1));
-        let k3 = f(&s.axpy(0.5 * dt, &k2));
-        let k4 = f(&s.axpy(dt, &k3));
-        s = s
-            .axpy(dt / 6.0, &k1)
-            .axpy(dt / 3.0, &k2)
-            .axpy(dt / 3.0, &k3)
-            .axpy(dt / 6.0, &k4);
+        s = rk4_step_with(&s, m.dt, f);
     }
     out
 }
@@ -365,18 +357,9 @@ pub fn full_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Replay {
         let th = 0.5 * (m.th[k] + m.th[k + 1]);
         let c = [ctx(0, &s, e[0]), ctx(1, &s, e[1])];
         let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, c, pw, th);
-        let dt = m.dt;
-        let k1 = f(&s);
-        let k2 = f(&s.axpy(0.5 * dt, &k1));
-        let k3 = f(&s.axpy(0.5 * dt, &k2));
-        let k4 = f(&s.axpy(dt, &k3));
-        s = s
-            .axpy(dt / 6.0, &k1)
-            .axpy(dt / 3.0, &k2)
-            .axpy(dt / 3.0, &k3)
-            .axpy(dt / 6.0, &k4);
-        e[0] += pw[0] * dt;
-        e[1] += pw[1] * dt;
+        s = rk4_step_with(&s, m.dt, f);
+        e[0] += pw[0] * m.dt;
+        e[1] += pw[1] * m.dt;
     }
     Replay { torque, thermal }
 }

@@ -19,10 +19,16 @@ pub trait OdeSystem {
 /// One classical RK4 step of length `h` with the inputs held constant.
 #[inline]
 pub fn rk4_step<S: OdeSystem>(sys: &S, x: &S::State, u: &S::Input, h: f64) -> S::State {
-    let k1 = sys.derivative(x, u);
-    let k2 = sys.derivative(&x.axpy(0.5 * h, &k1), u);
-    let k3 = sys.derivative(&x.axpy(0.5 * h, &k2), u);
-    let k4 = sys.derivative(&x.axpy(h, &k3), u);
+    rk4_step_with(x, h, |x| sys.derivative(x, u))
+}
+
+/// One classical RK4 step of length `h` of ẋ = f(x) (inputs captured by `f`).
+#[inline]
+pub fn rk4_step_with<X: OdeState>(x: &X, h: f64, f: impl Fn(&X) -> X) -> X {
+    let k1 = f(x);
+    let k2 = f(&x.axpy(0.5 * h, &k1));
+    let k3 = f(&x.axpy(0.5 * h, &k2));
+    let k4 = f(&x.axpy(h, &k3));
     x.axpy(h / 6.0, &k1)
         .axpy(h / 3.0, &k2)
         .axpy(h / 3.0, &k3)
