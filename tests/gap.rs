@@ -494,3 +494,62 @@ fn diagnosed_calibration_closes_the_loop() {
     assert!(diagnosed < 0.3 * nominal, "{diagnosed} vs {nominal}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A missing optional column makes the subsystems that need it "not checkable"; their effects
+/// are not guessed. A hidden actuator dead time without the logged requests (TCU_ClutchCmd) is
+/// invisible to every measured signal: the verdict is `none`, the actuator is reported not
+/// checkable. With the requests the same records name the dead time.
+#[test]
+fn missing_optional_columns_are_not_checkable_not_guessed() {
+    use ddct::gap::blind::{experiments, Truth};
+    use ddct::gap::dataset::Col;
+    use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::model::effects::EffectId;
+    let id = EffectId::ActuatorDeadTime;
+    let truth = Truth {
+        effect: id.as_str().into(),
+        kind: "library".into(),
+        subsystem: id.subsystem().as_str().into(),
+        params: id.typical()[..id.params().len()].to_vec(),
+    };
+    let p = Params::default();
+    let ex = experiments(&truth, 5, &p);
+    let opts = DiagnoseOptions::default();
+    let with = diagnose(&ex.train, &ex.validate, &p, &opts).unwrap();
+    assert_eq!(with.verdict.effect, "actuator_dead_time");
+
+    let strip = |ds: &[ddct::gap::dataset::Dataset]| {
+        ds.iter()
+            .cloned()
+            .map(|mut d| {
+                d.remove(Col::X1Req);
+                d.remove(Col::X2Req);
+                d.remove(Col::Te);
+                d
+            })
+            .collect::<Vec<_>>()
+    };
+    let d = diagnose(&strip(&ex.train), &strip(&ex.validate), &p, &opts).unwrap();
+    let checkable = |s: &str| {
+        d.checkable
+            .iter()
+            .find(|c| c.subsystem == s)
+            .unwrap_or_else(|| panic!("no entry for {s}"))
+            .clone()
+    };
+    for s in ["actuator", "engine"] {
+        let c = checkable(s);
+        assert!(!c.checkable, "{s} reported checkable without its columns");
+        assert!(c.detail.starts_with("not checkable"), "{}", c.detail);
+    }
+    assert!(checkable("torque_characteristic").checkable);
+    assert_eq!(d.verdict.effect, "none", "{:?}", d.verdict);
+    for r in &d.verdict.ranking {
+        let e = EffectId::parse(&r.effect).unwrap();
+        if matches!(e.subsystem().as_str(), "actuator" | "engine")
+            && e != EffectId::ActuatorBacklash
+        {
+            assert!(!r.credited, "{} credited without its signals", r.effect);
+        }
+    }
+}
