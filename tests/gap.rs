@@ -517,6 +517,21 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
     let opts = DiagnoseOptions::default();
     let with = diagnose(&ex.train, &ex.validate, &p, &opts).unwrap();
     assert_eq!(with.verdict.effect, "actuator_dead_time");
+    // The engine is seen in vehicle records only: the launches (train_launches) make it checkable,
+    // the two rig records alone do not although they carry ENG_Status.EngTorqueAct.
+    let engine = |ds: &[ddct::gap::dataset::Dataset]| {
+        ddct::gap::diagnose::checkability(ds)
+            .into_iter()
+            .find(|c| c.subsystem == "engine")
+            .unwrap()
+    };
+    assert_eq!(ex.train.len(), 3);
+    assert!(engine(&ex.train).checkable);
+    let rig_only = engine(&ex.train[..2]);
+    assert!(
+        !rig_only.checkable && rig_only.detail.contains("test-rig"),
+        "{rig_only:?}"
+    );
 
     let strip = |ds: &[ddct::gap::dataset::Dataset]| {
         ds.iter()

@@ -551,8 +551,14 @@ pub struct Trace {
 
 /// What the records can check.
 pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
-    let all = |c: Col| ds.iter().all(|d| d.has(c));
     let any = |c: Col| ds.iter().any(|d| d.has(c));
+    // The engine and the driveline are seen in vehicle records only.
+    let vehicle: Vec<&Dataset> = ds.iter().filter(|d| !replay::is_rig_record(d)).collect();
+    let engine = vehicle.iter().any(|d| d.has(Col::Te));
+    let driveline = !vehicle.is_empty()
+        && vehicle
+            .iter()
+            .all(|d| d.has(Col::Wout) && d.has(Col::GearOdd) && d.has(Col::GearEven));
     vec![
         Checkable {
             subsystem: "torque_characteristic".into(),
@@ -581,20 +587,24 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
         },
         Checkable {
             subsystem: "engine".into(),
-            checkable: any(Col::Te),
-            detail: if any(Col::Te) {
+            checkable: engine,
+            detail: if engine {
                 "T_e_Nm against J_eq·dω_f/dt + T_c1 + T_c2 (18a) where the engine drives".into()
+            } else if any(Col::Te) {
+                "not checkable: only test-rig records (the dyno replaces the engine)".into()
             } else {
                 "not checkable: T_e_Nm not logged (ENG_Status.EngTorqueAct)".into()
             },
         },
         Checkable {
             subsystem: "driveline".into(),
-            checkable: all(Col::Wout) && all(Col::GearOdd) && all(Col::GearEven),
-            detail: if all(Col::Wout) && all(Col::GearOdd) {
+            checkable: driveline,
+            detail: if driveline {
                 "output balance k_odd·T_c1 + k_even·T_c2 − T_load − J·dω_out/dt reported (no \
                  library effect acts here)"
                     .into()
+            } else if vehicle.is_empty() {
+                "not checkable: only test-rig records (the output is braked)".into()
             } else {
                 "not checkable: w_out_radps and gears not logged".into()
             },

@@ -112,16 +112,7 @@ impl Measured {
             (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
             _ => None,
         };
-        let w_f = d.req(Col::Wf);
-        let rig = match d.get(Col::Wout) {
-            Some(wo) => wo.iter().filter(|w| w.abs() < 1.0).count() as f64 >= 0.99 * n as f64,
-            None => {
-                let mut v = w_f.to_vec();
-                v.sort_by(f64::total_cmp);
-                let med = v[n / 2];
-                w_f.iter().filter(|w| (*w - med).abs() < 2.0).count() as f64 >= 0.99 * n as f64
-            }
-        };
+        let rig = is_rig_record(d);
         Measured {
             rig,
             source: d.source.clone(),
@@ -460,6 +451,25 @@ pub fn driveline_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
             })
             .collect(),
     )
+}
+
+/// A test-rig record: the output held (|ω_out| < 1 rad/s) or, without ω_out, the input held at
+/// one speed (the dyno), 99 % of the time. On the rig the engine report is the dyno's.
+pub fn is_rig_record(d: &Dataset) -> bool {
+    let n = d.len();
+    if n == 0 {
+        return false;
+    }
+    match d.get(Col::Wout) {
+        Some(wo) => wo.iter().filter(|w| w.abs() < 1.0).count() as f64 >= 0.99 * n as f64,
+        None => {
+            let w_f = d.req(Col::Wf);
+            let mut v = w_f.to_vec();
+            v.sort_by(f64::total_cmp);
+            let med = v[n / 2];
+            w_f.iter().filter(|w| (*w - med).abs() < 2.0).count() as f64 >= 0.99 * n as f64
+        }
+    }
 }
 
 #[cfg(test)]
