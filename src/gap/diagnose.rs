@@ -644,10 +644,12 @@ pub fn separability(checkable: &[Checkable]) -> Vec<String> {
                 .into(),
         );
     } else {
-        v.push("engine: not checkable without T_e_Nm".into());
+        v.push("engine: not checkable without T_e_Nm in vehicle records".into());
     }
     if !has("driveline") {
-        v.push("driveline: not checkable without w_out_radps and gears".into());
+        v.push(
+            "driveline: not checkable without vehicle records with w_out_radps and gears".into(),
+        );
     }
     v
 }
