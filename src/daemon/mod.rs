@@ -7,10 +7,10 @@ pub mod plant;
 pub mod tcu;
 
 use crate::can::candump::{LogRecord, LogWriter};
-use crate::can::{CanFrame, Received};
+use crate::can::{Bus, BusError, CanFrame, Received};
 use std::fs::File;
 use std::io::{self, BufWriter};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::time::Instant;
 
@@ -254,5 +254,139 @@ mod tests {
         assert_eq!(percentile(&s, 0.99), Some(99.0));
         assert_eq!(percentile(&s, 1.0), Some(100.0));
         assert_eq!(percentile(&[], 0.5), None);
+    }
+}
+
+/// Errors of a daemon's [`Link`].
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    #[error("log {path}: {source}")]
+    Log {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("{failures} consecutive send failures on {iface}: {last}")]
+    Send {
+        iface: String,
+        failures: u64,
+        last: String,
+    },
+}
+
+/// The bus side of a daemon: the bus, its candump tap and the frame counters. A refused send
+/// (a full transmit queue on a busy bus) drops that frame and is counted; only a bus that refuses
+/// `max_send_failures` frames in a row is fatal. Error frames and unsupported frames received are
+/// counted, other receive errors are fatal.
+pub struct Link<B: Bus> {
+    pub bus: B,
+    tap: Option<LogTap>,
+    log_path: PathBuf,
+    max_send_failures: u64,
+    consecutive_send_errors: u64,
+    pub sent: u64,
+    pub send_errors: u64,
+    pub received: u64,
+    pub receive_errors: u64,
+}
+
+impl<B: Bus> Link<B> {
+    /// Opens the link, creating the candump tap at `log` when given.
+    pub fn open(bus: B, log: Option<&Path>, max_send_failures: u64) -> Result<Self, LinkError> {
+        let tap = match log {
+            Some(p) => Some(
+                LogTap::create(p, bus.iface()).map_err(|source| LinkError::Log {
+                    path: p.to_path_buf(),
+                    source,
+                })?,
+            ),
+            None => None,
+        };
+        Ok(Self {
+            bus,
+            tap,
+            log_path: log.map(Path::to_path_buf).unwrap_or_default(),
+            max_send_failures,
+            consecutive_send_errors: 0,
+            sent: 0,
+            send_errors: 0,
+            received: 0,
+            receive_errors: 0,
+        })
+    }
+
+    fn log_error(&self, source: io::Error) -> LinkError {
+        LinkError::Log {
+            path: self.log_path.clone(),
+            source,
+        }
+    }
+
+    /// Counts a received frame and records it with its (log) timestamp.
+    pub fn received(&mut self, rx: &Received) -> Result<(), LinkError> {
+        self.received += 1;
+        match self.tap.as_mut().map(|tap| tap.received(rx)) {
+            Some(Err(e)) => Err(self.log_error(e)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Counts a receive error; Ok when the daemon goes on.
+    pub fn receive_error(&mut self, e: BusError) -> Result<(), LinkError> {
+        self.receive_errors += 1;
+        match e {
+            BusError::ErrorFrame { .. } | BusError::Unsupported { .. } => {
+                tracing::debug!("receive: {e}");
+                Ok(())
+            }
+            other => Err(other.into()),
+        }
+    }
+
+    /// Sends a frame and records it at `log_time`.
+    pub async fn send(&mut self, frame: CanFrame, log_time: Duration) -> Result<(), LinkError> {
+        match self.bus.send(frame).await {
+            Ok(()) => {
+                self.sent += 1;
+                self.consecutive_send_errors = 0;
+                match self.tap.as_mut().map(|tap| tap.sent(frame, log_time)) {
+                    Some(Err(e)) => Err(self.log_error(e)),
+                    _ => Ok(()),
+                }
+            }
+            Err(e) => {
+                self.send_errors += 1;
+                self.consecutive_send_errors += 1;
+                if self.consecutive_send_errors == 1 {
+                    tracing::warn!("send {:03X}: {e}", frame.raw_id());
+                } else {
+                    tracing::debug!("send {:03X}: {e}", frame.raw_id());
+                }
+                if self.consecutive_send_errors >= self.max_send_failures {
+                    return Err(LinkError::Send {
+                        iface: self.bus.iface().to_string(),
+                        failures: self.consecutive_send_errors,
+                        last: e.to_string(),
+                    });
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Writes the tap's buffered frames to its file.
+    pub fn flush(&mut self) -> Result<(), LinkError> {
+        match self.tap.as_mut().map(LogTap::flush) {
+            Some(Err(e)) => Err(self.log_error(e)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Flushes the tap; the number of frames it recorded (None without a tap).
+    pub fn finish(&mut self) -> Result<Option<u64>, LinkError> {
+        self.flush()?;
+        Ok(self.tap.as_ref().map(LogTap::frames))
     }
 }

@@ -23,7 +23,7 @@
 //! resolves (SIGINT/SIGTERM in the CLI) or after `duration` of simulated time; the log is flushed
 //! either way.
 
-use super::{sleep_until_precise, wall_clock, LogTap, LoopStats, Periodic};
+use super::{sleep_until_precise, wall_clock, Link, LinkError, LoopStats, Periodic};
 use crate::can::{Bus, BusError, ManualClock, Received};
 use crate::model::effects::EffectSet;
 use crate::plant::core::CYCLE;
@@ -34,6 +34,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::time::Instant;
+
+/// Refused sends in a row that stop the daemon (about 1.4 s of plant frames at 7 per cycle).
+const MAX_SEND_FAILURES: u64 = 1000;
 
 /// How simulated time relates to wall time.
 #[derive(Debug, Clone)]
@@ -71,21 +74,9 @@ pub struct Lockstep {
 #[derive(Debug, thiserror::Error)]
 pub enum PlantDaemonError {
     #[error(transparent)]
-    Bus(#[from] BusError),
-    #[error("log {path}: {source}")]
-    Log {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    Link(#[from] LinkError),
     #[error("speed {speed} must be a finite number > 0")]
     Speed { speed: f64 },
-    #[error("{failures} consecutive send failures on {iface}: {last}")]
-    Send {
-        iface: String,
-        failures: u64,
-        last: String,
-    },
 }
 
 /// What the daemon did, reported at exit.
@@ -176,17 +167,10 @@ fn fmt_opt(v: Option<f64>) -> String {
 }
 
 struct Shell<B: Bus> {
-    bus: B,
+    link: Link<B>,
     plant: Plant,
-    tap: Option<LogTap>,
-    log_path: Option<PathBuf>,
     start_wall: Duration,
     speed: f64,
-    sent: u64,
-    send_errors: u64,
-    consecutive_send_errors: u64,
-    received: u64,
-    receive_errors: u64,
     lockstep_timeouts: u64,
     pending: Vec<Received>,
 }
@@ -212,29 +196,16 @@ impl<B: Bus> Shell<B> {
         }
     }
 
-    fn tap_err(&self, source: std::io::Error) -> PlantDaemonError {
-        PlantDaemonError::Log {
-            path: self.log_path.clone().unwrap_or_default(),
-            source,
-        }
-    }
-
     fn on_receive(
         &mut self,
         rx: Received,
         sim_time: Duration,
         log_time: Duration,
     ) -> Result<(), PlantDaemonError> {
-        self.received += 1;
-        if let Some(tap) = self.tap.as_mut() {
-            let r = Received {
-                frame: rx.frame,
-                timestamp: log_time,
-            };
-            if let Err(e) = tap.received(&r) {
-                return Err(self.tap_err(e));
-            }
-        }
+        self.link.received(&Received {
+            frame: rx.frame,
+            timestamp: log_time,
+        })?;
         self.pending.push(Received {
             frame: rx.frame,
             timestamp: sim_time,
@@ -243,42 +214,11 @@ impl<B: Bus> Shell<B> {
     }
 
     async fn send(&mut self, f: &OutFrame, log_time: Duration) -> Result<(), PlantDaemonError> {
-        match self.bus.send(f.frame).await {
-            Ok(()) => {
-                self.sent += 1;
-                self.consecutive_send_errors = 0;
-                if let Some(tap) = self.tap.as_mut() {
-                    if let Err(e) = tap.sent(f.frame, log_time) {
-                        return Err(self.tap_err(e));
-                    }
-                }
-                Ok(())
-            }
-            Err(e) => {
-                self.send_errors += 1;
-                self.consecutive_send_errors += 1;
-                tracing::warn!("send {}: {e}", f.message);
-                if self.consecutive_send_errors >= 1000 {
-                    return Err(PlantDaemonError::Send {
-                        iface: self.bus.iface().to_string(),
-                        failures: self.consecutive_send_errors,
-                        last: e.to_string(),
-                    });
-                }
-                Ok(())
-            }
-        }
+        Ok(self.link.send(f.frame, log_time).await?)
     }
 
     fn recv_error(&mut self, e: BusError) -> Result<(), PlantDaemonError> {
-        match e {
-            BusError::ErrorFrame { .. } | BusError::Unsupported { .. } => {
-                self.receive_errors += 1;
-                tracing::debug!("receive: {e}");
-                Ok(())
-            }
-            other => Err(other.into()),
-        }
+        Ok(self.link.receive_error(e)?)
     }
 }
 
@@ -299,30 +239,15 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         Pacing::Virtual { .. } => 1.0,
     };
     let iface = bus.iface().to_string();
-    let tap = match &config.log {
-        Some(p) => Some(
-            LogTap::create(p, &iface).map_err(|source| PlantDaemonError::Log {
-                path: p.clone(),
-                source,
-            })?,
-        ),
-        None => None,
-    };
+    let link = Link::open(bus, config.log.as_deref(), MAX_SEND_FAILURES)?;
     let mode = config.plant.mode.as_str();
     let effects = config.plant.effects;
     let faults = config.plant.faults.len();
     let mut shell = Shell {
-        bus,
+        link,
         plant: Plant::new(config.plant),
-        tap,
-        log_path: config.log.clone(),
         start_wall: wall_clock(),
         speed,
-        sent: 0,
-        send_errors: 0,
-        consecutive_send_errors: 0,
-        received: 0,
-        receive_errors: 0,
         lockstep_timeouts: 0,
         pending: Vec::new(),
     };
@@ -347,16 +272,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
             .await?
         }
     };
-    let log_frames = match shell.tap.as_mut() {
-        Some(tap) => {
-            tap.flush().map_err(|source| PlantDaemonError::Log {
-                path: config.log.clone().unwrap_or_default(),
-                source,
-            })?;
-            Some(tap.frames())
-        }
-        None => None,
-    };
+    let log_frames = shell.link.finish()?;
     let (pacing, speed_out) = match config.pacing {
         Pacing::RealTime { speed } if config.lockstep.is_some() => ("lockstep", Some(speed)),
         Pacing::RealTime { speed } => ("real_time", Some(speed)),
@@ -376,10 +292,10 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         lateness_p50_us: stats.lateness_percentile_us(0.5),
         lateness_p99_us: stats.lateness_percentile_us(0.99),
         lateness_max_us: stats.lateness_percentile_us(1.0),
-        frames_sent: shell.sent,
-        send_errors: shell.send_errors,
-        frames_received: shell.received,
-        receive_errors: shell.receive_errors,
+        frames_sent: shell.link.sent,
+        send_errors: shell.link.send_errors,
+        frames_received: shell.link.received,
+        receive_errors: shell.link.receive_errors,
         lockstep: config.lockstep.map(|l| {
             crate::can::messages::message_def(u32::from(l.message))
                 .map_or(format!("{:#x}", l.message), |d| d.name.to_string())
@@ -421,7 +337,7 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                 }
                 // Frames that are already waiting (received before this deadline).
                 loop {
-                    match shell.bus.try_recv() {
+                    match shell.link.bus.try_recv() {
                         Ok(Some(rx)) => {
                             let (st, lt) = (shell.to_sim(rx.timestamp), shell.log_time(rx.timestamp));
                             shell.on_receive(rx, st, lt)?;
@@ -445,11 +361,7 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                     stats.overruns += 1;
                 }
                 if tick.cycle % 100 == 0 {
-                    if let Some(tap) = shell.tap.as_mut() {
-                        if let Err(e) = tap.flush() {
-                            return Err(shell.tap_err(e));
-                        }
-                    }
+                    shell.link.flush()?;
                 }
             }
             _ = async { if let Some(w) = next_tx { tokio::time::sleep_until(w).await } }, if next_tx.is_some() => {
@@ -460,7 +372,7 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                     shell.send(&f, lt).await?;
                 }
             }
-            rx = shell.bus.recv() => {
+            rx = shell.link.bus.recv() => {
                 match rx {
                     Ok(rx) => {
                         let (st, lt) = (shell.to_sim(rx.timestamp), shell.log_time(rx.timestamp));
@@ -512,7 +424,7 @@ async fn run_lockstep<B: Bus, S: Future<Output = ()>>(
             tokio::select! {
                 biased;
                 _ = shutdown.as_mut() => return Ok("shutdown"),
-                rx = shell.bus.recv() => match rx {
+                rx = shell.link.bus.recv() => match rx {
                     Ok(rx) => {
                         let answer = rx.frame.standard_id() == Some(ls.message);
                         shell.on_receive(rx, stamp, shell.start_wall + stamp)?;
@@ -529,11 +441,7 @@ async fn run_lockstep<B: Bus, S: Future<Output = ()>>(
             }
         }
         if cycle % 100 == 0 {
-            if let Some(tap) = shell.tap.as_mut() {
-                if let Err(e) = tap.flush() {
-                    return Err(shell.tap_err(e));
-                }
-            }
+            shell.link.flush()?;
         }
         cycle += 1;
     }
@@ -562,7 +470,7 @@ async fn run_virtual<B: Bus, S: Future<Output = ()>>(
         }
         set_clock(sim_now);
         loop {
-            match shell.bus.try_recv() {
+            match shell.link.bus.try_recv() {
                 Ok(Some(rx)) => {
                     // Frames of other nodes are stamped by the shared clock: base + sim time.
                     let st = rx.timestamp.saturating_sub(base).min(sim_now);

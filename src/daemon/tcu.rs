@@ -13,7 +13,7 @@
 //! - Clean shutdown on the `shutdown` future (SIGINT/SIGTERM in the CLI) or after `duration`;
 //!   the candump tap (`log`) is flushed either way.
 
-use super::{percentile, wall_clock, LogTap, LoopStats, Periodic};
+use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
 use crate::tcu::inputs::InputCounters;
@@ -23,6 +23,9 @@ use std::future::Future;
 use std::path::PathBuf;
 use std::time::Duration;
 use tokio::time::Instant;
+
+/// Refused sends in a row that stop the daemon (20 cycles of TCU frames).
+const MAX_SEND_FAILURES: u64 = 100;
 
 /// The TCU's computation cycle (the contract's 10 ms).
 pub const CYCLE: Duration = Duration::from_millis(10);
@@ -52,19 +55,7 @@ pub struct TcuDaemonConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum TcuDaemonError {
     #[error(transparent)]
-    Bus(#[from] BusError),
-    #[error("log {path}: {source}")]
-    Log {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{failures} consecutive send failures on {iface}: {last}")]
-    Send {
-        iface: String,
-        failures: u64,
-        last: String,
-    },
+    Link(#[from] LinkError),
 }
 
 /// What the daemon did, reported at exit.
@@ -133,18 +124,11 @@ impl TcuReport {
 }
 
 struct Shell<B: Bus> {
-    bus: B,
+    link: Link<B>,
     tcu: Tcu,
-    tap: Option<LogTap>,
-    log_path: Option<PathBuf>,
     start: Instant,
     start_wall: Duration,
     inbox: Vec<TimedFrame>,
-    sent: u64,
-    send_errors: u64,
-    consecutive_send_errors: u64,
-    received: u64,
-    receive_errors: u64,
     computations: u64,
     sync: u64,
     fallback: u64,
@@ -156,13 +140,6 @@ struct Shell<B: Bus> {
 }
 
 impl<B: Bus> Shell<B> {
-    fn tap_err(&self, source: std::io::Error) -> TcuDaemonError {
-        TcuDaemonError::Log {
-            path: self.log_path.clone().unwrap_or_default(),
-            source,
-        }
-    }
-
     /// Time since the start on the TCU's time base for a bus timestamp (wall clock), never
     /// later than now.
     fn to_tcu(&self, ts: Duration) -> Duration {
@@ -173,12 +150,7 @@ impl<B: Bus> Shell<B> {
     /// Queues a received frame; returns its time on the TCU's time base when it is a
     /// DCT_Sensors frame (the sync).
     fn on_receive(&mut self, rx: Received) -> Result<Option<Duration>, TcuDaemonError> {
-        self.received += 1;
-        if let Some(tap) = self.tap.as_mut() {
-            if let Err(e) = tap.received(&rx) {
-                return Err(self.tap_err(e));
-            }
-        }
+        self.link.received(&rx)?;
         let at = self.to_tcu(rx.timestamp);
         self.inbox.push(TimedFrame {
             at,
@@ -188,41 +160,11 @@ impl<B: Bus> Shell<B> {
     }
 
     fn recv_error(&mut self, e: BusError) -> Result<(), TcuDaemonError> {
-        self.receive_errors += 1;
-        match e {
-            // Error frames and unsupported frames are counted, not fatal.
-            BusError::ErrorFrame { .. } | BusError::Unsupported { .. } => Ok(()),
-            other => Err(other.into()),
-        }
+        Ok(self.link.receive_error(e)?)
     }
 
     async fn send(&mut self, f: CanFrame) -> Result<(), TcuDaemonError> {
-        match self.bus.send(f).await {
-            Ok(()) => {
-                self.sent += 1;
-                self.consecutive_send_errors = 0;
-                if let Some(tap) = self.tap.as_mut() {
-                    if let Err(e) = tap.sent(f, wall_clock()) {
-                        return Err(self.tap_err(e));
-                    }
-                }
-                Ok(())
-            }
-            Err(e) => {
-                // A full transmit queue (ENOBUFS) on a busy bus drops one frame; only a bus that
-                // keeps refusing is fatal.
-                self.send_errors += 1;
-                self.consecutive_send_errors += 1;
-                if self.consecutive_send_errors >= 100 {
-                    return Err(TcuDaemonError::Send {
-                        iface: self.bus.iface().to_string(),
-                        failures: self.consecutive_send_errors,
-                        last: e.to_string(),
-                    });
-                }
-                Ok(())
-            }
-        }
+        Ok(self.link.send(f, wall_clock()).await?)
     }
 
     /// Computes for a DCT_Sensors frame received at `first`, then for every further one the
@@ -247,7 +189,7 @@ impl<B: Bus> Shell<B> {
         let t0 = Instant::now();
         // Frames already waiting belong to this computation too.
         loop {
-            match self.bus.try_recv() {
+            match self.link.bus.try_recv() {
                 Ok(Some(rx)) => {
                     self.on_receive(rx)?;
                 }
@@ -305,11 +247,7 @@ impl<B: Bus> Shell<B> {
             self.last_sync = Some(t0);
         }
         if self.computations % 100 == 0 {
-            if let Some(tap) = self.tap.as_mut() {
-                if let Err(e) = tap.flush() {
-                    return Err(self.tap_err(e));
-                }
-            }
+            self.link.flush()?;
         }
         Ok(())
     }
@@ -340,29 +278,14 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     config: TcuDaemonConfig,
 ) -> Result<TcuReport, TcuDaemonError> {
     let iface = bus.iface().to_string();
-    let tap = match &config.log {
-        Some(p) => Some(
-            LogTap::create(p, &iface).map_err(|source| TcuDaemonError::Log {
-                path: p.clone(),
-                source,
-            })?,
-        ),
-        None => None,
-    };
+    let link = Link::open(bus, config.log.as_deref(), MAX_SEND_FAILURES)?;
     let start = Instant::now();
     let mut shell = Shell {
-        bus,
+        link,
         tcu: Tcu::new(config.tcu.clone(), Duration::ZERO),
-        tap,
-        log_path: config.log.clone(),
         start,
         start_wall: wall_clock(),
         inbox: Vec::new(),
-        sent: 0,
-        send_errors: 0,
-        consecutive_send_errors: 0,
-        received: 0,
-        receive_errors: 0,
         computations: 0,
         sync: 0,
         fallback: 0,
@@ -380,7 +303,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         tokio::select! {
             biased;
             _ = shutdown.as_mut() => break "shutdown",
-            rx = shell.bus.recv() => {
+            rx = shell.link.bus.recv() => {
                 match rx {
                     Ok(rx) => {
                         if let Some(at) = shell.on_receive(rx)? {
@@ -404,15 +327,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
             }
         }
     };
-    let log_frames = match shell.tap.as_mut() {
-        Some(tap) => {
-            if let Err(e) = tap.flush() {
-                return Err(shell.tap_err(e));
-            }
-            Some(tap.frames())
-        }
-        None => None,
-    };
+    let log_frames = shell.link.finish()?;
     Ok(TcuReport {
         iface,
         stopped_by,
@@ -426,10 +341,10 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         compute_p50_us: percentile(&shell.compute_us, 0.5),
         compute_p99_us: percentile(&shell.compute_us, 0.99),
         compute_max_us: percentile(&shell.compute_us, 1.0),
-        frames_sent: shell.sent,
-        send_errors: shell.send_errors,
-        frames_received: shell.received,
-        receive_errors: shell.receive_errors,
+        frames_sent: shell.link.sent,
+        send_errors: shell.link.send_errors,
+        frames_received: shell.link.received,
+        receive_errors: shell.link.receive_errors,
         safe_entries: shell.tcu.safe_entries(),
         final_state: shell.last_state.0,
         final_fault: shell.last_state.1,
