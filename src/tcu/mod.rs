@@ -233,45 +233,33 @@ impl Tcu {
         // Top-level state.
         let grace = now.saturating_sub(self.start)
             >= Duration::from_millis(10) * self.cfg.inputs.timeout_cycles;
-        match self.top {
-            Top::Init => {
-                if self.inputs.all_seen() && health.all_fresh {
-                    self.top = Top::Run;
-                    let ctx = Ctx {
-                        cfg: &self.cfg,
-                        model: &self.model,
-                        m: &m,
-                        theta,
-                        dt,
-                        w_out_dot: self.w_out_dot,
-                        limit_torque: self.limit,
-                    };
-                    self.strategy.restart(&ctx);
-                }
-            }
+        let restart = match self.top {
+            Top::Init => self.inputs.all_seen() && health.all_fresh,
             Top::Run => {
                 if !health.all_fresh {
                     self.enter_safe(health.fault.unwrap_or(FaultCode::InternalNonFinite));
                 }
+                false
             }
             Top::Safe => {
                 if let Some(f) = health.fault {
                     self.safe_fault = f;
                 }
-                if health.recovered {
-                    self.top = Top::Run;
-                    let ctx = Ctx {
-                        cfg: &self.cfg,
-                        model: &self.model,
-                        m: &m,
-                        theta,
-                        dt,
-                        w_out_dot: self.w_out_dot,
-                        limit_torque: self.limit,
-                    };
-                    self.strategy.restart(&ctx);
-                }
+                health.recovered
             }
+        };
+        if restart {
+            self.top = Top::Run;
+            let ctx = Ctx {
+                cfg: &self.cfg,
+                model: &self.model,
+                m: &m,
+                theta,
+                dt,
+                w_out_dot: self.w_out_dot,
+                limit_torque: self.limit,
+            };
+            self.strategy.restart(&ctx);
         }
         let mut cmd = match self.top {
             Top::Init => Command {
