@@ -233,3 +233,25 @@ def signal_cases(msg) -> dict[str, dict[str, float]]:
         cases["mid"][sig.name] = mid
         cases["max"][sig.name] = hi
     return cases
+
+
+def can_receivers(iface: str) -> frozenset | None:
+    """The kernel's CAN receive-list entries on `iface` (None: no /proc/net/can).
+
+    An entry is (list, can_id, mask, function, userdata, ident): one per bound raw socket filter;
+    a new entry means a receiver started in the background now listens.
+    """
+    base = Path("/proc/net/can")
+    if not base.is_dir():
+        return None
+    entries = set()
+    for f in base.glob("rcvlist_*"):
+        try:
+            lines = f.read_text().splitlines()
+        except OSError:
+            continue
+        for line in lines:
+            cols = line.split()
+            if cols[:1] == [iface] and len(cols) >= 7:
+                entries.add((f.name, *cols[1:5], cols[6]))
+    return frozenset(entries)

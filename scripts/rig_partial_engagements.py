@@ -185,26 +185,9 @@ def spawn_plant(ddct: str, iface: str, config: str, speed: float, duration: floa
     return subprocess.Popen(args, stdin=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
-def can_receivers(iface: str):
-    """The kernel's receive-list entries on `iface` (None without /proc/net/can)."""
-    base = Path("/proc/net/can")
-    if not base.is_dir():
-        return None
-    entries = set()
-    for f in base.glob("rcvlist_*"):
-        try:
-            for line in f.read_text().splitlines():
-                cols = line.split()
-                if cols[:1] == [iface] and len(cols) >= 7:
-                    entries.add((f.name, *cols[1:5], cols[6]))
-        except OSError:
-            continue
-    return entries
-
-
 def start_candump(iface: str, raw_path: Path):
     """`candump -L` into raw_path; returns once its socket is registered (so no frame is missed)."""
-    before = can_receivers(iface)
+    before = ddct_can.can_receivers(iface)
     f = open(raw_path, "w", encoding="ascii")
     p = subprocess.Popen(["candump", "-L", "-r", str(64 << 20), iface], stdout=f,
                          stdin=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -213,7 +196,7 @@ def start_candump(iface: str, raw_path: Path):
     while True:
         if p.poll() is not None:
             raise RuntimeError(f"candump exited ({p.returncode}): {p.stderr.read()}")
-        now = can_receivers(iface)
+        now = ddct_can.can_receivers(iface)
         if now is None:
             time.sleep(0.5)
             break

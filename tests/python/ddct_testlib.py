@@ -46,6 +46,22 @@ def ddct_bin(may_skip: bool = False) -> Path:
     return path
 
 
+ARPHRD_CAN = 280
+IFF_UP = 0x1
+
+
+def require_vcan(iface: str = "vcan0") -> str:
+    """The interface name when it exists, is a CAN interface and is up; otherwise missing()."""
+    sysfs = Path("/sys/class/net") / iface
+    if not sysfs.exists():
+        missing(f"{iface} does not exist", may_skip=True)
+    if int((sysfs / "type").read_text()) != ARPHRD_CAN:
+        missing(f"{iface} is not a CAN interface", may_skip=True)
+    if not int((sysfs / "flags").read_text(), 16) & IFF_UP:
+        missing(f"{iface} is down", may_skip=True)
+    return iface
+
+
 def tool(name: str, may_skip: bool = False) -> str:
     found = shutil.which(name)
     if not found:

@@ -17,20 +17,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python"))
 import ddct_testlib as lib  # noqa: E402
 from vcan_helpers import IFACE  # noqa: E402
 
-ARPHRD_CAN = 280
-IFF_UP = 0x1
 
 
 @pytest.fixture(scope="session")
 def vcan0():
-    sysfs = Path("/sys/class/net") / IFACE
-    if not sysfs.exists():
-        lib.missing(f"{IFACE} does not exist", may_skip=True)
-    if int((sysfs / "type").read_text()) != ARPHRD_CAN:
-        lib.missing(f"{IFACE} is not a CAN interface", may_skip=True)
-    if not int((sysfs / "flags").read_text(), 16) & IFF_UP:
-        lib.missing(f"{IFACE} is down", may_skip=True)
-    return IFACE
+    return lib.require_vcan(IFACE)
 
 
 @pytest.fixture(scope="session")

@@ -5,30 +5,15 @@ from __future__ import annotations
 import subprocess
 import time
 from contextlib import contextmanager
-from pathlib import Path
+
+import ddct_can
 
 IFACE = "vcan0"
 
 
 def can_receivers(iface: str = IFACE) -> frozenset | None:
-    """The kernel's CAN receive-list entries on iface (None: no /proc/net/can).
-
-    An entry is (list, can_id, mask, function, userdata, ident): one per bound raw socket filter.
-    """
-    base = Path("/proc/net/can")
-    if not base.is_dir():
-        return None
-    entries = set()
-    for f in base.glob("rcvlist_*"):
-        try:
-            lines = f.read_text().splitlines()
-        except OSError:
-            continue
-        for line in lines:
-            cols = line.split()
-            if cols[:1] == [iface] and len(cols) >= 7:
-                entries.add((f.name, *cols[1:5], cols[6]))
-    return frozenset(entries)
+    """The kernel's CAN receive-list entries on iface (see ddct_can.can_receivers)."""
+    return ddct_can.can_receivers(iface)
 
 
 def wait_receivers(before: frozenset | None, added: int, procs=(), timeout: float = 30.0):
