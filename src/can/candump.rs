@@ -158,34 +158,45 @@ pub fn parse_line(line: &str) -> Result<LogRecord, LineError> {
 /// Formats one record exactly as `candump -l` does (no direction flag unless the record has one).
 pub fn format_record(r: &LogRecord) -> String {
     let mut s = String::with_capacity(48);
+    push_line(&mut s, r.timestamp, &r.iface, &r.frame, r.direction);
+    s
+}
+
+/// Appends one `candump -l` line (without the newline) to `s`.
+fn push_line(
+    s: &mut String,
+    timestamp: Duration,
+    iface: &str,
+    frame: &CanFrame,
+    direction: Option<Direction>,
+) {
     let _ = write!(
         s,
         "({:010}.{:06}) {} ",
-        r.timestamp.as_secs(),
-        r.timestamp.subsec_micros(),
-        r.iface
+        timestamp.as_secs(),
+        timestamp.subsec_micros(),
+        iface
     );
-    if r.frame.is_extended() {
-        let _ = write!(s, "{:08X}#", r.frame.raw_id());
+    if frame.is_extended() {
+        let _ = write!(s, "{:08X}#", frame.raw_id());
     } else {
-        let _ = write!(s, "{:03X}#", r.frame.raw_id());
+        let _ = write!(s, "{:03X}#", frame.raw_id());
     }
-    if r.frame.is_remote_frame() {
+    if frame.is_remote_frame() {
         s.push('R');
-        if r.frame.dlc() > 0 {
-            let _ = write!(s, "{:X}", r.frame.dlc());
+        if frame.dlc() > 0 {
+            let _ = write!(s, "{:X}", frame.dlc());
         }
     } else {
-        for b in r.frame.bytes() {
+        for b in frame.bytes() {
             let _ = write!(s, "{b:02X}");
         }
     }
-    match r.direction {
+    match direction {
         Some(Direction::Rx) => s.push_str(" R"),
         Some(Direction::Tx) => s.push_str(" T"),
         None => {}
     }
-    s
 }
 
 /// Reads records from a candump log, one `Result` per non-empty line.
@@ -237,14 +248,32 @@ impl<R: BufRead> Iterator for LogReader<R> {
 /// Writes records in `candump -l` format; flushes on [`LogWriter::flush`] and on drop.
 pub struct LogWriter<W: Write> {
     out: W,
+    /// The line being written, reused (no allocation per frame).
+    line: String,
 }
 
 impl<W: Write> LogWriter<W> {
     pub fn new(out: W) -> Self {
-        Self { out }
+        Self {
+            out,
+            line: String::with_capacity(64),
+        }
     }
     pub fn write(&mut self, r: &LogRecord) -> io::Result<()> {
-        writeln!(self.out, "{}", format_record(r))
+        self.write_frame(r.timestamp, &r.iface, &r.frame, r.direction)
+    }
+    /// Writes one frame without building a [`LogRecord`].
+    pub fn write_frame(
+        &mut self,
+        timestamp: Duration,
+        iface: &str,
+        frame: &CanFrame,
+        direction: Option<Direction>,
+    ) -> io::Result<()> {
+        self.line.clear();
+        push_line(&mut self.line, timestamp, iface, frame, direction);
+        self.line.push('\n');
+        self.out.write_all(self.line.as_bytes())
     }
     pub fn flush(&mut self) -> io::Result<()> {
         self.out.flush()

@@ -14,7 +14,7 @@
 use super::{runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::Args;
-use ddct::can::candump::{LogReader, LogRecord, LogWriter};
+use ddct::can::candump::{LogReader, LogWriter};
 use ddct::can::messages::{ids, FaultCode, TcuState};
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{
@@ -317,12 +317,7 @@ fn write_log(path: &Path, iface: &str, frames: &[(Duration, CanFrame)]) -> anyho
     let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut w = LogWriter::new(BufWriter::new(f));
     for (t, fr) in frames {
-        w.write(&LogRecord {
-            timestamp: *t,
-            iface: iface.to_string(),
-            frame: *fr,
-            direction: None,
-        })?;
+        w.write_frame(*t, iface, fr, None)?;
     }
     w.flush()?;
     Ok(())

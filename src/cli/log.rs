@@ -3,7 +3,7 @@
 use super::{runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
-use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
+use ddct::can::candump::{LogError, LogReader, LogWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::Bus;
@@ -338,7 +338,7 @@ fn record(
             tokio::select! {
                 rx = bus.recv() => {
                     let rx = rx?;
-                    writer.write(&LogRecord { timestamp: rx.timestamp, iface: iface.to_string(), frame: rx.frame, direction: None })?;
+                    writer.write_frame(rx.timestamp, iface, &rx.frame, None)?;
                     n += 1;
                     if last_flush.elapsed() > Duration::from_millis(200) {
                         writer.flush()?;

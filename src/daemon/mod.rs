@@ -6,7 +6,7 @@
 pub mod plant;
 pub mod tcu;
 
-use crate::can::candump::{LogRecord, LogWriter};
+use crate::can::candump::LogWriter;
 use crate::can::{Bus, BusError, CanFrame, Received};
 use std::fs::File;
 use std::io::{self, BufWriter};
@@ -196,12 +196,8 @@ impl LogTap {
 
     fn write(&mut self, frame: CanFrame, timestamp: Duration) -> io::Result<()> {
         self.frames += 1;
-        self.writer.write(&LogRecord {
-            timestamp,
-            iface: self.iface.clone(),
-            frame,
-            direction: None,
-        })
+        self.writer
+            .write_frame(timestamp, &self.iface, &frame, None)
     }
 
     pub fn frames(&self) -> u64 {
