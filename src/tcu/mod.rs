@@ -248,17 +248,17 @@ impl Tcu {
                 health.recovered
             }
         };
+        let ctx = Ctx {
+            cfg: &self.cfg,
+            model: &self.model,
+            m: &m,
+            theta,
+            dt,
+            w_out_dot: self.w_out_dot,
+            limit_torque: self.limit,
+        };
         if restart {
             self.top = Top::Run;
-            let ctx = Ctx {
-                cfg: &self.cfg,
-                model: &self.model,
-                m: &m,
-                theta,
-                dt,
-                w_out_dot: self.w_out_dot,
-                limit_torque: self.limit,
-            };
             self.strategy.restart(&ctx);
         }
         let mut cmd = match self.top {
@@ -286,18 +286,7 @@ impl Tcu {
                     ..Default::default()
                 }
             }
-            Top::Run => {
-                let ctx = Ctx {
-                    cfg: &self.cfg,
-                    model: &self.model,
-                    m: &m,
-                    theta,
-                    dt,
-                    w_out_dot: self.w_out_dot,
-                    limit_torque: self.limit,
-                };
-                self.strategy.step(&ctx)
-            }
+            Top::Run => self.strategy.step(&ctx),
         };
         // Finite outputs, always.
         self.nonfinite = !(cmd.x_ref.iter().all(|v| v.is_finite())
