@@ -26,6 +26,7 @@ use super::blackbox::{self, BlackBoxResult, Design};
 use super::candidates::{self, Channel, Model, Predictions, Samples};
 use super::dataset::{Col, Dataset};
 use super::events::SegmentOptions;
+use super::finding::Finding;
 use super::keys;
 use super::lsq::{self, LmOptions, ParamSpec};
 use super::replay::{self, Measured};
@@ -467,6 +468,9 @@ pub struct Verdict {
     pub ambiguous_with: Vec<String>,
     pub outside_library_depends_on: Vec<String>,
     pub explanation: String,
+    /// The typed findings (issue 17): classes, sensors, out-of-range recalibrations, residuals
+    /// outside the library, or `Nothing` alone.
+    pub findings: Vec<Finding>,
 }
 
 /// Before/after of one output on the validation files.
@@ -1261,6 +1265,7 @@ pub fn diagnose(
     } else {
         Vec::new()
     };
+    let findings = legacy_findings(&effect, &subsystem, &outside_library_depends_on);
     Ok(Diagnosis {
         train_files: train.iter().map(|d| d.source.clone()).collect(),
         validate_files: validate.iter().map(|d| d.source.clone()).collect(),
@@ -1275,6 +1280,7 @@ pub fn diagnose(
             ambiguous_with,
             outside_library_depends_on,
             explanation,
+            findings,
         },
         how_far,
         recalibration,
@@ -1283,6 +1289,36 @@ pub fn diagnose(
         calibrated,
         traces,
     })
+}
+
+/// Findings from the single-effect verdict (transitional).
+fn legacy_findings(effect: &str, subsystem: &str, depends_on: &[String]) -> Vec<Finding> {
+    use super::class::ClassId;
+    use super::finding::{ClassFinding, OutsideFinding};
+    if effect == "outside_library" {
+        return vec![Finding::OutsideLibrary(OutsideFinding {
+            subsystem: Subsystem::parse(subsystem).unwrap_or(Subsystem::TorqueCharacteristic),
+            excess: f64::NAN,
+            depends_on: depends_on.to_vec(),
+            time_structure: String::new(),
+        })];
+    }
+    match EffectId::parse(effect).and_then(ClassId::of_effect) {
+        Some(c) => vec![Finding::Class(ClassFinding {
+            class: c,
+            subsystem: c.subsystem(),
+            variable: c.variable(),
+            ambiguous_with: Vec::new(),
+            share_pct: f64::NAN,
+            magnitude: f64::NAN,
+            magnitude_ci95: (f64::NAN, f64::NAN),
+            unit: "",
+            range_warning: None,
+            shape: Vec::new(),
+            parameters: BTreeMap::new(),
+        })],
+        None => vec![Finding::Nothing],
+    }
 }
 
 /// Free-running replay RMSE of torque and temperatures, nominal vs after.

@@ -11,10 +11,12 @@
 pub mod blackbox;
 pub mod blind;
 pub mod candidates;
+pub mod class;
 pub mod dataset;
 pub mod diagnose;
 pub mod events;
 pub mod experiment;
+pub mod finding;
 pub mod identify;
 pub mod keys;
 pub mod lsq;

@@ -1,0 +1,131 @@
+//! The typed result of the diagnosis (issue 17): a list of findings, each a class that explains
+//! part of the gap (physics or sensor), a recalibration that had to leave its plausible range,
+//! or a residual no class explains ("outside the library") — or `Nothing`, alone, when the
+//! validation residual is at the noise floor and every recalibrated parameter is plausible.
+
+use super::class::{ClassId, Variable};
+use crate::model::effects::Subsystem;
+use std::collections::BTreeMap;
+
+/// A class that explains part of the validation gap.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ClassFinding {
+    pub class: ClassId,
+    pub subsystem: Subsystem,
+    pub variable: Variable,
+    /// Other classes that explain the validation data equally well (the ambiguity set is this
+    /// class plus these); empty when the class is singled out.
+    pub ambiguous_with: Vec<ClassId>,
+    /// Share of the recalibrated validation gap (above the noise floor) this class closes, in
+    /// the order of selection (%; 0–100).
+    pub share_pct: f64,
+    /// Magnitude: the largest relative (or absolute, see `unit`) change the fitted term makes
+    /// over the operating range of its variable in the records, with a 95 % interval.
+    pub magnitude: f64,
+    pub magnitude_ci95: (f64, f64),
+    pub unit: &'static str,
+    /// When the magnitude lies outside the documented range of the class's library member:
+    /// by how much (text), else `None`.
+    pub range_warning: Option<String>,
+    /// The fitted shape: (variable, value of the term) at the knots.
+    pub shape: Vec<(f64, f64)>,
+    /// Fitted parameters by name.
+    pub parameters: BTreeMap<String, f64>,
+}
+
+/// A recalibrated parameter that had to move outside its plausible range.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct RecalibrationFinding {
+    pub key: String,
+    pub nominal: f64,
+    pub value: f64,
+    /// Move from nominal (%).
+    pub move_pct: f64,
+    /// Plausible range of the recalibrated value.
+    pub plausible: (f64, f64),
+}
+
+/// A residual no class explains.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct OutsideFinding {
+    pub subsystem: Subsystem,
+    /// Validation excess over the noise floor left unexplained (mean standardized square − 1).
+    pub excess: f64,
+    /// Measured variables the remaining residual depends on, strongest first.
+    pub depends_on: Vec<String>,
+    /// Time structure of the remaining residual (e.g. "slow drift", "within engagements").
+    pub time_structure: String,
+}
+
+/// One finding of the diagnosis.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Finding {
+    /// A physics class explains part of the gap.
+    Class(ClassFinding),
+    /// A sensor class explains part of the gap.
+    Sensor(ClassFinding),
+    /// A recalibration outside its plausible range is itself the finding.
+    Recalibration(RecalibrationFinding),
+    /// A significant residual no class explains.
+    OutsideLibrary(OutsideFinding),
+    /// Nothing significant remains (only ever alone).
+    Nothing,
+}
+
+impl Finding {
+    /// The class finding, for physics and sensor classes.
+    pub fn class(&self) -> Option<&ClassFinding> {
+        match self {
+            Finding::Class(c) | Finding::Sensor(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// Identifier used in reports: the class, `recalibration`, `outside_library` or `none`.
+    pub fn label(&self) -> String {
+        match self {
+            Finding::Class(c) | Finding::Sensor(c) => c.class.as_str().to_string(),
+            Finding::Recalibration(r) => format!("recalibration:{}", r.key),
+            Finding::OutsideLibrary(o) => format!("outside_library:{}", o.subsystem),
+            Finding::Nothing => "none".to_string(),
+        }
+    }
+
+    pub fn subsystem(&self) -> Option<Subsystem> {
+        match self {
+            Finding::Class(c) | Finding::Sensor(c) => Some(c.subsystem),
+            Finding::OutsideLibrary(o) => Some(o.subsystem),
+            Finding::Recalibration(r) => subsystem_of_key(&r.key),
+            Finding::Nothing => None,
+        }
+    }
+}
+
+/// The subsystem a `table.key` parameter belongs to.
+fn subsystem_of_key(key: &str) -> Option<Subsystem> {
+    match key.split_once('.')?.0 {
+        "clutch" => Some(Subsystem::TorqueCharacteristic),
+        "thermal5" => Some(Subsystem::Thermal),
+        "actuator" => Some(Subsystem::Actuator),
+        _ => None,
+    }
+}
+
+/// Classes named by a list of findings, each with its ambiguity set (the class first).
+pub fn named_classes(findings: &[Finding]) -> Vec<Vec<ClassId>> {
+    findings
+        .iter()
+        .filter_map(Finding::class)
+        .map(|c| {
+            let mut v = vec![c.class];
+            v.extend(c.ambiguous_with.iter().copied());
+            v
+        })
+        .collect()
+}
+
+/// True when the findings claim no class and no outside-library residual.
+pub fn is_nothing(findings: &[Finding]) -> bool {
+    findings.iter().all(|f| matches!(f, Finding::Nothing))
+}
