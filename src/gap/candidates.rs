@@ -14,6 +14,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::replay::{self, Measured};
+use super::terms::{self, Extra, Terms, THETA_REF_C, X_REF_MM};
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
 use crate::model::params::{ClutchParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
@@ -59,6 +60,8 @@ impl Hooks for SetHooks {
 pub struct Model {
     pub p: Params,
     pub set: EffectSet,
+    /// Fitted class terms (flexible forms, sensors).
+    pub terms: Terms,
 }
 
 impl Model {
@@ -66,6 +69,7 @@ impl Model {
         Model {
             p,
             set: EffectSet::nominal(),
+            terms: Terms::default(),
         }
     }
 }
@@ -249,32 +253,141 @@ fn window_mean(v: &[f64], k: usize) -> f64 {
     s / w as f64
 }
 
+/// Hidden facing-surface temperatures of the library's `surface_temperature_friction` member
+/// along the record: θ̇_s = h·P − (θ_s − θ_c)/τ_s, exact per sample with the measured friction
+/// power and the disk temperature estimate.
+fn surface_temperatures(
+    set: &EffectSet,
+    m: &Measured,
+    disk: &[Vec<f64>; 2],
+) -> Option<[Vec<f64>; 2]> {
+    let v = set.get(EffectId::SurfaceTemperatureFriction)?;
+    let (h, tau) = (v[0], v[1].max(1e-3));
+    let a = (-m.dt / tau).exp();
+    Some([0, 1].map(|i| {
+        let mut th = disk[i][0];
+        (0..m.n)
+            .map(|k| {
+                let out = th;
+                let target = disk[i][k] + h * m.power[i][k].max(0.0) * tau;
+                th = target + (th - target) * a;
+                out
+            })
+            .collect()
+    }))
+}
+
+/// Model torque of clutch `i` at sample `k` (before the torque sensor).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn torque_at(
+    model: &Model,
+    m: &Measured,
+    dk: &[Vec<f64>; 2],
+    bearing: Option<&[Vec<f64>; 2]>,
+    surface: Option<&[Vec<f64>; 2]>,
+    slide: Option<&[Vec<f64>; 2]>,
+    i: usize,
+    k: usize,
+) -> f64 {
+    let mut ctx = m.context(i, k, dk[i][k]);
+    if let Some(b) = bearing {
+        ctx.x_to_mm = b[i][k];
+    }
+    ctx.x_to_mm = model.terms.bearing(ctx.x_to_mm);
+    let mut tc = torque_context(&ctx);
+    if let Some(s) = surface {
+        tc.theta_surface_c = s[i][k];
+    }
+    let extra = Extra {
+        slide_acc: slide.map_or(0.0, |v| v[i][k]),
+    };
+    model.terms.torque(&model.p.clutch, &model.set, &tc, &extra)
+}
+
 /// Evaluates `model` on the channels `chans` of file `m` at the samples `s` (the others NaN).
 pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> Predictions {
+    let disk =
+        want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks(model.set), m));
+    let mut pr = predict_inner(model, m, s, chans, disk.as_ref());
+    pr.disk = disk;
+    pr
+}
+
+/// [`predict`] with the disk temperature estimate given (it depends only on the thermal
+/// parameters and β, so fits of the torque characteristic reuse it); `disk` of the result is
+/// `None`.
+pub fn predict_with_disk_ref(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    chans: &[Channel],
+    disk: &[Vec<f64>; 2],
+) -> Predictions {
+    predict_inner(model, m, s, chans, Some(disk))
+}
+
+fn want_torque(s: &Samples, chans: &[Channel]) -> bool {
+    (0..2).any(|i| chans.contains(&Channel::Torque(i)) && !s.get(Channel::Torque(i)).is_empty())
+}
+
+fn predict_inner(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    chans: &[Channel],
+    disk: Option<&[Vec<f64>; 2]>,
+) -> Predictions {
     let p = &model.p;
     let h = SetHooks(model.set);
+    let t = &model.terms;
     let mut y = vec![Vec::new(); Channel::ALL.len()];
     let want = |c: Channel| chans.contains(&c) && !s.get(c).is_empty();
-    let mut disk = None;
-    if want(Channel::Torque(0)) || want(Channel::Torque(1)) {
-        let dk = replay::disk_estimate(p, &h, m);
+    if let Some(dk) = disk {
         let bearing = bearing_sequence(&model.set, m);
+        let surface = surface_temperatures(&model.set, m, dk);
+        let slide =
+            t.mu.iter()
+                .flatten()
+                .any(|(v, _)| *v == super::class::Variable::SlidingAcceleration)
+                .then(|| [0, 1].map(|i| slide_acceleration(&m.slip[i], m.dt)));
+        let skew = t.torque_skew_s / m.dt;
         for i in 0..2 {
             let c = Channel::Torque(i);
             if !want(c) {
                 continue;
             }
+            let at = |k: usize| {
+                torque_at(
+                    model,
+                    m,
+                    dk,
+                    bearing.as_ref(),
+                    surface.as_ref(),
+                    slide.as_ref(),
+                    i,
+                    k,
+                )
+            };
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {
-                let mut ctx = m.context(i, k, dk[i][k]);
-                if let Some(b) = &bearing {
-                    ctx.x_to_mm = b[i][k];
-                }
-                v[k] = effects::torque(&p.clutch, &model.set, &torque_context(&ctx));
+                let tq = if skew == 0.0 {
+                    at(k)
+                } else {
+                    // Recorded late by the skew: the sample at k shows the torque at k − skew.
+                    let x = (k as f64 - skew).clamp(0.0, (m.n - 1) as f64);
+                    let (a, f) = (x.floor() as usize, x - x.floor());
+                    let b = (a + 1).min(m.n - 1);
+                    if f == 0.0 {
+                        at(a)
+                    } else {
+                        (1.0 - f) * at(a) + f * at(b)
+                    }
+                };
+                v[k] = t.measured_torque(tq);
             }
             y[c.index()] = v;
         }
-        disk = Some(dk);
     }
     if (0..3).any(|j| want(Channel::Temp(j))) {
         let tr = replay::thermal_replay(p, &h, m);
@@ -283,9 +396,16 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
             if !want(c) {
                 continue;
             }
+            let mut series: Vec<f64> = tr.iter().map(|s| [s.pp1, s.pp2, s.cd][j]).collect();
+            if t.temp_lag_s > 0.0 {
+                series = terms::lag(&series, t.temp_lag_s, m.dt);
+            }
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {
-                v[k] = [tr[k].pp1, tr[k].pp2, tr[k].cd][j];
+                v[k] = match &t.temp_sensor {
+                    Some(g) => g.apply(series[k], THETA_REF_C),
+                    None => series[k],
+                };
             }
             y[c.index()] = v;
         }
@@ -297,10 +417,16 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
                 continue;
             }
             let req = delayed_requests(&model.set, &xr[i], m.dt);
-            let xs = replay::actuator_replay(&p.actuator, &req, m.x[i][0], m.dt);
+            let x0 = t
+                .pos_sensor
+                .map_or(m.x[i][0], |g| g.invert(m.x[i][0], X_REF_MM));
+            let xs = replay::actuator_replay(&p.actuator, &req, x0, m.dt);
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {
-                v[k] = xs[k];
+                v[k] = match &t.pos_sensor {
+                    Some(g) => g.apply(xs[k], X_REF_MM),
+                    None => xs[k],
+                };
             }
             y[c.index()] = v;
         }
@@ -319,7 +445,13 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
         }
         y[c.index()] = v;
     }
-    Predictions { y, disk }
+    Predictions { y, disk: None }
+}
+
+/// Sliding acceleration d|ω_fc|/dt (rad/s²) by a centred difference over ±2 samples.
+pub fn slide_acceleration(slip: &[f64], dt: f64) -> Vec<f64> {
+    let a: Vec<f64> = slip.iter().map(|w| w.abs()).collect();
+    replay::derivative(&a, dt, 2)
 }
 
 /// Residuals (measured − predicted) of the channels at their samples, in channel order.

@@ -1,38 +1,43 @@
-//! The sim-to-real gap diagnosis (DESIGN.md §6): given training and validation records from
-//! "reality" and the nominal parameters, where is the gap, which unmodelled effect causes it, and
-//! how far does it shrink once that effect is added — judged on the validation records only.
+//! The sim-to-real gap diagnosis (DESIGN.md §6, issue 17): given training and validation records
+//! from "reality" and the nominal parameters, where is the gap, which class of unmodelled effect
+//! causes it (the term of the model it modifies and the variable it depends on, see
+//! [`super::class`]), and how far does it shrink once that effect is added — judged on the
+//! validation records only. Each phase is a function over the shared [`context`](super::context):
 //!
-//! Pipeline:
-//! 1. Channels the records can check (per subsystem, from the logged columns) and what they can
-//!    tell apart ([`separability`]).
-//! 2. Plain recalibration: the nominal parameters re-fitted per subsystem group — thermal (α1,
-//!    α2, α3, α5, α8, α9 on the plate and central-disk temperatures), torque characteristic (λ0,
-//!    λ1, λ2 of (9) on the torque, with the recalibrated thermal model), actuator (lag τ) —
-//!    so that an effect is credited only for what recalibration cannot do.
-//! 3. Every library effect fitted jointly with its group's recalibration parameters on the
-//!    training records; scored by ΔBIC on training (autocorrelation-corrected sample sizes) and by
-//!    the standardized validation error over every checkable channel (each channel's residual
-//!    divided by its sensor-noise floor), with a paired event bootstrap over validation blocks.
-//!    An effect is credited when ΔBIC < −10, its validation improvement is significant and it
-//!    removes at least 10 % of the recalibrated validation excess over the noise floor.
-//! 4. Ambiguity: credited effects whose validation score is not significantly worse than the
-//!    best's. Outside the library: a black-box discrepancy of the torque characteristic
-//!    ([`super::blackbox`]) that explains far more of the validation torque gap than the best
-//!    effect, with the variables it needs. `none`: nothing credited and nothing significant left.
-//! 5. How far: RMSE and fit % of every output before (nominal, recalibrated) and after the effect,
-//!    with event-bootstrap intervals; equation error and replay error.
+//! 1. [`recalibrate`]: every parameter a bench recalibrates, bounded to its plausible range.
+//! 2. Noise floors (unbiased, [`super::context::set_noise`]) and the knots of every class
+//!    variable ([`knots`]).
+//! 3. [`super::select::select`]: forward selection of up to three classes, each fitted with a
+//!    flexible monotone term jointly with the recalibration, kept by ΔBIC on training and a
+//!    significant validation gain; ambiguity sets.
+//! 4. [`recalibration_findings`]: a parameter the data push to its plausible bound, refitted
+//!    unbounded; the move is the finding when it closes a significant part of the gap.
+//! 5. [`outside_library`]: every subsystem whose validation residual is still above its noise
+//!    floor (by more than the practical tolerance [`DiagnoseOptions::tolerance`]) gets a finding:
+//!    no class explains it; the torque residual's dependence on measured variables from the black
+//!    box ([`super::blackbox`]), the time structure from the residual's autocorrelation.
+//! 6. The verdict: the findings, or `Nothing` — only when every subsystem is at its floor and
+//!    every recalibrated parameter plausible.
+//! 7. How far: RMSE and fit % of every output before (nominal, recalibrated) and after, with
+//!    event-bootstrap intervals; equation error and replay error.
 
 use super::blackbox::{self, BlackBoxResult, Design};
-use super::candidates::{self, Channel, Model, Predictions, Samples};
+use super::candidates::{self, Channel, Model};
+use super::class::{ClassId, Kind, Variable};
+use super::classfit::{self, Knots, Needs};
+use super::context::{self, File, Scores};
 use super::dataset::{Col, Dataset};
 use super::events::SegmentOptions;
-use super::finding::Finding;
+use super::finding::{ClassFinding, Finding, OutsideFinding, RecalibrationFinding};
 use super::keys;
-use super::lsq::{self, LmOptions, ParamSpec};
-use super::replay::{self, Measured};
+use super::lsq;
+use super::replay;
+use super::select::{self, Job, Round, Setup};
+use super::shape::Shape;
 use super::stats::{self, Rng};
+use super::terms::{self, Extra};
 use super::where_::{self, Where};
-use crate::model::effects::{EffectId, EffectSet, Subsystem};
+use crate::model::effects::{EffectSet, Subsystem};
 use crate::model::params::Params;
 use std::collections::BTreeMap;
 
@@ -50,22 +55,21 @@ pub struct DiagnoseOptions {
     /// Friction energy accumulates across files in the given order (default: from the start of
     /// each file, as the plant counts it per run).
     pub carry_energy: bool,
-    /// ΔBIC below which an effect is supported by the training data.
+    /// ΔBIC below which a class is supported by the training data.
     pub bic_threshold: f64,
-    /// Share of the recalibrated validation excess an effect must remove to be credited.
-    pub min_gap_reduction: f64,
-    /// Outside the library when the black box explains at least this share of the validation
-    /// torque excess…
-    pub outside_min_share: f64,
-    /// …and at least this much more than the best effect.
-    pub outside_margin: f64,
+    /// Share of the validation excess left that a class must close to be kept.
+    pub min_gain: f64,
+    /// Practical tolerance: a subsystem is at its noise floor when its validation mean
+    /// standardized square exceeds 1 by at most this (0.1: RMS within 5 % of the noise).
+    pub tolerance: f64,
     /// False discovery rate of the bias maps and flagged segments.
     pub fdr_q: f64,
-    /// Largest number of samples per channel in a fit (longer records are thinned further).
+    /// Largest number of fit samples per channel group (longer records are thinned further).
     pub max_fit_samples: usize,
-    /// An effect is credited only when its fitted magnitude reaches this fraction of the
-    /// smallest documented plausible magnitude.
-    pub min_effect_fraction: f64,
+    /// Largest number of classes selected together.
+    pub max_classes: usize,
+    /// Worker threads for the class fits (0: the available cores).
+    pub threads: usize,
 }
 
 impl Default for DiagnoseOptions {
@@ -78,12 +82,12 @@ impl Default for DiagnoseOptions {
             seed: 1,
             carry_energy: false,
             bic_threshold: -10.0,
-            min_gap_reduction: 0.10,
-            outside_min_share: 0.4,
-            outside_margin: 0.25,
+            min_gain: 0.10,
+            tolerance: 0.1,
             fdr_q: 0.05,
-            max_fit_samples: 40_000,
-            min_effect_fraction: 0.25,
+            max_fit_samples: 8_000,
+            max_classes: 3,
+            threads: 0,
         }
     }
 }
@@ -97,329 +101,6 @@ pub enum DiagnoseError {
     NoValidation,
     #[error("no channel can be checked: the records have no slipping clutch and no temperatures")]
     NothingCheckable,
-}
-
-/// A group of channels fitted together, with the parameters plain recalibration may change.
-#[derive(Debug, Clone, PartialEq)]
-struct Group {
-    subsystem: Subsystem,
-    channels: Vec<Channel>,
-    recal: Vec<&'static str>,
-}
-
-fn groups() -> Vec<Group> {
-    vec![
-        Group {
-            subsystem: Subsystem::Thermal,
-            channels: vec![Channel::Temp(0), Channel::Temp(1), Channel::Temp(2)],
-            // The terms the plate and central-disk temperatures determine directly: convection
-            // (α2, α8) and heating gains (α3, α9). The conduction terms to the unmeasured disk
-            // (α1, α4, α5) are left to `ddct identify`: re-fitting them here trades validation
-            // accuracy for training fit.
-            recal: vec![
-                "thermal5.alpha2_per_s",
-                "thermal5.alpha3_k_per_j",
-                "thermal5.alpha8_per_s",
-                "thermal5.alpha9_k_per_j",
-            ],
-        },
-        Group {
-            subsystem: Subsystem::TorqueCharacteristic,
-            channels: vec![Channel::Torque(0), Channel::Torque(1)],
-            recal: vec![
-                "clutch.x_isp0_mm",
-                "clutch.x_isp1_mm_per_c",
-                "clutch.x_isp2_mm_per_c2",
-            ],
-        },
-        Group {
-            subsystem: Subsystem::Actuator,
-            channels: vec![Channel::Pos(0), Channel::Pos(1)],
-            recal: vec!["actuator.tau_s"],
-        },
-        Group {
-            subsystem: Subsystem::Engine,
-            channels: vec![Channel::Engine],
-            recal: vec![],
-        },
-    ]
-}
-
-/// The group whose channels an effect is fitted on (backlash acts between the measured actuator
-/// and the bearing, so it shows in the torque characteristic's residual).
-fn fit_group_of(id: EffectId) -> Subsystem {
-    match id {
-        EffectId::ActuatorBacklash => Subsystem::TorqueCharacteristic,
-        other => other.subsystem(),
-    }
-}
-
-/// One file prepared for the diagnosis.
-struct File {
-    m: Measured,
-    /// Samples for fitting (thinned).
-    fit: Samples,
-    /// Samples for scoring (all).
-    all: Samples,
-    /// Global block offset (bootstrap units).
-    unit0: usize,
-    /// Noise floor σ per channel of this file (its own sensors and operating conditions).
-    sigma: Vec<f64>,
-}
-
-fn prepare(ds: &[Dataset], p: &Params, o: &DiagnoseOptions, unit0: usize) -> Vec<File> {
-    let ms = if o.carry_energy {
-        Measured::sequence(ds, p, &o.seg)
-    } else {
-        ds.iter()
-            .map(|d| Measured::new(d, p, [0.0; 2], &o.seg))
-            .collect()
-    };
-    let total_torque: usize = ms
-        .iter()
-        .map(|m| m.torque_idx[0].len() + m.torque_idx[1].len())
-        .sum();
-    let stride = o
-        .torque_stride
-        .max(total_torque.div_ceil(o.max_fit_samples.max(1)));
-    let total_n: usize = ms.iter().map(|m| m.n).sum();
-    let tstride = o
-        .temp_stride
-        .max(total_n.div_ceil(o.max_fit_samples.max(1)));
-    let mut u = unit0;
-    ms.into_iter()
-        .map(|m| {
-            let fit = Samples::new(&m, stride, tstride);
-            let all = Samples::new(&m, 1, o.temp_stride);
-            let f = File {
-                fit,
-                all,
-                unit0: u,
-                m,
-                sigma: vec![1.0; Channel::ALL.len()],
-            };
-            u += f.m.seg.blocks.len().max(1);
-            f
-        })
-        .collect()
-}
-
-fn units(files: &[File]) -> usize {
-    files
-        .iter()
-        .map(|f| f.m.seg.blocks.len().max(1))
-        .sum::<usize>()
-        .max(1)
-}
-
-/// Per-channel sums over a set of files for one model.
-#[derive(Debug, Clone, PartialEq)]
-struct Scores {
-    /// Per channel: sum of squared residuals and count.
-    sse: Vec<f64>,
-    n: Vec<usize>,
-    /// Per channel and unit: sum of squared residuals.
-    unit_sse: Vec<Vec<f64>>,
-    /// Per channel: sum of squared standardized residuals (each file's σ).
-    std_sse: Vec<f64>,
-    /// Per channel and unit: the same.
-    std_unit: Vec<Vec<f64>>,
-    /// Predictions per file (for plots and the black box).
-    preds: Vec<Predictions>,
-}
-
-fn score(model: &Model, files: &[File], chans: &[Channel], nunits: usize, fit: bool) -> Scores {
-    let nc = Channel::ALL.len();
-    let mut sse = vec![0.0; nc];
-    let mut n = vec![0usize; nc];
-    let mut unit_sse = vec![vec![0.0; nunits]; nc];
-    let mut std_sse = vec![0.0; nc];
-    let mut std_unit = vec![vec![0.0; nunits]; nc];
-    let mut preds = Vec::with_capacity(files.len());
-    for f in files {
-        let s = if fit { &f.fit } else { &f.all };
-        let pr = candidates::predict(model, &f.m, s, chans);
-        for &c in chans {
-            let y = &pr.y[c.index()];
-            if y.is_empty() {
-                continue;
-            }
-            for &k in s.get(c) {
-                let e = candidates::measured(&f.m, c, k) - y[k];
-                if e.is_finite() {
-                    let z2 = e * e / (f.sigma[c.index()] * f.sigma[c.index()]);
-                    sse[c.index()] += e * e;
-                    std_sse[c.index()] += z2;
-                    n[c.index()] += 1;
-                    let u = (f.unit0 + f.m.seg.block_of(k)).min(nunits - 1);
-                    unit_sse[c.index()][u] += e * e;
-                    std_unit[c.index()][u] += z2;
-                }
-            }
-        }
-        preds.push(pr);
-    }
-    Scores {
-        sse,
-        n,
-        unit_sse,
-        std_sse,
-        std_unit,
-        preds,
-    }
-}
-
-/// Noise floor (σ) of each channel of each file from that file's residuals under `model`:
-/// differences of consecutive residuals (smooth model errors cancel; white sensor noise and the
-/// noise of measured inputs, e.g. the slip at a few rpm, do not), at most the residual RMS
-/// itself, floored at the quantisation of the signal. Returns the pooled σ per channel.
-fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
-    let nc = Channel::ALL.len();
-    let mut pooled = vec![(0.0f64, 0usize); nc];
-    for f in files.iter_mut() {
-        let pr = candidates::predict(model, &f.m, &f.all, &Channel::ALL);
-        for c in Channel::ALL {
-            let q = match c {
-                Channel::Torque(_) => 0.1,
-                Channel::Temp(_) => 0.1,
-                Channel::Pos(_) => 0.001,
-                Channel::Engine => 0.1,
-            } / 12f64.sqrt();
-            let y = &pr.y[c.index()];
-            let mut d2 = Vec::new();
-            let (mut ss, mut n) = (0.0, 0usize);
-            if !y.is_empty() {
-                for w in f.all.get(c).windows(2) {
-                    let (a, b) = (w[0], w[1]);
-                    if b - a > 20 {
-                        continue;
-                    }
-                    let ra = candidates::measured(&f.m, c, a) - y[a];
-                    let rb = candidates::measured(&f.m, c, b) - y[b];
-                    let d = rb - ra;
-                    if d.is_finite() {
-                        d2.push(d * d);
-                        ss += ra * ra;
-                        n += 1;
-                    }
-                }
-            }
-            let sigma = if d2.len() < 10 {
-                q.max(1e-9)
-            } else {
-                // E[Δr²] = 2σ² for white noise; the largest 2 % (transients) are trimmed. (A
-                // median of |Δr| is biased for quantised signals.)
-                d2.sort_by(f64::total_cmp);
-                let keep = &d2[..(d2.len() * 98).div_ceil(100).max(1)];
-                let diff_sigma = (keep.iter().sum::<f64>() / keep.len() as f64 / 2.0).sqrt();
-                let rms = (ss / n.max(1) as f64).sqrt();
-                diff_sigma.min(rms).max(q)
-            };
-            f.sigma[c.index()] = sigma;
-            if n > 0 {
-                pooled[c.index()].0 += sigma * sigma * n as f64;
-                pooled[c.index()].1 += n;
-            }
-        }
-    }
-    pooled
-        .iter()
-        .map(|(s2, n)| {
-            if *n > 0 {
-                (s2 / *n as f64).sqrt()
-            } else {
-                f64::NAN
-            }
-        })
-        .collect()
-}
-
-/// Fits `effect` (if any) together with the recalibration parameters of `group` on the
-/// training files, starting from `base`. Returns the fitted model and the fit.
-fn fit_group(
-    base: &Model,
-    group: &Group,
-    effect: Option<EffectId>,
-    files: &[File],
-) -> (Model, Option<lsq::Fit>) {
-    let mut specs: Vec<ParamSpec> = Vec::new();
-    if let Some(id) = effect {
-        for ps in id.params() {
-            let (lo, hi) = ps.bounds;
-            let scale = (ps.plausible.1 - ps.plausible.0).abs().max(1e-12);
-            specs.push(ParamSpec::new(
-                format!("{}.{}", id.as_str(), ps.name),
-                ps.typical,
-                lo,
-                hi,
-                scale,
-            ));
-        }
-    }
-    let ne = specs.len();
-    for k in &group.recal {
-        let v = keys::get(&base.p, k).unwrap_or(0.0);
-        let (lo, hi) = keys::range(k).unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-        if k.starts_with("thermal5.") || *k == "actuator.tau_s" {
-            let v0 = v.abs().max(1e-9);
-            specs.push(
-                ParamSpec::new(*k, v, lo.max(v0 / 10.0), hi.min(v0 * 10.0), keys::scale(k)).log(),
-            );
-        } else {
-            specs.push(ParamSpec::new(*k, v, lo, hi, keys::scale(k)));
-        }
-    }
-    if specs.is_empty() {
-        return (*base, None);
-    }
-    let chans = &group.channels;
-    let n: usize = files.iter().map(|f| f.fit.count(chans)).sum();
-    if n == 0 {
-        return (*base, None);
-    }
-    let build = |v: &[f64]| -> Option<Model> {
-        let mut m = *base;
-        if let Some(id) = effect {
-            m.set.set_clamped(id, &v[..ne]);
-        }
-        for (k, x) in group.recal.iter().zip(&v[ne..]) {
-            keys::set(&mut m.p, k, *x);
-        }
-        m.p.clutch.validate().ok()?;
-        Some(m)
-    };
-    let mut buf = Vec::with_capacity(n);
-    let mut f = |v: &[f64], r: &mut [f64]| match build(v) {
-        Some(model) => {
-            buf.clear();
-            for file in files {
-                let pr = candidates::predict(&model, &file.m, &file.fit, chans);
-                for &c in chans {
-                    let y = &pr.y[c.index()];
-                    for &k in file.fit.get(c) {
-                        let e = candidates::measured(&file.m, c, k) - y[k];
-                        buf.push(e / file.sigma[c.index()]);
-                    }
-                }
-            }
-            for (ri, b) in r.iter_mut().zip(&buf) {
-                *ri = if b.is_finite() { *b } else { 1e3 };
-            }
-        }
-        None => r.iter_mut().for_each(|x| *x = 1e6),
-    };
-    let fit = lsq::levenberg_marquardt(
-        &mut f,
-        n,
-        &specs,
-        LmOptions {
-            max_iter: 40,
-            tol_sse: 1e-7,
-            ..LmOptions::default()
-        },
-    );
-    let model = build(&fit.p).unwrap_or(*base);
-    (model, Some(fit))
 }
 
 /// A subsystem and whether the records can check it.
@@ -471,6 +152,12 @@ pub struct Verdict {
     /// The typed findings (issue 17): classes, sensors, out-of-range recalibrations, residuals
     /// outside the library, or `Nothing` alone.
     pub findings: Vec<Finding>,
+    /// Share of the recalibrated validation gap left unexplained by the findings (%).
+    pub unexplained_pct: f64,
+    /// Classes the records cannot check, with the reason.
+    pub not_checkable: Vec<NotCheckable>,
+    /// The selection rounds: (kept class or none, ambiguity set).
+    pub rounds: Vec<(Option<ClassId>, Vec<ClassId>)>,
 }
 
 /// Before/after of one output on the validation files.
@@ -658,41 +345,494 @@ pub fn separability(checkable: &[Checkable]) -> Vec<String> {
     v
 }
 
+/// A class that could not be checked on these records, and why.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NotCheckable {
+    pub class: ClassId,
+    pub why: String,
+}
 fn rms_std(s: &Scores, chans: &[Channel]) -> f64 {
-    let (mut a, mut n) = (0.0, 0usize);
-    for c in chans {
-        let i = c.index();
-        a += s.std_sse[i];
-        n += s.n[i];
-    }
-    if n == 0 {
+    let (a, n) = s.total(chans);
+    if n == 0.0 {
         f64::NAN
     } else {
-        (a / n as f64).sqrt()
+        (a / n).sqrt()
     }
 }
 
-/// Standardized per-unit SSE summed over channels.
-fn unit_std(s: &Scores, chans: &[Channel], nunits: usize) -> Vec<f64> {
-    let mut u = vec![0.0; nunits];
-    for c in chans {
-        for (j, v) in s.std_unit[c.index()].iter().enumerate() {
-            u[j] += v;
+/// What each class needs, answered from the records.
+fn needs(files: &[&File], chans: &[Channel]) -> impl Fn(Needs) -> bool {
+    let torque = chans.contains(&Channel::Torque(0)) || chans.contains(&Channel::Torque(1));
+    let temps = chans.contains(&Channel::Temp(0));
+    let req = files.iter().any(|f| f.m.x_req.is_some());
+    let engine = chans.contains(&Channel::Engine);
+    move |n| match n {
+        Needs::Torque => torque,
+        Needs::Temperatures => temps,
+        Needs::Requests => req,
+        Needs::Engine => engine,
+    }
+}
+
+/// Phase 1: plain recalibration, subsystem by subsystem (thermal first: the torque needs its
+/// disk model), bounded to the plausible ranges.
+fn recalibrate(
+    nominal: &Params,
+    chans: &[Channel],
+    train: &[File],
+    knots: &Knots,
+    wide: bool,
+) -> Model {
+    let mut m = Model::nominal(*nominal);
+    for sub in [
+        Subsystem::Thermal,
+        Subsystem::TorqueCharacteristic,
+        Subsystem::Actuator,
+    ] {
+        let ch: Vec<Channel> = classfit::group_channels(sub)
+            .into_iter()
+            .filter(|c| chans.contains(c))
+            .collect();
+        if ch.is_empty() {
+            continue;
         }
+        let job = Job {
+            class: None,
+            recal: select::recal_keys(sub),
+            chans: ch,
+            wide,
+            cached_disk: false,
+            max_iter: 40,
+        };
+        m = select::fit(&m, nominal, &job, train, knots).0;
     }
-    u
+    m
 }
 
-fn unit_n(files: &[File], chans: &[Channel], nunits: usize) -> Vec<f64> {
-    let mut u = vec![0.0; nunits];
-    for f in files {
-        for c in chans {
-            for &k in f.all.get(*c) {
-                u[(f.unit0 + f.m.seg.block_of(k)).min(nunits - 1)] += 1.0;
+/// Phase 2: knots of every class variable at the training torque samples (recalibrated model).
+fn knots(model: &Model, train: &[File]) -> Knots {
+    let mut vals: BTreeMap<Variable, Vec<f64>> = BTreeMap::new();
+    for f in train {
+        let Some(dk) = &f.disk else { continue };
+        let slide = [0, 1].map(|i| candidates::slide_acceleration(&f.m.slip[i], f.m.dt));
+        for i in 0..2 {
+            for &k in f.fit.get(Channel::Torque(i)) {
+                let c = f.m.context(i, k, dk[i][k]);
+                let mut tc =
+                    crate::model::effects::TorqueContext::new(c.x_to_mm, c.slip_radps, c.theta_c);
+                tc.e_fric_j = c.e_fric_j;
+                let x = Extra {
+                    slide_acc: slide[i][k],
+                };
+                for v in [
+                    Variable::Temperature,
+                    Variable::Slip,
+                    Variable::ClampLoad,
+                    Variable::SlidingAcceleration,
+                    Variable::FrictionEnergy,
+                ] {
+                    vals.entry(v)
+                        .or_default()
+                        .push(terms::variable(v, &model.p.clutch, &tc, &x));
+                }
             }
         }
     }
-    u
+    Knots(
+        vals.into_iter()
+            .filter_map(|(v, x)| Some((v, Shape::knots(x.into_iter())?)))
+            .collect(),
+    )
+}
+
+/// Effective training sample size per channel (autocorrelation of the residuals).
+fn effective_n(model: &Model, train: &[File], chans: &[Channel]) -> Vec<f64> {
+    let preds = context::predictions(model, train, chans, true, false);
+    let mut r: Vec<Vec<f64>> = vec![Vec::new(); Channel::ALL.len()];
+    context::for_each_residual(train, &preds, chans, true, |_, c, _, e| {
+        r[c.index()].push(e)
+    });
+    r.iter()
+        .map(|v| {
+            if v.is_empty() {
+                0.0
+            } else {
+                lsq::effective_n(v)
+            }
+        })
+        .collect()
+}
+
+/// The subsystems whose channels are checked, with their validation excess and significance.
+#[derive(Debug, Clone, PartialEq)]
+struct Excess {
+    subsystem: Subsystem,
+    chans: Vec<Channel>,
+    /// Mean standardized square − 1.
+    excess: f64,
+    /// Above the tolerance and significant.
+    flagged: bool,
+    unit: Vec<f64>,
+}
+
+fn excesses(s: &Scores, chans: &[Channel], o: &DiagnoseOptions, rng: &mut Rng) -> Vec<Excess> {
+    [
+        Subsystem::TorqueCharacteristic,
+        Subsystem::Thermal,
+        Subsystem::Actuator,
+        Subsystem::Engine,
+    ]
+    .into_iter()
+    .filter_map(|sub| {
+        let ch: Vec<Channel> = classfit::group_channels(sub)
+            .into_iter()
+            .filter(|c| chans.contains(c))
+            .collect();
+        let (z, n) = s.total(&ch);
+        if n == 0.0 {
+            return None;
+        }
+        let uz = s.unit_std(&ch);
+        let un = s.unit_count(&ch);
+        let ut = s.unit_tolerance(&ch);
+        // Above the noise floor by more than the practical tolerance, significantly.
+        let unit: Vec<f64> = uz
+            .iter()
+            .zip(&un)
+            .zip(&ut)
+            .map(|((a, b), t)| a - b * (1.0 + o.tolerance) - t)
+            .collect();
+        let ci = stats::bootstrap(unit.len(), o.bootstrap, rng, |idx| {
+            idx.iter().map(|&j| unit[j]).sum::<f64>()
+        });
+        let excess = z / n - 1.0;
+        let tol = ut.iter().sum::<f64>() / n;
+        Some(Excess {
+            subsystem: sub,
+            chans: ch,
+            excess,
+            flagged: excess > o.tolerance + tol && ci.0 > 0.0,
+            unit,
+        })
+    })
+    .collect()
+}
+
+/// Phase 4: recalibrated parameters at their plausible bound, refitted unbounded; the move is a
+/// finding when it closes a significant part of the gap left.
+fn recalibration_findings(
+    s: &Setup,
+    model: &Model,
+    val: &Scores,
+    o: &DiagnoseOptions,
+    rng: &mut Rng,
+) -> (Model, Scores, Vec<RecalibrationFinding>) {
+    let mut out = Vec::new();
+    let mut model = *model;
+    let mut val = val.clone();
+    for sub in [
+        Subsystem::Thermal,
+        Subsystem::TorqueCharacteristic,
+        Subsystem::Actuator,
+    ] {
+        let keys_: Vec<&'static str> = select::recal_keys(sub);
+        let at_bound: Vec<&'static str> = keys_
+            .iter()
+            .copied()
+            .filter(|k| {
+                let v = keys::get(&model.p, k).unwrap_or(0.0);
+                let (lo, hi) = select::plausible(k, s.nominal);
+                let tol = 1e-3 * (hi - lo).abs();
+                (v - lo).abs() <= tol || (v - hi).abs() <= tol
+            })
+            .collect();
+        let ch: Vec<Channel> = classfit::group_channels(sub)
+            .into_iter()
+            .filter(|c| s.chans.contains(c))
+            .collect();
+        if at_bound.is_empty() || ch.is_empty() {
+            continue;
+        }
+        let job = Job {
+            class: None,
+            recal: keys_,
+            chans: ch.clone(),
+            wide: true,
+            cached_disk: false,
+            max_iter: 40,
+        };
+        let m2 = select::fit_model(&model, s, &job);
+        let mut aff = ch.clone();
+        if sub == Subsystem::Thermal {
+            aff.extend(classfit::group_channels(Subsystem::TorqueCharacteristic));
+            aff.retain(|c| s.chans.contains(c));
+        }
+        let v2 = val.with(&Scores::of(&m2, s.validate, &aff, s.nunits_v), &aff);
+        let u: Vec<f64> = val
+            .unit_std(s.chans)
+            .iter()
+            .zip(&v2.unit_std(s.chans))
+            .map(|(a, b)| a - b)
+            .collect();
+        let gain: f64 = u.iter().sum();
+        let ci = stats::bootstrap(u.len(), o.bootstrap, rng, |idx| {
+            idx.iter().map(|&j| u[j]).sum::<f64>()
+        });
+        let (z, n) = val.total(s.chans);
+        if ci.0 > 0.0 && gain >= o.min_gain * (z - n).max(1e-9) {
+            for k in at_bound {
+                let nom = keys::get(s.nominal, k).unwrap_or(0.0);
+                let v = keys::get(&m2.p, k).unwrap_or(nom);
+                let (lo, hi) = select::plausible(k, s.nominal);
+                if v >= lo && v <= hi {
+                    continue;
+                }
+                out.push(RecalibrationFinding {
+                    key: k.to_string(),
+                    nominal: nom,
+                    value: v,
+                    move_pct: 100.0 * (v - nom) / nom.abs().max(1e-300),
+                    plausible: (lo, hi),
+                });
+            }
+            model = m2;
+            val = v2;
+        }
+    }
+    (model, val, out)
+}
+
+/// Time structure of a residual: lag-1 autocorrelation and where its excess sits.
+fn time_structure(files: &[File], preds: &[candidates::Predictions], chans: &[Channel]) -> String {
+    let mut r = Vec::new();
+    let (mut engaged, mut open) = (0.0, 0.0);
+    context::for_each_residual(files, preds, chans, false, |f, _, k, e| {
+        r.push(e);
+        if f.m.seg.closed[0][k] || f.m.seg.closed[1][k] {
+            engaged += e * e;
+        } else {
+            open += e * e;
+        }
+    });
+    if r.len() < 3 {
+        return String::new();
+    }
+    let rho = lsq::lag1_autocorrelation(&r);
+    let speed = if rho > 0.95 {
+        "slow (lag-1 autocorrelation {rho})"
+    } else if rho > 0.5 {
+        "correlated over several samples (lag-1 autocorrelation {rho})"
+    } else {
+        "fast, sample to sample (lag-1 autocorrelation {rho})"
+    };
+    format!(
+        "{}; {:.0} % of the squared residual within engagements",
+        speed.replace("{rho}", &format!("{rho:.2}")),
+        100.0 * engaged / (engaged + open).max(1e-300)
+    )
+}
+
+/// Phase 5: a finding for every subsystem still above its floor that no class explains.
+fn outside_library(
+    s: &Setup,
+    model: &Model,
+    val: &Scores,
+    train_preds: &Scores,
+    o: &DiagnoseOptions,
+    rng: &mut Rng,
+) -> (Vec<OutsideFinding>, Option<BlackBoxResult>) {
+    let mut out = Vec::new();
+    let mut bb_out = None;
+    for ex in excesses(val, s.chans, o, rng) {
+        if !ex.flagged {
+            continue;
+        }
+        let preds = context::predictions(model, s.validate, &ex.chans, false, false);
+        let mut depends_on = Vec::new();
+        if ex.subsystem == Subsystem::TorqueCharacteristic {
+            let dv = design(&model.p, s.validate, &preds, false);
+            let dt = design(&model.p, s.train, &train_preds.preds, true);
+            if let Some(bb) = blackbox::check(&dt, &dv, s.nunits_v, &ex.chans) {
+                depends_on = bb.depends_on.iter().map(|(n, _)| n.clone()).collect();
+                bb_out = Some(bb);
+            }
+        }
+        out.push(OutsideFinding {
+            subsystem: ex.subsystem,
+            excess: ex.excess,
+            depends_on,
+            time_structure: time_structure(s.validate, &preds, &ex.chans),
+        });
+    }
+    (out, bb_out)
+}
+
+/// The black box's design matrix on a set of records.
+fn design(p: &Params, files: &[File], preds: &[candidates::Predictions], fit: bool) -> Design {
+    let items: Vec<_> = files
+        .iter()
+        .zip(preds)
+        .filter_map(|(f, pr)| {
+            let disk = pr.disk.as_ref().or(f.disk.as_ref())?;
+            let s = if fit { &f.fit } else { &f.all };
+            let y = &pr.y;
+            if y[Channel::Torque(0).index()].is_empty() && y[Channel::Torque(1).index()].is_empty()
+            {
+                return None;
+            }
+            let pad = |v: &Vec<f64>| {
+                if v.is_empty() {
+                    vec![f64::NAN; f.m.n]
+                } else {
+                    v.clone()
+                }
+            };
+            Some((
+                &f.m,
+                s.get(Channel::Torque(0)),
+                s.get(Channel::Torque(1)),
+                [
+                    pad(&y[Channel::Torque(0).index()]),
+                    pad(&y[Channel::Torque(1).index()]),
+                ],
+                disk,
+                f.unit0,
+                [
+                    f.sigma[Channel::Torque(0).index()],
+                    f.sigma[Channel::Torque(1).index()],
+                ],
+            ))
+        })
+        .collect();
+    let items_ref: Vec<_> = items
+        .iter()
+        .map(|(m, a, b, t, d, u, sg)| (*m, *a, *b, t, *d, *u, *sg))
+        .collect();
+    Design::collect(p, &items_ref)
+}
+
+/// A class finding from a kept candidate.
+fn class_finding(c: &select::Candidate, ambiguous: &[ClassId], excess0: f64) -> Finding {
+    let (mag, unit) = classfit::magnitude(c.class, &c.model);
+    let ci = c
+        .fit
+        .ci95
+        .iter()
+        .zip(&c.fit.p)
+        .map(|(ci, p)| (ci.1 - ci.0).abs() / 2.0 / p.abs().max(1e-12))
+        .fold(0.0, f64::max);
+    let half = (mag.abs() * ci.min(10.0)).max(0.0);
+    let range_warning = c.class.member().and_then(|id| {
+        let (v, _) = match classfit::member_from_shape(c.class, &c.model) {
+            Some((_, v)) => (v[0], ()),
+            None => (c.model.set.get(id)?[0], ()),
+        };
+        let ps = &id.params()[0];
+        let (lo, hi) = ps.plausible;
+        if v < lo || v > hi {
+            let by = if v < lo { lo - v } else { v - hi };
+            Some(format!(
+                "{} = {:.4} {} lies outside the documented range {:.4}…{:.4} of {} by {:.4} ({:.0} % of the range's width)",
+                ps.name,
+                v,
+                ps.unit,
+                lo,
+                hi,
+                id.as_str(),
+                by,
+                100.0 * by / (hi - lo).abs().max(1e-300)
+            ))
+        } else {
+            None
+        }
+    });
+    let parameters = c
+        .fit
+        .names
+        .iter()
+        .zip(&c.fit.p)
+        .map(|(n, v)| (n.clone(), *v))
+        .collect();
+    let cf = ClassFinding {
+        class: c.class,
+        subsystem: c.class.subsystem(),
+        variable: c.class.variable(),
+        ambiguous_with: ambiguous.to_vec(),
+        share_pct: (100.0 * c.gain / excess0.max(1e-9)).clamp(0.0, 100.0),
+        magnitude: mag,
+        magnitude_ci95: (mag - half, mag + half),
+        unit,
+        range_warning,
+        shape: classfit::shape_points(c.class, &c.model),
+        parameters,
+    };
+    match c.class.kind() {
+        Kind::Physics => Finding::Class(cf),
+        Kind::Sensor => Finding::Sensor(cf),
+    }
+}
+
+/// The ranking of the first selection round, for the report.
+fn ranking(r: Option<&Round>, chans: &[Channel]) -> Vec<Ranked> {
+    let Some(r) = r else { return Vec::new() };
+    r.candidates
+        .iter()
+        .map(|c| Ranked {
+            effect: c.class.as_str().to_string(),
+            subsystem: c.class.subsystem().as_str().to_string(),
+            parameters: c
+                .fit
+                .names
+                .iter()
+                .cloned()
+                .zip(c.fit.p.iter().copied())
+                .collect(),
+            parameters_ci95: c
+                .fit
+                .names
+                .iter()
+                .cloned()
+                .zip(c.fit.ci95.iter().copied())
+                .collect(),
+            recalibrated: select::RECAL
+                .iter()
+                .filter_map(|(k, _)| Some((k.to_string(), keys::get(&c.model.p, k)?)))
+                .collect(),
+            validation_rmse: chans
+                .iter()
+                .filter(|ch| c.val.n[ch.index()] > 0)
+                .map(|ch| {
+                    (
+                        ch.name().to_string(),
+                        (c.val.sse[ch.index()] / c.val.n[ch.index()] as f64).sqrt(),
+                    )
+                })
+                .collect(),
+            validation_score: rms_std(&c.val, chans),
+            delta_bic: c.delta_bic,
+            gap_explained_pct: (100.0 * c.gain / c.excess_before.max(1e-9)).clamp(-100.0, 100.0),
+            gap_explained_ci95: (
+                (100.0 * c.gain_ci95.0 / c.excess_before.max(1e-9)).clamp(-100.0, 100.0),
+                (100.0 * c.gain_ci95.1 / c.excess_before.max(1e-9)).clamp(-100.0, 100.0),
+            ),
+            credited: c.credited,
+            note: c.note.clone(),
+        })
+        .collect()
+}
+
+/// The calibration for the TCU and the plant: the final parameters and the library members of
+/// the named classes (shapes converted to their member's form).
+fn calibration(model: &Model, findings: &[Finding]) -> (Params, EffectSet) {
+    let mut set = model.set;
+    for f in findings {
+        if let Some(c) = f.class() {
+            if let Some((id, v)) = classfit::member_from_shape(c.class, model) {
+                set.set_clamped(id, &v);
+            }
+        }
+    }
+    (model.p, set)
 }
 
 /// Runs the diagnosis.
@@ -708,13 +848,22 @@ pub fn diagnose(
     if validate.is_empty() {
         return Err(DiagnoseError::NoValidation);
     }
-    let mut tr = prepare(train, nominal, o, 0);
-    let mut va = prepare(validate, nominal, o, 0);
-    let nunits_t = units(&tr);
-    let nunits_v = units(&va);
+    let prep = |ds: &[Dataset]| {
+        context::prepare(
+            ds,
+            nominal,
+            &o.seg,
+            o.carry_energy,
+            o.torque_stride,
+            o.temp_stride,
+            o.max_fit_samples,
+        )
+    };
+    let mut tr = prep(train);
+    let mut va = prep(validate);
+    let nunits_v = context::units(&va);
     let mut notes = Vec::new();
     let checkable = checkability(&[train, validate].concat());
-    // Channels with samples in both sets.
     let chans: Vec<Channel> = Channel::ALL
         .into_iter()
         .filter(|c| {
@@ -725,29 +874,25 @@ pub fn diagnose(
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
     }
+    let threads = if o.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        o.threads
+    };
     let nominal_model = Model::nominal(*nominal);
+    let mut rng = Rng::new(o.seed);
 
-    // --- plain recalibration, group by group (thermal first: the torque needs its disk model).
-    let gs = groups();
-    set_noise(&nominal_model, &mut tr);
-    let mut recal = nominal_model;
-    let mut recal_fits: BTreeMap<Subsystem, lsq::Fit> = BTreeMap::new();
-    for g in &gs {
-        if !g.channels.iter().any(|c| chans.contains(c)) {
-            continue;
-        }
-        let (m, fit) = fit_group(&recal, g, None, &tr);
-        recal = m;
-        if let Some(f) = fit {
-            recal_fits.insert(g.subsystem, f);
-        }
-    }
-    set_noise(&recal, &mut tr);
-    let sigma = set_noise(&recal, &mut va);
-    let recalibration: Vec<(String, f64, f64)> = gs
+    // Phase 1–2: recalibration, noise floors, knots.
+    context::set_noise(&nominal_model, &mut tr);
+    let no_knots = Knots::default();
+    let recal = recalibrate(nominal, &chans, &tr, &no_knots, false);
+    context::set_noise(&recal, &mut tr);
+    let sigma = context::set_noise(&recal, &mut va);
+    context::cache_disk(&recal, &mut tr);
+    let kn = knots(&recal, &tr);
+    let recalibration: Vec<(String, f64, f64)> = select::RECAL
         .iter()
-        .flat_map(|g| g.recal.iter())
-        .filter_map(|k| {
+        .filter_map(|(k, _)| {
             Some((
                 k.to_string(),
                 keys::get(nominal, k)?,
@@ -755,348 +900,98 @@ pub fn diagnose(
             ))
         })
         .collect();
+    let n_eff = effective_n(&recal, &tr, &chans);
 
-    // Scores of the baselines.
-    let sc_nom_v = score(&nominal_model, &va, &chans, nunits_v, false);
-    let sc_rec_v = score(&recal, &va, &chans, nunits_v, false);
-    let sc_rec_t = score(&recal, &tr, &chans, nunits_t, true);
-    let n_val: f64 = chans.iter().map(|c| sc_rec_v.n[c.index()] as f64).sum();
-    let u_rec = unit_std(&sc_rec_v, &chans, nunits_v);
-    let u_n = unit_n(&va, &chans, nunits_v);
-    let s_rec: f64 = u_rec.iter().sum();
-    let excess_rec = (s_rec - n_val).max(1e-9);
-
-    // Effective training sample sizes per channel (autocorrelation of the recal residuals).
-    let n_eff: Vec<f64> = Channel::ALL
-        .iter()
-        .map(|c| {
-            let mut r = Vec::new();
-            for (f, pr) in tr.iter().zip(&sc_rec_t.preds) {
-                let y = &pr.y[c.index()];
-                if y.is_empty() {
-                    continue;
-                }
-                for &k in f.fit.get(*c) {
-                    r.push(candidates::measured(&f.m, *c, k) - y[k]);
-                }
-            }
-            if r.is_empty() {
-                0.0
-            } else {
-                lsq::effective_n(&r)
-            }
-        })
-        .collect();
-
-    // --- every library effect.
-    let mut rng = Rng::new(o.seed);
-    let mut ranked: Vec<(Ranked, Model, Scores)> = Vec::new();
-    for id in EffectId::LIBRARY {
-        let sub = fit_group_of(id);
-        let Some(g) = gs.iter().find(|g| g.subsystem == sub) else {
-            continue;
-        };
-        if !g.channels.iter().any(|c| chans.contains(c)) {
-            continue;
+    // Classes this record set can check.
+    let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
+    let has = needs(&all_files, &chans);
+    let mut classes = Vec::new();
+    let mut not_checkable = Vec::new();
+    for c in ClassId::ALL {
+        match classfit::not_checkable(*c, &kn, &has) {
+            None => classes.push(*c),
+            Some(why) => not_checkable.push(NotCheckable { class: *c, why }),
         }
-        let (mut model, fit) = fit_group(&recal, g, Some(id), &tr);
-        let mut fit_chans: Vec<Channel> = g.channels.clone();
-        // A thermal effect changes the disk temperature too: refit the torque recalibration.
-        if sub == Subsystem::Thermal {
-            if let Some(gq) = gs
-                .iter()
-                .find(|g| g.subsystem == Subsystem::TorqueCharacteristic)
-            {
-                let (m2, _) = fit_group(&model, gq, None, &tr);
-                model = m2;
-                fit_chans.extend(gq.channels.iter().copied());
-            }
-        }
-        fit_chans.retain(|c| chans.contains(c));
-        let Some(fit) = fit else { continue };
-        // ΔBIC on training over the channels the fit touched.
-        let sc_t = score(&model, &tr, &fit_chans, nunits_t, true);
-        let mut ll = 0.0;
-        let mut neff_sum = 0.0;
-        for c in &fit_chans {
-            let i = c.index();
-            if sc_rec_t.sse[i] > 0.0 && sc_t.sse[i] > 0.0 && n_eff[i] > 0.0 {
-                ll += n_eff[i] * (sc_t.sse[i] / sc_rec_t.sse[i]).ln();
-                neff_sum += n_eff[i];
-            }
-        }
-        let k = id.params().len() as f64;
-        let delta_bic = ll + k * neff_sum.max(2.0).ln();
-        // Validation: the share of the recalibrated excess over the noise floor that the
-        // effect removes, on the channels it acts on (other channels are the same for every
-        // candidate of the group and would only dilute the share).
-        let sc_v = score(&model, &va, &chans, nunits_v, false);
-        let ug_rec = unit_std(&sc_rec_v, &fit_chans, nunits_v);
-        let ug_e = unit_std(&sc_v, &fit_chans, nunits_v);
-        let ug_n = unit_n(&va, &fit_chans, nunits_v);
-        let (sg_rec, sg_e, sg_n): (f64, f64, f64) =
-            (ug_rec.iter().sum(), ug_e.iter().sum(), ug_n.iter().sum());
-        let floor = 0.02 * sg_n;
-        let share = (sg_rec - sg_e) / (sg_rec - sg_n).max(floor).max(1e-9);
-        let ci = stats::bootstrap(nunits_v, o.bootstrap, &mut rng, |idx| {
-            let (mut a, mut b, mut nn) = (0.0, 0.0, 0.0);
-            for &j in idx {
-                a += ug_rec[j];
-                b += ug_e[j];
-                nn += ug_n[j];
-            }
-            (a - b) / (a - nn).max(0.02 * nn).max(1e-9)
-        });
-        let improvement_significant = ci.0 > 0.0;
-        // Practical significance: the fitted magnitude must reach a fraction of the smallest
-        // documented plausible magnitude (a tiny backlash, for one, merely filters sensor noise).
-        let magnitude_ok = id.params().iter().enumerate().all(|(j, ps)| {
-            let d_lo = (ps.plausible.0 - ps.nominal).abs();
-            let d_hi = (ps.plausible.1 - ps.nominal).abs();
-            let smallest = if ps.plausible.0 <= ps.nominal && ps.nominal <= ps.plausible.1 {
-                d_lo.max(d_hi) * 0.5
-            } else {
-                d_lo.min(d_hi)
-            };
-            (fit.p[j] - ps.nominal).abs() >= o.min_effect_fraction * smallest
-        });
-        // Physical plausibility: within the documented plausible range widened by its width on
-        // each side (a spring that stiffens with temperature, say, is not that effect).
-        let plausible_ok = id.params().iter().enumerate().all(|(j, ps)| {
-            let w = (ps.plausible.1 - ps.plausible.0).abs();
-            fit.p[j] >= ps.plausible.0 - w && fit.p[j] <= ps.plausible.1 + w
-        });
-        let credited = delta_bic < o.bic_threshold
-            && improvement_significant
-            && share >= o.min_gap_reduction
-            && magnitude_ok
-            && plausible_ok;
-        let mut parameters = BTreeMap::new();
-        let mut parameters_ci95 = BTreeMap::new();
-        for (j, ps) in id.params().iter().enumerate() {
-            parameters.insert(ps.name.to_string(), fit.p[j]);
-            parameters_ci95.insert(ps.name.to_string(), fit.ci95[j]);
-        }
-        let recalibrated = g
-            .recal
-            .iter()
-            .filter_map(|k| Some((k.to_string(), keys::get(&model.p, k)?)))
-            .collect();
-        let validation_rmse = chans
-            .iter()
-            .filter(|c| sc_v.n[c.index()] > 0)
-            .map(|c| {
-                (
-                    c.name().to_string(),
-                    (sc_v.sse[c.index()] / sc_v.n[c.index()] as f64).sqrt(),
-                )
-            })
-            .collect();
-        let note = if credited {
-            "credited".to_string()
-        } else {
-            let mut why = Vec::new();
-            if delta_bic >= o.bic_threshold {
-                why.push(format!("ΔBIC {delta_bic:.1} ≥ {}", o.bic_threshold));
-            }
-            if !improvement_significant {
-                why.push("validation improvement not significant".to_string());
-            }
-            if !plausible_ok {
-                why.push("fitted value far outside the plausible range".to_string());
-            }
-            if !magnitude_ok {
-                why.push(format!(
-                    "fitted magnitude below {:.0} % of the smallest plausible one",
-                    100.0 * o.min_effect_fraction
-                ));
-            }
-            if share < o.min_gap_reduction {
-                why.push(format!(
-                    "removes {:.1} % < {:.0} % of the validation gap",
-                    100.0 * share,
-                    100.0 * o.min_gap_reduction
-                ));
-            }
-            why.join("; ")
-        };
-        ranked.push((
-            Ranked {
-                effect: id.as_str().to_string(),
-                subsystem: id.subsystem().as_str().to_string(),
-                parameters,
-                parameters_ci95,
-                recalibrated,
-                validation_rmse,
-                validation_score: rms_std(&sc_v, &chans),
-                delta_bic,
-                gap_explained_pct: 100.0 * share,
-                gap_explained_ci95: (100.0 * ci.0, 100.0 * ci.1),
-                credited,
-                note,
-            },
-            model,
-            sc_v,
-        ));
     }
-    ranked.sort_by(|a, b| a.0.validation_score.total_cmp(&b.0.validation_score));
 
-    // --- outside the library: black-box discrepancy of the torque characteristic.
-    let tq_chans: Vec<Channel> = [Channel::Torque(0), Channel::Torque(1)]
+    // Phase 3: forward selection.
+    let setup = Setup {
+        train: &tr,
+        validate: &va,
+        nominal,
+        knots: &kn,
+        chans: &chans,
+        nunits_v,
+        n_eff: &n_eff,
+        bootstrap: o.bootstrap,
+        threads,
+        bic_threshold: o.bic_threshold,
+        min_gain: o.min_gain,
+    };
+    let sc_nom_v = Scores::of(&nominal_model, &va, &chans, nunits_v);
+    let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
+    let (selected, sel_val, rounds) =
+        select::select(&setup, &recal, &classes, o.max_classes, o.seed);
+
+    // Phase 4: recalibrations out of range.
+    let (after, after_val, recal_findings) =
+        recalibration_findings(&setup, &selected, &sel_val, o, &mut rng);
+
+    // Phase 5: what is left above the floor.
+    let sc_t = Scores::new(
+        &tr,
+        context::predictions(&after, &tr, &chans, true, false),
+        &chans,
+        context::units(&tr),
+    );
+    let (outside, blackbox) = outside_library(&setup, &after, &after_val, &sc_t, o, &mut rng);
+
+    // Phase 6: the verdict.
+    let mut findings: Vec<Finding> = Vec::new();
+    for r in &rounds {
+        if let Some(k) = r.kept {
+            let c = &r.candidates[k];
+            let aff: Vec<Channel> = select::affected(c.class)
+                .into_iter()
+                .filter(|ch| chans.contains(ch))
+                .collect();
+            let (z0, n0) = sc_rec_v.total(&aff);
+            findings.push(class_finding(c, &r.ambiguous, z0 - n0));
+        }
+    }
+    // A kept class whose subsystem is still far above its floor explains too little of it to be
+    // the cause: it stays in the report as a partial fit and the subsystem's residual is outside
+    // the library.
+    let ex_rec: BTreeMap<Subsystem, f64> = excesses(&sc_rec_v, &chans, o, &mut rng)
         .into_iter()
-        .filter(|c| chans.contains(c))
+        .map(|e| (e.subsystem, e.excess))
         .collect();
-    let best = ranked.iter().find(|r| r.0.credited);
-    let mut blackbox = None;
-    let mut outside = false;
-    if !tq_chans.is_empty() {
-        let design = |files: &[File], sc: &Scores, fit: bool| -> Design {
-            let items: Vec<_> = files
-                .iter()
-                .zip(&sc.preds)
-                .filter_map(|(f, pr)| {
-                    let disk = pr.disk.as_ref()?;
-                    let s = if fit { &f.fit } else { &f.all };
-                    let y = &pr.y;
-                    Some((
-                        &f.m,
-                        s.get(Channel::Torque(0)),
-                        s.get(Channel::Torque(1)),
-                        [
-                            y[Channel::Torque(0).index()].clone(),
-                            y[Channel::Torque(1).index()].clone(),
-                        ],
-                        disk,
-                        f.unit0,
-                        [
-                            f.sigma[Channel::Torque(0).index()],
-                            f.sigma[Channel::Torque(1).index()],
-                        ],
-                    ))
-                })
-                .collect();
-            let items_ref: Vec<_> = items
-                .iter()
-                .map(|(m, a, b, t, d, u, sg)| (*m, *a, *b, t, *d, *u, *sg))
-                .collect();
-            Design::collect(&recal.p, &items_ref)
-        };
-        let dt = design(&tr, &sc_rec_t, true);
-        let dv = design(&va, &sc_rec_v, false);
-        if let Some(bb) = blackbox::check(&dt, &dv, nunits_v, &tq_chans) {
-            // Torque-channel excess (the design is standardized with each file's noise floor).
-            let n_tq = dv.len() as f64;
-            let ex_tq = (bb.sse_before - n_tq).max(0.02 * n_tq).max(1e-9);
-            let share_bb = (bb.sse_before - bb.sse_after) / ex_tq;
-            let share_best = best
-                .map(|b| {
-                    let s: f64 = tq_chans.iter().map(|c| b.2.std_sse[c.index()]).sum();
-                    (bb.sse_before - s) / ex_tq
-                })
-                .unwrap_or(0.0);
-            // Bootstrap: is the black box's gain over the best effect real?
-            let u_bb = &bb.unit_sse_after;
-            let u_best: Vec<f64> = match best {
-                Some(b) => (0..nunits_v)
-                    .map(|j| tq_chans.iter().map(|c| b.2.std_unit[c.index()][j]).sum())
-                    .collect(),
-                None => (0..nunits_v)
-                    .map(|j| {
-                        tq_chans
-                            .iter()
-                            .map(|c| sc_rec_v.std_unit[c.index()][j])
-                            .sum()
-                    })
-                    .collect(),
-            };
-            let ci = stats::bootstrap(nunits_v, o.bootstrap, &mut rng, |idx| {
-                idx.iter().map(|&j| u_best[j] - u_bb[j]).sum::<f64>()
-            });
-            let significant_gap = ex_tq / n_tq > 0.05;
-            outside = significant_gap
-                && share_bb >= o.outside_min_share
-                && share_bb - share_best >= o.outside_margin
-                && ci.0 > 0.0;
-            notes.push(format!(
-                "black box (torque characteristic): explains {:.1} % of the validation torque \
-                 excess, best credited effect {:.1} %; gain over it significant: {}",
-                100.0 * share_bb,
-                100.0 * share_best,
-                ci.0 > 0.0
-            ));
-            blackbox = Some(bb);
-        }
-    }
-
-    // --- verdict.
-    let excess_share = excess_rec / n_val.max(1.0);
-    let remains = {
-        let ci = stats::bootstrap(nunits_v, o.bootstrap, &mut rng, |idx| {
-            idx.iter().map(|&j| u_rec[j] - u_n[j]).sum::<f64>()
-        });
-        ci.0 > 0.0 && excess_share > 0.05
-    };
-    let (effect, subsystem, model_after, explanation) = if outside {
-        (
-            "outside_library".to_string(),
-            Subsystem::TorqueCharacteristic.as_str().to_string(),
-            recal,
-            "a black-box discrepancy of the torque characteristic explains far more of the \
-             validation gap than any library effect"
-                .to_string(),
-        )
-    } else if let Some(b) = best {
-        (
-            b.0.effect.clone(),
-            b.0.subsystem.clone(),
-            b.1,
-            format!(
-                "{} removes {:.1} % of the recalibrated validation gap (ΔBIC {:.1})",
-                b.0.effect, b.0.gap_explained_pct, b.0.delta_bic
-            ),
-        )
-    } else if remains {
-        (
-            "none".to_string(),
-            "none".to_string(),
-            recal,
-            "a gap remains after recalibration but no library effect explains it significantly \
-             and the black box does not either"
-                .to_string(),
-        )
-    } else {
-        (
-            "none".to_string(),
-            "none".to_string(),
-            recal,
-            "nothing significant remains after recalibration".to_string(),
-        )
-    };
-    if !remains && effect == "none" {
-        notes.push(format!(
-            "recalibrated validation excess over the noise floor: {:.1} % of the expected",
-            100.0 * excess_share
-        ));
-    }
-    // Ambiguity: credited effects not significantly worse than the best.
-    let mut ambiguous_with = Vec::new();
-    if let Some(b) = best.filter(|_| !outside) {
-        let u_b = unit_std(&b.2, &chans, nunits_v);
-        for r in ranked
-            .iter()
-            .filter(|r| r.0.credited && r.0.effect != b.0.effect)
-        {
-            let u_r = unit_std(&r.2, &chans, nunits_v);
-            let ci = stats::bootstrap(nunits_v, o.bootstrap, &mut rng, |idx| {
-                idx.iter().map(|&j| u_r[j] - u_b[j]).sum::<f64>()
-            });
-            if ci.0 <= 0.0 {
-                ambiguous_with.push(r.0.effect.clone());
+    let mut partial = Vec::new();
+    findings.retain(|f| {
+        let Some(c) = f.class() else { return true };
+        let left = outside.iter().find(|x| x.subsystem == classfit::group(c.class));
+        match (left, ex_rec.get(&classfit::group(c.class))) {
+            (Some(x), Some(&e0)) if x.excess > 0.5 * e0 => {
+                partial.push(format!(
+                    "{} closes {:.0} % of the gap but {} stays {:.0} % above its noise floor (of {:.0} % before): a partial fit, not the cause",
+                    c.class, c.share_pct, x.subsystem, 100.0 * x.excess, 100.0 * e0
+                ));
+                false
             }
+            _ => true,
         }
+    });
+    notes.extend(partial);
+    findings.extend(recal_findings.into_iter().map(Finding::Recalibration));
+    findings.extend(outside.iter().cloned().map(Finding::OutsideLibrary));
+    if findings.is_empty() {
+        findings.push(Finding::Nothing);
     }
-    // Subsystems in order of evidence: the verdict's, then by residual excess.
-    let where_ = where_::locate(
+    let unexplained_pct = unexplained(&sc_rec_v, &after_val, &chans);
+
+    // Where.
+    let model_after = after;
+    let mut where_ = where_::locate(
         &recal,
         &va.iter().map(|f| &f.m).collect::<Vec<_>>(),
         &va.iter().map(|f| &f.all).collect::<Vec<_>>(),
@@ -1105,19 +1000,30 @@ pub fn diagnose(
         &chans,
         o.fdr_q,
     );
-    let mut subsystems = Vec::new();
-    if subsystem != "none" {
-        subsystems.push(subsystem.clone());
-    }
+    let first = findings.first().cloned().unwrap_or(Finding::Nothing);
+    let subsystem = first
+        .subsystem()
+        .map_or("none".to_string(), |s| s.as_str().to_string());
+    let effect = match &first {
+        Finding::Class(c) | Finding::Sensor(c) => c.class.as_str().to_string(),
+        Finding::Recalibration(_) => "recalibration".to_string(),
+        Finding::OutsideLibrary(_) => "outside_library".to_string(),
+        Finding::Nothing => "none".to_string(),
+    };
+    let mut subsystems: Vec<String> = findings
+        .iter()
+        .filter_map(|f| f.subsystem().map(|s| s.as_str().to_string()))
+        .collect();
     for s in &where_.residual_subsystems {
         if s.significant && !subsystems.contains(&s.subsystem) {
             subsystems.push(s.subsystem.clone());
         }
     }
+    subsystems.dedup();
+    let explanation = explain(&findings, unexplained_pct);
 
-    // --- how far.
-    let sc_after = score(&model_after, &va, &chans, nunits_v, false);
-    let mut where_ = where_;
+    // Phase 7: how far.
+    let sc_after = Scores::of(&model_after, &va, &chans, nunits_v);
     where_.bias_maps.push(where_::bias_map(
         &va.iter().map(|f| &f.m).collect::<Vec<_>>(),
         &va.iter().map(|f| &f.all).collect::<Vec<_>>(),
@@ -1125,78 +1031,22 @@ pub fn diagnose(
         "after",
         o.fdr_q,
     ));
-    let mut eq = Vec::new();
-    for c in &chans {
-        let i = c.index();
-        let n = sc_nom_v.n[i];
-        if n == 0 {
-            continue;
-        }
-        let r = |s: &Scores| (s.sse[i] / s.n[i].max(1) as f64).sqrt();
-        let (rn, rr, ra) = (r(&sc_nom_v), r(&sc_rec_v), r(&sc_after));
-        let var = {
-            let mut sum = 0.0;
-            let mut sq = 0.0;
-            let mut cnt = 0.0;
-            for f in &va {
-                for &k in f.all.get(*c) {
-                    let y = candidates::measured(&f.m, *c, k);
-                    sum += y;
-                    sq += y * y;
-                    cnt += 1.0;
-                }
-            }
-            (sq / cnt - (sum / cnt).powi(2)).max(1e-30)
-        };
-        let fitp = |rm: f64| 100.0 * (1.0 - rm / var.sqrt());
-        let un = &sc_nom_v.unit_sse[i];
-        let ua = &sc_after.unit_sse[i];
-        let ci = stats::bootstrap(nunits_v, o.bootstrap, &mut rng, |idx| {
-            let (a, b) = idx
-                .iter()
-                .fold((0.0, 0.0), |s, &j| (s.0 + un[j], s.1 + ua[j]));
-            if a > 0.0 {
-                100.0 * (1.0 - (b / a).sqrt())
-            } else {
-                f64::NAN
-            }
+    let eq = output_gaps(
+        &va, &chans, &sc_nom_v, &sc_rec_v, &sc_after, &sigma, o, &mut rng,
+    );
+    let main_sub = first
+        .subsystem()
+        .map(|s| s.as_str().to_string())
+        .unwrap_or_else(|| {
+            where_
+                .residual_subsystems
+                .first()
+                .map(|s| s.subsystem.clone())
+                .unwrap_or_else(|| "torque_characteristic".into())
         });
-        // Gap above the noise floor of each record: √max(mean standardized square − 1, 0).
-        let zn = sc_nom_v.std_sse[i] / n as f64;
-        let za = sc_after.std_sse[i] / sc_after.n[i].max(1) as f64;
-        let gap_n = (zn - 1.0).max(0.0).sqrt();
-        let gap_a = (za - 1.0).max(0.0).sqrt();
-        eq.push(OutputGap {
-            output: c.name().to_string(),
-            subsystem: c.subsystem().as_str().to_string(),
-            n,
-            noise: sigma[i],
-            rmse_nominal: rn,
-            rmse_recalibrated: rr,
-            rmse_after: ra,
-            fit_pct_nominal: fitp(rn),
-            fit_pct_after: fitp(ra),
-            reduction_pct: 100.0 * (1.0 - ra / rn.max(1e-300)),
-            reduction_ci95: ci,
-            gap_reduction_pct: if gap_n > 0.0 {
-                100.0 * (1.0 - gap_a / gap_n)
-            } else {
-                0.0
-            },
-        });
-    }
-    // Main output: of the verdict's subsystem (or of the largest residual), the output whose
-    // nominal gap above noise is largest.
-    let main_sub = if subsystem != "none" {
-        subsystem.clone()
-    } else {
-        where_
-            .residual_subsystems
-            .first()
-            .map(|s| s.subsystem.clone())
-            .unwrap_or_else(|| "torque_characteristic".into())
-    };
-    let main_sub = if effect == EffectId::ActuatorBacklash.as_str() {
+    let main_sub = if effect == ClassId::ActuatorBacklash.as_str()
+        || effect == ClassId::ActuatorTransfer.as_str()
+    {
         Subsystem::TorqueCharacteristic.as_str().to_string()
     } else {
         main_sub
@@ -1236,36 +1086,22 @@ pub fn diagnose(
             replay_error,
         },
     };
-    // Traces of the main output on the first validation file.
-    let mut traces = Vec::new();
-    if let (Some(g), Some(f)) = (&main, va.first()) {
-        if let Some(c) = Channel::ALL.iter().find(|c| c.name() == g.output) {
-            let pn = candidates::predict(&nominal_model, &f.m, &f.all, &[*c]);
-            let pa = candidates::predict(&model_after, &f.m, &f.all, &[*c]);
-            let idx = f.all.get(*c);
-            traces.push(Trace {
-                file: f.m.source.clone(),
-                output: g.output.clone(),
-                t: idx.iter().map(|&k| f.m.time[k]).collect(),
-                measured: idx
-                    .iter()
-                    .map(|&k| candidates::measured(&f.m, *c, k))
-                    .collect(),
-                nominal: idx.iter().map(|&k| pn.y[c.index()][k]).collect(),
-                after: idx.iter().map(|&k| pa.y[c.index()][k]).collect(),
-            });
-        }
-    }
-    let calibrated = Some((model_after.p, model_after.set));
-    let outside_library_depends_on = if outside {
-        blackbox
-            .as_ref()
-            .map(|b| b.depends_on.iter().map(|(n, _)| n.clone()).collect())
-            .unwrap_or_default()
-    } else {
-        Vec::new()
-    };
-    let findings = legacy_findings(&effect, &subsystem, &outside_library_depends_on);
+    let traces = traces(&nominal_model, &model_after, &va, main.as_ref());
+    let calibrated = Some(calibration(&model_after, &findings));
+    let outside_library_depends_on = outside
+        .iter()
+        .flat_map(|x| x.depends_on.iter().cloned())
+        .collect();
+    let ambiguous_with = findings
+        .first()
+        .and_then(Finding::class)
+        .map(|c| {
+            c.ambiguous_with
+                .iter()
+                .map(|a| a.as_str().to_string())
+                .collect()
+        })
+        .unwrap_or_default();
     Ok(Diagnosis {
         train_files: train.iter().map(|d| d.source.clone()).collect(),
         validate_files: validate.iter().map(|d| d.source.clone()).collect(),
@@ -1276,11 +1112,17 @@ pub fn diagnose(
             subsystem,
             subsystems,
             effect,
-            ranking: ranked.into_iter().map(|r| r.0).collect(),
+            ranking: ranking(rounds.first(), &chans),
             ambiguous_with,
             outside_library_depends_on,
             explanation,
             findings,
+            unexplained_pct,
+            not_checkable,
+            rounds: rounds
+                .iter()
+                .map(|r| (r.kept.map(|k| r.candidates[k].class), r.ambiguous.clone()))
+                .collect(),
         },
         how_far,
         recalibration,
@@ -1291,34 +1133,176 @@ pub fn diagnose(
     })
 }
 
-/// Findings from the single-effect verdict (transitional).
-fn legacy_findings(effect: &str, subsystem: &str, depends_on: &[String]) -> Vec<Finding> {
-    use super::class::ClassId;
-    use super::finding::{ClassFinding, OutsideFinding};
-    if effect == "outside_library" {
-        return vec![Finding::OutsideLibrary(OutsideFinding {
-            subsystem: Subsystem::parse(subsystem).unwrap_or(Subsystem::TorqueCharacteristic),
-            excess: f64::NAN,
-            depends_on: depends_on.to_vec(),
-            time_structure: String::new(),
-        })];
+/// Share of the recalibrated validation gap left (%): per subsystem the mean standardized
+/// excess above the practical tolerance, summed over subsystems.
+fn unexplained(before: &Scores, after: &Scores, chans: &[Channel]) -> f64 {
+    let (mut b, mut a) = (0.0, 0.0);
+    for sub in [
+        Subsystem::TorqueCharacteristic,
+        Subsystem::Thermal,
+        Subsystem::Actuator,
+        Subsystem::Engine,
+    ] {
+        let ch: Vec<Channel> = classfit::group_channels(sub)
+            .into_iter()
+            .filter(|c| chans.contains(c))
+            .collect();
+        let (z0, n0) = before.total(&ch);
+        let (z1, n1) = after.total(&ch);
+        if n0 > 0.0 && n1 > 0.0 {
+            // Excess above the practical tolerance (what is within it is agreement).
+            let t0: f64 = before.unit_tolerance(&ch).iter().sum::<f64>() / n0;
+            let t1: f64 = after.unit_tolerance(&ch).iter().sum::<f64>() / n1;
+            b += (z0 / n0 - 1.0 - t0).max(0.0);
+            a += (z1 / n1 - 1.0 - t1).max(0.0);
+        }
     }
-    match EffectId::parse(effect).and_then(ClassId::of_effect) {
-        Some(c) => vec![Finding::Class(ClassFinding {
-            class: c,
-            subsystem: c.subsystem(),
-            variable: c.variable(),
-            ambiguous_with: Vec::new(),
-            share_pct: f64::NAN,
-            magnitude: f64::NAN,
-            magnitude_ci95: (f64::NAN, f64::NAN),
-            unit: "",
-            range_warning: None,
-            shape: Vec::new(),
-            parameters: BTreeMap::new(),
-        })],
-        None => vec![Finding::Nothing],
+    if b > 0.0 {
+        (100.0 * a / b).clamp(0.0, 100.0)
+    } else {
+        0.0
     }
+}
+
+/// One sentence per finding.
+fn explain(findings: &[Finding], unexplained_pct: f64) -> String {
+    let mut v: Vec<String> = findings
+        .iter()
+        .map(|f| match f {
+            Finding::Class(c) | Finding::Sensor(c) => {
+                let amb = if c.ambiguous_with.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " (ambiguous with {})",
+                        c.ambiguous_with.iter().map(|a| a.as_str()).collect::<Vec<_>>().join(", ")
+                    )
+                };
+                format!(
+                    "{} ({} vs {}) closes {:.1} % of the recalibrated validation gap{amb}",
+                    c.class, c.subsystem, c.variable, c.share_pct
+                )
+            }
+            Finding::Recalibration(r) => format!(
+                "{} had to move {:+.0} % from nominal ({:.4} → {:.4}), outside its plausible range {:.4}…{:.4}",
+                r.key, r.move_pct, r.nominal, r.value, r.plausible.0, r.plausible.1
+            ),
+            Finding::OutsideLibrary(o) => format!(
+                "{} stays {:.0} % above its noise floor and no class explains it{}",
+                o.subsystem,
+                100.0 * o.excess,
+                if o.depends_on.is_empty() {
+                    String::new()
+                } else {
+                    format!("; it depends on {}", o.depends_on.join(", "))
+                }
+            ),
+            Finding::Nothing => {
+                "nothing significant remains after recalibration; every recalibrated parameter is plausible".to_string()
+            }
+        })
+        .collect();
+    if !findings.iter().any(|f| matches!(f, Finding::Nothing)) {
+        v.push(format!("{unexplained_pct:.1} % of the gap unexplained"));
+    }
+    v.join("; ")
+}
+
+/// Before/after of every output on the validation records.
+#[allow(clippy::too_many_arguments)]
+fn output_gaps(
+    va: &[File],
+    chans: &[Channel],
+    sc_nom_v: &Scores,
+    sc_rec_v: &Scores,
+    sc_after: &Scores,
+    sigma: &[f64],
+    o: &DiagnoseOptions,
+    rng: &mut Rng,
+) -> Vec<OutputGap> {
+    let nunits_v = context::units(va);
+    let mut eq = Vec::new();
+    for c in chans {
+        let i = c.index();
+        let n = sc_nom_v.n[i];
+        if n == 0 {
+            continue;
+        }
+        let r = |s: &Scores| (s.sse[i] / s.n[i].max(1) as f64).sqrt();
+        let (rn, rr, ra) = (r(sc_nom_v), r(sc_rec_v), r(sc_after));
+        let var = {
+            let (mut sum, mut sq, mut cnt) = (0.0, 0.0, 0.0);
+            for f in va {
+                for &k in f.all.get(*c) {
+                    let y = candidates::measured(&f.m, *c, k);
+                    sum += y;
+                    sq += y * y;
+                    cnt += 1.0;
+                }
+            }
+            (sq / cnt - (sum / cnt).powi(2)).max(1e-30)
+        };
+        let fitp = |rm: f64| 100.0 * (1.0 - rm / var.sqrt());
+        let un = &sc_nom_v.unit_sse[i];
+        let ua = &sc_after.unit_sse[i];
+        let ci = stats::bootstrap(nunits_v, o.bootstrap, rng, |idx| {
+            let (a, b) = idx
+                .iter()
+                .fold((0.0, 0.0), |s, &j| (s.0 + un[j], s.1 + ua[j]));
+            if a > 0.0 {
+                100.0 * (1.0 - (b / a).sqrt())
+            } else {
+                f64::NAN
+            }
+        });
+        let zn = sc_nom_v.std_sse[i] / n as f64;
+        let za = sc_after.std_sse[i] / sc_after.n[i].max(1) as f64;
+        let gap_n = (zn - 1.0).max(0.0).sqrt();
+        let gap_a = (za - 1.0).max(0.0).sqrt();
+        eq.push(OutputGap {
+            output: c.name().to_string(),
+            subsystem: c.subsystem().as_str().to_string(),
+            n,
+            noise: sigma[i],
+            rmse_nominal: rn,
+            rmse_recalibrated: rr,
+            rmse_after: ra,
+            fit_pct_nominal: fitp(rn),
+            fit_pct_after: fitp(ra),
+            reduction_pct: 100.0 * (1.0 - ra / rn.max(1e-300)),
+            reduction_ci95: ci,
+            gap_reduction_pct: if gap_n > 0.0 {
+                (100.0 * (1.0 - gap_a / gap_n)).clamp(-100.0, 100.0)
+            } else {
+                0.0
+            },
+        });
+    }
+    eq
+}
+
+/// Traces of the main output on the first validation record.
+fn traces(nominal: &Model, after: &Model, va: &[File], main: Option<&OutputGap>) -> Vec<Trace> {
+    let (Some(g), Some(f)) = (main, va.first()) else {
+        return Vec::new();
+    };
+    let Some(c) = Channel::ALL.iter().find(|c| c.name() == g.output) else {
+        return Vec::new();
+    };
+    let pn = candidates::predict(nominal, &f.m, &f.all, &[*c]);
+    let pa = candidates::predict(after, &f.m, &f.all, &[*c]);
+    let idx = f.all.get(*c);
+    vec![Trace {
+        file: f.m.source.clone(),
+        output: g.output.clone(),
+        t: idx.iter().map(|&k| f.m.time[k]).collect(),
+        measured: idx
+            .iter()
+            .map(|&k| candidates::measured(&f.m, *c, k))
+            .collect(),
+        nominal: idx.iter().map(|&k| pn.y[c.index()][k]).collect(),
+        after: idx.iter().map(|&k| pa.y[c.index()][k]).collect(),
+    }]
 }
 
 /// Free-running replay RMSE of torque and temperatures, nominal vs after.

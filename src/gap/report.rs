@@ -7,6 +7,7 @@
 //! when a template is given). Pure: returns the texts; the CLI writes them.
 
 use super::diagnose::Diagnosis;
+use super::finding::Finding;
 use super::where_::BiasMap;
 use crate::plot::{Figure, Panel, Series, Style};
 use std::fmt::Write as _;
@@ -34,6 +35,59 @@ pub fn json(d: &Diagnosis) -> String {
     serde_json::to_string_pretty(d).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
 }
 
+/// One row of the findings table (without the index).
+fn finding_row(fd: &Finding) -> String {
+    match fd {
+        Finding::Class(c) | Finding::Sensor(c) => format!(
+            "{}`{}`{} | {} | {} | {} % | {} {} ({}…{}) | {}",
+            if matches!(fd, Finding::Sensor(_)) { "sensor " } else { "" },
+            c.class,
+            if c.ambiguous_with.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " — ambiguous with {}",
+                    c.ambiguous_with
+                        .iter()
+                        .map(|a| format!("`{a}`"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            },
+            c.subsystem,
+            c.variable,
+            f(c.share_pct, 1),
+            g(c.magnitude),
+            c.unit,
+            g(c.magnitude_ci95.0),
+            g(c.magnitude_ci95.1),
+            c.range_warning.clone().unwrap_or_default()
+        ),
+        Finding::Recalibration(r) => format!(
+            "recalibration `{}` | {} | — | — | {} → {} ({:+.0} %) | outside the plausible range {}…{}",
+            r.key,
+            fd.subsystem().map_or("—".to_string(), |s| s.to_string()),
+            g(r.nominal),
+            g(r.value),
+            r.move_pct,
+            g(r.plausible.0),
+            g(r.plausible.1)
+        ),
+        Finding::OutsideLibrary(o) => format!(
+            "outside the library | {} | {} | — | excess {} % over the noise floor | {}",
+            o.subsystem,
+            if o.depends_on.is_empty() {
+                "—".to_string()
+            } else {
+                o.depends_on.join(", ")
+            },
+            f(100.0 * o.excess, 0),
+            o.time_structure
+        ),
+        Finding::Nothing => "nothing | — | — | — | — | residual at the noise floor, recalibration plausible".to_string(),
+    }
+}
+
 /// The Markdown report.
 pub fn markdown(d: &Diagnosis) -> String {
     let mut s = String::new();
@@ -46,7 +100,41 @@ pub fn markdown(d: &Diagnosis) -> String {
         d.validate_files.join(", ")
     );
     let _ = writeln!(s, "## Verdict\n");
-    let _ = writeln!(s, "- **effect: `{}`**", v.effect);
+    let _ = writeln!(s, "| # | finding | subsystem | variable | share of the gap closed | magnitude (95 % CI) | note |\n|---|---|---|---|---|---|---|");
+    for (i, fd) in v.findings.iter().enumerate() {
+        let _ = writeln!(s, "| {} | {} |", i + 1, finding_row(fd));
+    }
+    let _ = writeln!(
+        s,
+        "\nUnexplained: {} % of the recalibrated validation gap above the practical tolerance.\n",
+        f(v.unexplained_pct, 1)
+    );
+    for fd in &v.findings {
+        if let Some(c) = fd.class() {
+            if !c.shape.is_empty() {
+                let pts: Vec<String> = c
+                    .shape
+                    .iter()
+                    .map(|(z, y)| format!("({}, {})", g(*z), g(*y)))
+                    .collect();
+                let _ = writeln!(
+                    s,
+                    "- fitted shape of `{}` over {} (variable, term): {}",
+                    c.class,
+                    c.variable,
+                    pts.join(" ")
+                );
+            }
+        }
+    }
+    if !v.not_checkable.is_empty() {
+        let _ = writeln!(s, "\nClasses these records cannot check:\n");
+        for n in &v.not_checkable {
+            let _ = writeln!(s, "- `{}`: {}", n.class, n.why);
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "- **first finding: `{}`**", v.effect);
     let _ = writeln!(
         s,
         "- subsystem: `{}` (in order of evidence: {})",
@@ -163,8 +251,8 @@ pub fn markdown(d: &Diagnosis) -> String {
         }
     }
     let _ = writeln!(s, "\n## Which\n");
-    let _ = writeln!(s, "Every library effect fitted jointly with the recalibration of its subsystem on the training records, ranked by the standardized validation RMS (1 = sensor noise). Credited: ΔBIC < −10 on training, a significant validation improvement (event bootstrap) removing ≥ 10 % of the recalibrated validation gap, and a fitted magnitude of at least a quarter of the smallest plausible one.\n");
-    let _ = writeln!(s, "| rank | effect | subsystem | parameters | validation score | ΔBIC | gap explained | credited |\n|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "Every effect class fitted (a monotone piecewise-linear term in its variable, or its library member's parameters) jointly with the recalibration of its subsystem on the training records; first selection round, ranked by validation gain. Kept: ΔBIC < −10 on training, a significant validation gain (paired block bootstrap), closing ≥ 10 % of the validation gap left on its channels and at least half their practical tolerance. Ambiguous: another kept-quality class with ≥ 80 % of the best gain whose paired difference is not significant.\n");
+    let _ = writeln!(s, "| rank | class | subsystem | parameters | validation score | ΔBIC | gap explained | kept-quality |\n|---|---|---|---|---|---|---|---|");
     for (i, r) in v.ranking.iter().enumerate() {
         let ps: Vec<String> = r
             .parameters

@@ -1,0 +1,340 @@
+//! How each effect class is fitted (issue 17 item 1): its free parameters with bounds (the
+//! increments of a monotone [`Shape`] in the class's variable, or the few physical parameters of
+//! a library member), the channels it is fitted on, and how a parameter vector sets a
+//! [`Model`]. Bounds are physical limits, not plausible ranges: a fitted magnitude outside the
+//! documented range is reported, not rejected (item 8).
+
+use super::candidates::{Channel, Model};
+use super::class::{ClassId, Variable};
+use super::lsq::ParamSpec;
+use super::shape::{Shape, KNOTS};
+use super::terms::GainOffset;
+use crate::model::effects::{EffectId, Subsystem};
+use std::collections::BTreeMap;
+
+/// Knot positions of the class variables over the training records (variables that do not
+/// vary have none: their classes cannot be checked).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Knots(pub BTreeMap<Variable, [f64; KNOTS]>);
+
+/// What a class needs from the records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Needs {
+    Torque,
+    Temperatures,
+    Requests,
+    Engine,
+}
+
+/// The channel group a class is fitted on.
+pub fn group(class: ClassId) -> Subsystem {
+    use ClassId::*;
+    match class {
+        SupportConduction | ConvectionSpeed | HeatPartition | SensorTemperatureLag
+        | SensorTemperature => Subsystem::Thermal,
+        ActuatorDeadTime | ActuatorLag | SensorPosition => Subsystem::Actuator,
+        EngineTorqueError => Subsystem::Engine,
+        _ => Subsystem::TorqueCharacteristic,
+    }
+}
+
+/// The channels a class is fitted on (sensor position: the position channel and the torque).
+pub fn channels(class: ClassId) -> Vec<Channel> {
+    match class {
+        ClassId::SensorPosition => vec![
+            Channel::Pos(0),
+            Channel::Pos(1),
+            Channel::Torque(0),
+            Channel::Torque(1),
+        ],
+        c => group_channels(group(c)),
+    }
+}
+
+/// The channels of a subsystem's equation.
+pub fn group_channels(s: Subsystem) -> Vec<Channel> {
+    match s {
+        Subsystem::TorqueCharacteristic => vec![Channel::Torque(0), Channel::Torque(1)],
+        Subsystem::Thermal => vec![Channel::Temp(0), Channel::Temp(1), Channel::Temp(2)],
+        Subsystem::Actuator => vec![Channel::Pos(0), Channel::Pos(1)],
+        Subsystem::Engine => vec![Channel::Engine],
+        Subsystem::Driveline => vec![],
+    }
+}
+
+fn shape_params(prefix: &str, bound: f64, scale: f64) -> Vec<ParamSpec> {
+    (1..KNOTS)
+        .map(|j| ParamSpec::new(format!("{prefix}.d{j}"), 0.0, -bound, bound, scale))
+        .collect()
+}
+
+fn member_params(id: EffectId) -> Vec<ParamSpec> {
+    id.params()
+        .iter()
+        .map(|ps| {
+            let scale = (ps.plausible.1 - ps.plausible.0).abs().max(1e-12);
+            ParamSpec::new(
+                format!("{}.{}", id.as_str(), ps.name),
+                ps.typical,
+                ps.bounds.0,
+                ps.bounds.1,
+                scale,
+            )
+        })
+        .collect()
+}
+
+/// The variable of a shape class, if it is one.
+pub fn shape_variable(class: ClassId) -> Option<Variable> {
+    use ClassId::*;
+    match class {
+        FrictionTemperature
+        | FrictionStaticTemperature
+        | SpringTemperature
+        | KissPointTemperature => Some(Variable::Temperature),
+        FrictionSlip => Some(Variable::Slip),
+        FrictionClampLoad => Some(Variable::ClampLoad),
+        FrictionSlidingAcceleration => Some(Variable::SlidingAcceleration),
+        FrictionEnergy | KissPointEnergy => Some(Variable::FrictionEnergy),
+        _ => None,
+    }
+}
+
+/// Why a class cannot be fitted on these records, or `None` when it can.
+pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool) -> Option<String> {
+    use ClassId::*;
+    if let Some(v) = shape_variable(class) {
+        if !has(Needs::Torque) {
+            return Some("no slipping clutch torque in the records".into());
+        }
+        if !knots.0.contains_key(&v) {
+            return Some(format!("the records do not vary the {v}"));
+        }
+        return None;
+    }
+    match class {
+        ActuatorDeadTime | ActuatorLag if !has(Needs::Requests) => {
+            Some("no position request logged (x_to1_req_mm / x_to2_req_mm, TCU_ClutchCmd)".into())
+        }
+        SupportConduction | SensorTemperatureLag | SensorTemperature
+            if !has(Needs::Temperatures) =>
+        {
+            Some("no plate / central-disk temperatures".into())
+        }
+        ConvectionSpeed | HeatPartition => Some(
+            "not implemented in this version: absorbed by the recalibrated convection and \
+             heating terms (α2, α3, α8, α9); what they cannot absorb is reported as a thermal \
+             residual outside the library"
+                .into(),
+        ),
+        EngineTorqueError if !has(Needs::Engine) => Some(
+            "needs vehicle records with T_e_Nm (on the rig the dyno replaces the engine)".into(),
+        ),
+        _ if !has(Needs::Torque) && group(class) == Subsystem::TorqueCharacteristic => {
+            Some("no slipping clutch torque in the records".into())
+        }
+        _ => None,
+    }
+}
+
+/// Free parameters of a class.
+pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
+    use ClassId::*;
+    let name = class.as_str();
+    match class {
+        FrictionTemperature
+        | FrictionStaticTemperature
+        | FrictionSlip
+        | FrictionClampLoad
+        | FrictionSlidingAcceleration
+        | FrictionEnergy
+        | SpringTemperature => shape_params(name, 0.4, 0.02),
+        KissPointTemperature | KissPointEnergy => shape_params(name, 1.0, 0.05),
+        ActuatorLag => {
+            let tau = base.p.actuator.tau_s;
+            vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
+        }
+        ActuatorTransfer => vec![
+            ParamSpec::new("actuator_transfer.gain", 1.0, 0.7, 1.3, 0.02),
+            ParamSpec::new("actuator_transfer.offset_mm", 0.0, -1.0, 1.0, 0.05),
+        ],
+        SensorTorque => vec![
+            ParamSpec::new("sensor_torque.gain", 1.0, 0.7, 1.3, 0.02),
+            ParamSpec::new("sensor_torque.offset_nm", 0.0, -10.0, 10.0, 0.5),
+        ],
+        SensorTorqueSkew => vec![ParamSpec::new(
+            "sensor_torque_skew.skew_s",
+            0.0,
+            -0.2,
+            0.2,
+            0.01,
+        )],
+        SensorTemperatureLag => vec![ParamSpec::new(
+            "sensor_temperature_lag.tau_s",
+            1.0,
+            0.0,
+            60.0,
+            1.0,
+        )],
+        SensorTemperature => vec![
+            ParamSpec::new("sensor_temperature.gain", 1.0, 0.8, 1.2, 0.01),
+            ParamSpec::new("sensor_temperature.offset_c", 0.0, -10.0, 10.0, 0.5),
+        ],
+        SensorPosition => vec![
+            ParamSpec::new("sensor_position.gain", 1.0, 0.7, 1.3, 0.02),
+            ParamSpec::new("sensor_position.offset_mm", 0.0, -1.0, 1.0, 0.05),
+        ],
+        ConvectionSpeed | HeatPartition => vec![],
+        c => c.member().map(member_params).unwrap_or_default(),
+    }
+}
+
+/// Sets the class's term in `m` from the parameter vector `v` (as [`params`] lists them).
+pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
+    use ClassId::*;
+    let shape = |var: Variable| {
+        knots
+            .0
+            .get(&var)
+            .map(|z| (var, Shape::from_increments(*z, v)))
+    };
+    let go = |v: &[f64]| GainOffset {
+        gain: v[0],
+        offset: v[1],
+    };
+    match class {
+        FrictionTemperature
+        | FrictionSlip
+        | FrictionClampLoad
+        | FrictionSlidingAcceleration
+        | FrictionEnergy => {
+            if let Some(s) = shape_variable(class).and_then(shape) {
+                let slot = m.terms.mu.iter().position(Option::is_none).unwrap_or(1);
+                m.terms.mu[slot] = Some(s);
+            }
+        }
+        FrictionStaticTemperature => m.terms.mu_static = shape(Variable::Temperature).map(|s| s.1),
+        SpringTemperature => m.terms.spring = shape(Variable::Temperature).map(|s| s.1),
+        KissPointTemperature | KissPointEnergy => {
+            m.terms.kiss = shape_variable(class).and_then(shape)
+        }
+        ActuatorLag => m.p.actuator.tau_s = v[0],
+        ActuatorTransfer => m.terms.transfer = Some(go(v)),
+        SensorTorque => m.terms.torque_sensor = Some(go(v)),
+        SensorTorqueSkew => m.terms.torque_skew_s = v[0],
+        SensorTemperatureLag => m.terms.temp_lag_s = v[0],
+        SensorTemperature => m.terms.temp_sensor = Some(go(v)),
+        SensorPosition => m.terms.pos_sensor = Some(go(v)),
+        ConvectionSpeed | HeatPartition => {}
+        c => {
+            if let Some(id) = c.member() {
+                m.set.set_clamped(id, v);
+            }
+        }
+    }
+}
+
+/// True when two classes write the same term (they cannot be selected together).
+pub fn conflicts(a: ClassId, b: ClassId) -> bool {
+    use ClassId::*;
+    let slot = |c: ClassId| match c {
+        KissPointTemperature | KissPointEnergy => 1,
+        _ => 0,
+    };
+    a == b || (slot(a) == 1 && slot(b) == 1)
+}
+
+/// Magnitude of a fitted class term with its unit: the largest change over the training range
+/// of its variable for shapes (relative for multipliers, mm for kiss-point shifts), the member's
+/// parameter otherwise.
+pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
+    use ClassId::*;
+    let t = &m.terms;
+    match class {
+        FrictionTemperature
+        | FrictionSlip
+        | FrictionClampLoad
+        | FrictionSlidingAcceleration
+        | FrictionEnergy => {
+            let var = shape_variable(class);
+            let s = t.mu.iter().flatten().find(|(v, _)| Some(*v) == var);
+            (s.map_or(0.0, |(_, s)| s.span()), "relative")
+        }
+        FrictionStaticTemperature => (t.mu_static.map_or(0.0, |s| s.span()), "relative"),
+        SpringTemperature => (t.spring.map_or(0.0, |s| s.span()), "relative"),
+        KissPointTemperature | KissPointEnergy => (t.kiss.map_or(0.0, |s| s.1.span()), "mm"),
+        ActuatorLag => (m.p.actuator.tau_s, "s"),
+        ActuatorTransfer => (t.transfer.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
+        SensorTorque => (
+            t.torque_sensor.map_or(0.0, |g| g.gain - 1.0),
+            "relative gain",
+        ),
+        SensorTorqueSkew => (t.torque_skew_s, "s"),
+        SensorTemperatureLag => (t.temp_lag_s, "s"),
+        SensorTemperature => (t.temp_sensor.map_or(0.0, |g| g.offset), "°C offset"),
+        SensorPosition => (t.pos_sensor.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
+        c => match c.member().and_then(|id| Some((id, m.set.get(id)?))) {
+            Some((id, v)) => (v[0], id.params()[0].unit),
+            None => (0.0, ""),
+        },
+    }
+}
+
+/// The fitted shape of a shape class as (variable value, term value) at the knots.
+pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
+    use ClassId::*;
+    let t = &m.terms;
+    let var = shape_variable(class);
+    let s = match class {
+        FrictionStaticTemperature => t.mu_static,
+        SpringTemperature => t.spring,
+        KissPointTemperature | KissPointEnergy => t.kiss.map(|s| s.1),
+        _ => {
+            t.mu.iter()
+                .flatten()
+                .find(|(v, _)| Some(*v) == var)
+                .map(|s| s.1)
+        }
+    };
+    s.map(|s| s.points()).unwrap_or_default()
+}
+
+/// The library member's parameters that best represent a fitted shape class (for the TCU's
+/// calibration, which inverts the library's forms): slope of the shape for linear laws, the
+/// log-log slope for the pressure law.
+pub fn member_from_shape(class: ClassId, m: &Model) -> Option<(EffectId, Vec<f64>)> {
+    use ClassId::*;
+    let pts = shape_points(class, m);
+    if pts.len() < 2 {
+        return None;
+    }
+    let (z0, zn) = (pts[0].0, pts[pts.len() - 1].0);
+    let slope = |pts: &[(f64, f64)]| {
+        // Least squares slope of the term through the knots.
+        let n = pts.len() as f64;
+        let mz = pts.iter().map(|p| p.0).sum::<f64>() / n;
+        let mv = pts.iter().map(|p| p.1).sum::<f64>() / n;
+        let sxy: f64 = pts.iter().map(|p| (p.0 - mz) * (p.1 - mv)).sum();
+        let sxx: f64 = pts.iter().map(|p| (p.0 - mz).powi(2)).sum();
+        if sxx > 0.0 {
+            sxy / sxx
+        } else {
+            0.0
+        }
+    };
+    let _ = (z0, zn);
+    match class {
+        SpringTemperature => Some((EffectId::SpringStiffnessTemp, vec![slope(&pts)])),
+        FrictionStaticTemperature => Some((EffectId::MuStaticTemp, vec![slope(&pts)])),
+        KissPointEnergy => Some((EffectId::KissPointWear, vec![slope(&pts)])),
+        FrictionClampLoad => {
+            let lp: Vec<(f64, f64)> = pts
+                .iter()
+                .filter(|p| p.0 > 0.0 && 1.0 + p.1 > 0.0)
+                .map(|p| (p.0.ln(), (1.0 + p.1).ln()))
+                .collect();
+            Some((EffectId::FrictionPressure, vec![1.0 + slope(&lp)]))
+        }
+        _ => None,
+    }
+}

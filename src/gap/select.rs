@@ -1,0 +1,448 @@
+//! Recalibration and class selection (issue 17 items 2–4, 8):
+//! - [`fit`]: one least-squares problem — a class's flexible term (or none) jointly with the
+//!   recalibration parameters of its subsystem, on the training records, residuals standardized
+//!   by each record's noise floor;
+//! - the recalibration moves every parameter a bench recalibrates ([`RECAL`]: kiss-point law
+//!   λ0–λ2, the dynamic and static friction levels, convection and heating terms, actuator lag),
+//!   bounded to its plausible range (±[`PLAUSIBLE_REL`] of nominal) — a move beyond that is a
+//!   finding of its own, not something a class is rejected for;
+//! - [`select`]: forward selection of up to three classes. In each round every remaining class
+//!   is fitted on top of the current model and scored on the validation records; the best is
+//!   kept when (a) ΔBIC < −10 on training (sample sizes corrected for autocorrelation), (b) its
+//!   validation gain Σz² is significant (paired block bootstrap, 95 % lower bound > 0), and (c)
+//!   the gain is at least 10 % of the validation excess left on the channels it acts on, half
+//!   their practical tolerance ([`super::context::tolerance`]) and 2 % of their samples.
+//!   Classes whose gain is at least 80 % of the best's and whose paired bootstrap difference to
+//!   it is not significant form the **ambiguity set** of that round.
+
+use super::candidates::{Channel, Model};
+use super::class::ClassId;
+use super::classfit::{self, Knots};
+use super::context::{self, File, Scores};
+use super::keys;
+use super::lsq::{self, Fit, LmOptions, ParamSpec};
+use super::stats::{self, Rng};
+use crate::model::effects::Subsystem;
+use crate::model::params::Params;
+
+/// The parameters plain recalibration moves, by subsystem.
+pub const RECAL: &[(&str, Subsystem)] = &[
+    ("clutch.x_isp0_mm", Subsystem::TorqueCharacteristic),
+    ("clutch.x_isp1_mm_per_c", Subsystem::TorqueCharacteristic),
+    ("clutch.x_isp2_mm_per_c2", Subsystem::TorqueCharacteristic),
+    ("clutch.c4", Subsystem::TorqueCharacteristic),
+    ("clutch.mu_s", Subsystem::TorqueCharacteristic),
+    ("thermal5.alpha2_per_s", Subsystem::Thermal),
+    ("thermal5.alpha3_k_per_j", Subsystem::Thermal),
+    ("thermal5.alpha8_per_s", Subsystem::Thermal),
+    ("thermal5.alpha9_k_per_j", Subsystem::Thermal),
+    ("actuator.tau_s", Subsystem::Actuator),
+];
+
+/// Plausible recalibration: within this fraction of the nominal value.
+pub const PLAUSIBLE_REL: f64 = 0.3;
+
+/// The recalibration keys of a subsystem.
+pub fn recal_keys(s: Subsystem) -> Vec<&'static str> {
+    RECAL.iter().filter(|r| r.1 == s).map(|r| r.0).collect()
+}
+
+/// Plausible range of a recalibrated parameter.
+pub fn plausible(key: &str, nominal: &Params) -> (f64, f64) {
+    let v = keys::get(nominal, key).unwrap_or(0.0);
+    let (a, b) = (v * (1.0 - PLAUSIBLE_REL), v * (1.0 + PLAUSIBLE_REL));
+    (a.min(b), a.max(b))
+}
+
+fn recal_spec(key: &'static str, base: &Model, nominal: &Params, wide: bool) -> ParamSpec {
+    let nom = keys::get(nominal, key).unwrap_or(0.0);
+    let v = keys::get(&base.p, key).unwrap_or(nom);
+    let (plo, phi) = keys::range(key).unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+    let (lo, hi) = if wide {
+        let (a, b) = (nom / 10.0, nom * 10.0);
+        (a.min(b), a.max(b))
+    } else {
+        plausible(key, nominal)
+    };
+    let (lo, hi) = (lo.max(plo), hi.min(phi));
+    let spec = ParamSpec::new(key, v.clamp(lo, hi), lo, hi, keys::scale(key));
+    if lo > 0.0 {
+        spec.log()
+    } else {
+        spec
+    }
+}
+
+/// One fit: an optional class jointly with recalibration parameters on some channels.
+#[derive(Debug, Clone)]
+pub struct Job {
+    pub class: Option<ClassId>,
+    pub recal: Vec<&'static str>,
+    pub chans: Vec<Channel>,
+    /// Recalibration bounds widened to a tenth … ten times nominal.
+    pub wide: bool,
+    /// Reuse each record's cached disk temperature (the fit does not change the thermal model).
+    pub cached_disk: bool,
+    pub max_iter: usize,
+}
+
+/// Fits `job` on the training records starting from `base`.
+pub fn fit(
+    base: &Model,
+    nominal: &Params,
+    job: &Job,
+    files: &[File],
+    knots: &Knots,
+) -> (Model, Option<Fit>) {
+    let mut specs: Vec<ParamSpec> = job
+        .class
+        .map(|c| classfit::params(c, base))
+        .unwrap_or_default();
+    let nc = specs.len();
+    specs.extend(
+        job.recal
+            .iter()
+            .map(|k| recal_spec(k, base, nominal, job.wide)),
+    );
+    let n: usize = files.iter().map(|f| f.fit.count(&job.chans)).sum();
+    if specs.is_empty() || n == 0 {
+        return (*base, None);
+    }
+    let build = |v: &[f64]| -> Option<Model> {
+        let mut m = *base;
+        if let Some(c) = job.class {
+            classfit::apply(c, knots, &mut m, &v[..nc]);
+        }
+        for (k, x) in job.recal.iter().zip(&v[nc..]) {
+            keys::set(&mut m.p, k, *x);
+        }
+        m.p.clutch.validate().ok()?;
+        Some(m)
+    };
+    let mut buf = Vec::with_capacity(n);
+    let mut f = |v: &[f64], r: &mut [f64]| match build(v) {
+        Some(model) => {
+            buf.clear();
+            let preds = context::predictions(&model, files, &job.chans, true, job.cached_disk);
+            // Every fit sample in a fixed order (NaN predictions count as large residuals).
+            for (file, pr) in files.iter().zip(&preds) {
+                for &c in &job.chans {
+                    let y = &pr.y[c.index()];
+                    for &k in file.fit.get(c) {
+                        let e = super::candidates::measured(&file.m, c, k)
+                            - y.get(k).copied().unwrap_or(f64::NAN);
+                        buf.push(e / file.sigma[c.index()]);
+                    }
+                }
+            }
+            for (ri, b) in r.iter_mut().zip(&buf) {
+                *ri = if b.is_finite() { *b } else { 1e3 };
+            }
+        }
+        None => r.iter_mut().for_each(|x| *x = 1e6),
+    };
+    let fit = lsq::levenberg_marquardt(
+        &mut f,
+        n,
+        &specs,
+        LmOptions {
+            max_iter: job.max_iter,
+            tol_sse: 1e-6,
+            ..LmOptions::default()
+        },
+    );
+    let model = build(&fit.p).unwrap_or(*base);
+    (model, Some(fit))
+}
+
+/// The channels whose predictions a class changes (a thermal class changes the disk
+/// temperature and so the torque).
+pub fn affected(class: ClassId) -> Vec<Channel> {
+    let mut v = classfit::channels(class);
+    if classfit::group(class) == Subsystem::Thermal {
+        v.extend(classfit::group_channels(Subsystem::TorqueCharacteristic));
+    }
+    v
+}
+
+/// The shared inputs of a selection.
+pub struct Setup<'a> {
+    pub train: &'a [File],
+    pub validate: &'a [File],
+    pub nominal: &'a Params,
+    pub knots: &'a Knots,
+    /// Channels with data in both sets.
+    pub chans: &'a [Channel],
+    pub nunits_v: usize,
+    /// Effective sample size per channel of the training residuals.
+    pub n_eff: &'a [f64],
+    pub bootstrap: usize,
+    pub threads: usize,
+    pub bic_threshold: f64,
+    pub min_gain: f64,
+}
+
+/// A class fitted on top of a model and scored.
+#[derive(Debug, Clone)]
+pub struct Candidate {
+    pub class: ClassId,
+    pub model: Model,
+    pub fit: Fit,
+    /// Validation scores over every channel (the unaffected ones copied from the base).
+    pub val: Scores,
+    pub delta_bic: f64,
+    /// Validation Σz² gain over the base and its 95 % bootstrap interval.
+    pub gain: f64,
+    pub gain_ci95: (f64, f64),
+    pub unit_gain: Vec<f64>,
+    /// Validation excess Σz² − n on the affected channels before the class.
+    pub excess_before: f64,
+    /// Whether (a)–(c) hold, and why not.
+    pub credited: bool,
+    pub note: String,
+}
+
+/// Training SSE per channel of a model on the fit samples.
+pub fn train_sse(model: &Model, files: &[File], chans: &[Channel], cached: bool) -> Vec<f64> {
+    let preds = context::predictions(model, files, chans, true, cached);
+    let mut sse = vec![0.0; Channel::ALL.len()];
+    context::for_each_residual(files, &preds, chans, true, |_, c, _, e| {
+        sse[c.index()] += e * e;
+    });
+    sse
+}
+
+/// Fits and scores one class on top of `base`.
+fn candidate(
+    s: &Setup,
+    base: &Model,
+    base_val: &Scores,
+    base_train: &[f64],
+    class: ClassId,
+    rng_seed: u64,
+) -> Option<Candidate> {
+    let group = classfit::group(class);
+    let mut recal = recal_keys(group);
+    if class == ClassId::ActuatorLag {
+        recal.clear();
+    }
+    let fit_chans: Vec<Channel> = classfit::channels(class)
+        .into_iter()
+        .filter(|c| s.chans.contains(c))
+        .collect();
+    if fit_chans.is_empty() {
+        return None;
+    }
+    let torque_only = group == Subsystem::TorqueCharacteristic;
+    let job = Job {
+        class: Some(class),
+        recal,
+        chans: fit_chans.clone(),
+        wide: false,
+        cached_disk: torque_only,
+        max_iter: 25,
+    };
+    let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots);
+    let fit = fit?;
+    let mut aff: Vec<Channel> = affected(class)
+        .into_iter()
+        .filter(|c| s.chans.contains(c))
+        .collect();
+    aff.dedup();
+    if group == Subsystem::Thermal {
+        // The disk temperature moved: refit the torque recalibration.
+        let tq: Vec<Channel> = classfit::group_channels(Subsystem::TorqueCharacteristic)
+            .into_iter()
+            .filter(|c| s.chans.contains(c))
+            .collect();
+        if !tq.is_empty() {
+            let job = Job {
+                class: None,
+                recal: recal_keys(Subsystem::TorqueCharacteristic),
+                chans: tq,
+                wide: false,
+                cached_disk: false,
+                max_iter: 15,
+            };
+            model = fit_model(&model, s, &job);
+        }
+    }
+    // ΔBIC on training over the affected channels.
+    let t = train_sse(&model, s.train, &aff, torque_only);
+    let (mut ll, mut neff) = (0.0, 0.0);
+    for c in &aff {
+        let i = c.index();
+        if base_train[i] > 0.0 && t[i] > 0.0 && s.n_eff[i] > 0.0 {
+            ll += s.n_eff[i] * (t[i] / base_train[i]).ln();
+            neff += s.n_eff[i];
+        }
+    }
+    let k = classfit::params(class, base).len() as f64;
+    let delta_bic = ll + k * f64::max(neff, 2.0).ln();
+    let v = Scores::of(&model, s.validate, &aff, s.nunits_v);
+    let val = base_val.with(&v, &aff);
+    let ub = base_val.unit_std(s.chans);
+    let uc = val.unit_std(s.chans);
+    let unit_gain: Vec<f64> = ub.iter().zip(&uc).map(|(a, b)| a - b).collect();
+    let gain: f64 = unit_gain.iter().sum();
+    let mut rng = Rng::new(rng_seed);
+    let gain_ci95 = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+        idx.iter().map(|&j| unit_gain[j]).sum::<f64>()
+    });
+    // (c) against the gap left on the channels the class acts on, and at least half the
+    // practical tolerance there (a class must not be credited for implementation differences).
+    let (z_aff, n_aff) = base_val.total(&aff);
+    let excess = (z_aff - n_aff).max(0.0);
+    let tol: f64 = base_val.unit_tolerance(&aff).iter().sum();
+    let need = (s.min_gain * excess).max(0.5 * tol).max(0.02 * n_aff);
+    let mut why = Vec::new();
+    if delta_bic >= s.bic_threshold {
+        why.push(format!("ΔBIC {delta_bic:.1} ≥ {}", s.bic_threshold));
+    }
+    if gain_ci95.0 <= 0.0 {
+        why.push("validation gain not significant".to_string());
+    }
+    if gain < need {
+        why.push(format!(
+            "closes {:.1} % < {:.0} % of the validation gap left",
+            100.0 * gain / excess.max(1e-9),
+            100.0 * s.min_gain
+        ));
+    }
+    Some(Candidate {
+        class,
+        model,
+        fit,
+        val,
+        delta_bic,
+        gain,
+        gain_ci95,
+        unit_gain,
+        excess_before: excess,
+        credited: why.is_empty(),
+        note: if why.is_empty() {
+            "credited".into()
+        } else {
+            why.join("; ")
+        },
+    })
+}
+
+/// Fits a job and returns only the model.
+pub fn fit_model(base: &Model, s: &Setup, job: &Job) -> Model {
+    fit(base, s.nominal, job, s.train, s.knots).0
+}
+
+/// One round of the selection.
+#[derive(Debug, Clone)]
+pub struct Round {
+    /// Every candidate of the round, best validation score first.
+    pub candidates: Vec<Candidate>,
+    /// Index of the kept candidate, if any.
+    pub kept: Option<usize>,
+    /// Classes as good as the kept one (its ambiguity set without it).
+    pub ambiguous: Vec<ClassId>,
+}
+
+/// Fits every class of `classes` on top of `base` on the available cores.
+fn round(
+    s: &Setup,
+    base: &Model,
+    base_val: &Scores,
+    classes: &[ClassId],
+    seed: u64,
+) -> Vec<Candidate> {
+    let aff_all: Vec<Channel> = s.chans.to_vec();
+    let base_train = train_sse(base, s.train, &aff_all, false);
+    let threads = s.threads.clamp(1, classes.len().max(1));
+    let mut out: Vec<Candidate> = std::thread::scope(|sc| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                let base_train = &base_train;
+                sc.spawn(move || {
+                    classes
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| i % threads == t)
+                        .filter_map(|(i, c)| {
+                            candidate(s, base, base_val, base_train, *c, seed ^ (i as u64 + 1))
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .collect()
+    });
+    out.sort_by(|a, b| b.gain.total_cmp(&a.gain));
+    out
+}
+
+/// Forward selection of up to `max_classes` classes from `classes`, starting at `base`.
+pub fn select(
+    s: &Setup,
+    base: &Model,
+    classes: &[ClassId],
+    max_classes: usize,
+    seed: u64,
+) -> (Model, Scores, Vec<Round>) {
+    let mut current = *base;
+    let mut cur_val = Scores::of(&current, s.validate, s.chans, s.nunits_v);
+    let mut rounds = Vec::new();
+    let mut chosen: Vec<ClassId> = Vec::new();
+    for r in 0..max_classes {
+        let left: Vec<ClassId> = classes
+            .iter()
+            .copied()
+            .filter(|c| !chosen.iter().any(|k| classfit::conflicts(*k, *c)))
+            .collect();
+        if left.is_empty() {
+            break;
+        }
+        let cands = round(
+            s,
+            &current,
+            &cur_val,
+            &left,
+            seed.wrapping_add(r as u64 * 7919),
+        );
+        let kept = cands.iter().position(|c| c.credited);
+        let mut ambiguous = Vec::new();
+        if let Some(b) = kept {
+            let best = &cands[b];
+            for (j, c) in cands.iter().enumerate() {
+                if j == b || !c.credited || c.gain < 0.8 * best.gain {
+                    continue;
+                }
+                let d: Vec<f64> = best
+                    .unit_gain
+                    .iter()
+                    .zip(&c.unit_gain)
+                    .map(|(a, b)| a - b)
+                    .collect();
+                let mut rng = Rng::new(seed ^ 0xA5A5 ^ j as u64);
+                let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+                    idx.iter().map(|&u| d[u]).sum::<f64>()
+                });
+                if ci.0 <= 0.0 {
+                    ambiguous.push(c.class);
+                }
+            }
+            current = best.model;
+            cur_val = best.val.clone();
+            chosen.push(best.class);
+        }
+        let stop = kept.is_none();
+        rounds.push(Round {
+            candidates: cands,
+            kept,
+            ambiguous,
+        });
+        if stop {
+            break;
+        }
+    }
+    (current, cur_val, rounds)
+}

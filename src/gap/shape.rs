@@ -1,0 +1,141 @@
+//! The flexible, shape-constrained representation of an effect class's term (issue 17 item 1):
+//! a monotone piecewise-linear curve s(z) over [`KNOTS`] knots placed at quantiles of the
+//! driving variable in the training records, anchored at s(z₀) = 0 at the first knot, with
+//! increments of one sign (monotone), and linear extrapolation of the end segments (so a
+//! validation record hotter than the training ones still sees the trend).
+//!
+//! A parametric member of the class (a linear spring-stiffness law, a power law in the clamp
+//! load, …) is a special case up to the piecewise-linear approximation; any monotone form in
+//! other families (exponential, saturating, power, splines) is represented to within the
+//! interpolation error between knots.
+
+/// Number of knots.
+pub const KNOTS: usize = 5;
+
+/// A monotone piecewise-linear curve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shape {
+    /// Knot positions (increasing).
+    pub z: [f64; KNOTS],
+    /// Values at the knots (v[0] = 0).
+    pub v: [f64; KNOTS],
+}
+
+impl Shape {
+    /// Knots at the 2, 25, 50, 75 and 98 % quantiles of `values` (finite ones), spread apart
+    /// when the data are concentrated. `None` when the variable does not vary.
+    pub fn knots(values: impl Iterator<Item = f64>) -> Option<[f64; KNOTS]> {
+        let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
+        if v.len() < 2 * KNOTS {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        let (lo, hi) = (q(0.02), q(0.98));
+        if !(hi - lo > 1e-9 * (lo.abs() + hi.abs()).max(1e-12)) {
+            return None;
+        }
+        let mut z = [q(0.02), q(0.25), q(0.5), q(0.75), q(0.98)];
+        // At least 5 % of the range between knots (concentrated data, e.g. one rig speed).
+        let min_gap = 0.05 * (hi - lo);
+        for i in 1..KNOTS {
+            if z[i] < z[i - 1] + min_gap {
+                z[i] = z[i - 1] + min_gap;
+            }
+        }
+        Some(z)
+    }
+
+    /// A curve from knots and the increments between them (`d.len() == KNOTS − 1`).
+    pub fn from_increments(z: [f64; KNOTS], d: &[f64]) -> Shape {
+        let mut v = [0.0; KNOTS];
+        for i in 1..KNOTS {
+            v[i] = v[i - 1] + d.get(i - 1).copied().unwrap_or(0.0);
+        }
+        Shape { z, v }
+    }
+
+    /// The flat curve (no effect).
+    pub fn zero(z: [f64; KNOTS]) -> Shape {
+        Shape { z, v: [0.0; KNOTS] }
+    }
+
+    /// Value at `x`: linear between knots, linear extrapolation of the end segments.
+    #[inline]
+    pub fn eval(&self, x: f64) -> f64 {
+        let z = &self.z;
+        let seg = if x <= z[1] {
+            0
+        } else if x >= z[KNOTS - 2] {
+            KNOTS - 2
+        } else {
+            let mut i = 1;
+            while i < KNOTS - 2 && x > z[i + 1] {
+                i += 1;
+            }
+            i
+        };
+        let w = (z[seg + 1] - z[seg]).max(1e-300);
+        let f = (x - z[seg]) / w;
+        self.v[seg] + f * (self.v[seg + 1] - self.v[seg])
+    }
+
+    /// Largest |s| over the knots (the magnitude of the term over the training range).
+    pub fn magnitude(&self) -> f64 {
+        self.v.iter().fold(0.0, |a, b| a.max(b.abs()))
+    }
+
+    /// Signed change over the training range, s(z_last) − s(z₀).
+    pub fn span(&self) -> f64 {
+        self.v[KNOTS - 1] - self.v[0]
+    }
+
+    /// (z, s(z)) at the knots.
+    pub fn points(&self) -> Vec<(f64, f64)> {
+        self.z.iter().copied().zip(self.v.iter().copied()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interpolates_and_extrapolates_linearly() {
+        let z = [0.0, 1.0, 2.0, 3.0, 4.0];
+        let s = Shape::from_increments(z, &[1.0, 2.0, 0.5, 0.5]);
+        assert_eq!(s.v, [0.0, 1.0, 3.0, 3.5, 4.0]);
+        assert!((s.eval(0.5) - 0.5).abs() < 1e-12);
+        assert!((s.eval(1.5) - 2.0).abs() < 1e-12);
+        assert!((s.eval(3.5) - 3.75).abs() < 1e-12);
+        // Extrapolation continues the end slopes.
+        assert!((s.eval(-1.0) + 1.0).abs() < 1e-12);
+        assert!((s.eval(6.0) - 5.0).abs() < 1e-12);
+        assert_eq!(s.magnitude(), 4.0);
+        assert_eq!(s.span(), 4.0);
+    }
+
+    #[test]
+    fn approximates_a_smooth_monotone_form() {
+        // An exponential form, unknown to the shape: the knot fit is within the
+        // interpolation bound h²/8·max|f''| between knots.
+        let f = |x: f64| (-x / 80.0).exp() - 1.0;
+        let z = Shape::knots((0..1000).map(|i| 25.0 + 0.25 * i as f64)).unwrap();
+        let d: Vec<f64> = (1..KNOTS).map(|i| f(z[i]) - f(z[i - 1])).collect();
+        let s = Shape::from_increments(z, &d);
+        let h = z.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        let bound = h * h / 8.0 / (80.0f64 * 80.0) + 1e-12;
+        for i in 0..100 {
+            let x = z[0] + (z[KNOTS - 1] - z[0]) * i as f64 / 99.0;
+            assert!((s.eval(x) - (f(x) - f(z[0]))).abs() <= bound, "{x}");
+        }
+    }
+
+    #[test]
+    fn knots_need_variation() {
+        assert!(Shape::knots(std::iter::repeat_n(3.0, 100)).is_none());
+        assert!(Shape::knots([1.0, 2.0].into_iter()).is_none());
+        let z = Shape::knots((0..100).map(|i| if i < 95 { 10.0 } else { 20.0 })).unwrap();
+        assert!(z.windows(2).all(|w| w[1] > w[0]));
+    }
+}

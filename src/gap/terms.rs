@@ -1,0 +1,237 @@
+//! Fitted class terms (issue 17 item 1) as they act on the model evaluated on measured data:
+//! multipliers on the friction coefficient of (4)–(6) and on the spring load (10), shifts of the
+//! kiss point (9), a gain/offset between the measured actuator position and the bearing, and the
+//! sensor terms (gain/offset, lag, time skew) between the modelled quantity and its measurement.
+//! The library's parametric members (support conduction, backlash, dead time, the hidden
+//! surface temperature, facing asymmetry, engine map error) stay in the model's
+//! [`EffectSet`](crate::model::effects::EffectSet) and act through `model::effects`.
+
+use super::class::Variable;
+use super::shape::Shape;
+use crate::model::clutch;
+use crate::model::effects::{self, EffectSet, TorqueContext};
+use crate::model::params::ClutchParams;
+
+/// Reference position of the position gain terms (mm): the middle of the engagement range, so
+/// that a gain and an offset are nearly independent.
+pub const X_REF_MM: f64 = 5.0;
+/// Reference temperature of the thermocouple gain (°C).
+pub const THETA_REF_C: f64 = 25.0;
+
+/// A gain and offset, `measured = value + offset + (gain − 1)·(value − reference)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainOffset {
+    pub gain: f64,
+    pub offset: f64,
+}
+
+impl GainOffset {
+    #[inline]
+    pub fn apply(&self, v: f64, reference: f64) -> f64 {
+        v + self.offset + (self.gain - 1.0) * (v - reference)
+    }
+
+    /// The value that `apply` maps to `measured`.
+    #[inline]
+    pub fn invert(&self, measured: f64, reference: f64) -> f64 {
+        (measured - self.offset + (self.gain - 1.0) * reference) / self.gain.max(1e-6)
+    }
+}
+
+/// The class terms of a model (all off by default).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Terms {
+    /// Friction multipliers 1 + s(z) on the torque, each in its own variable.
+    pub mu: [Option<(Variable, Shape)>; 2],
+    /// Static friction μ_s × (1 + s(θ_c)).
+    pub mu_static: Option<Shape>,
+    /// Spring load × (1 + s(θ_c)).
+    pub spring: Option<Shape>,
+    /// Kiss point + s(z) (mm); with the friction energy the whole characteristic moves (x_to,max
+    /// too), with the temperature the kiss point alone.
+    pub kiss: Option<(Variable, Shape)>,
+    /// Bearing = transfer(measured actuator position).
+    pub transfer: Option<GainOffset>,
+    /// Measured torque = torque_sensor(torque).
+    pub torque_sensor: Option<GainOffset>,
+    /// The torque channel is recorded `torque_skew_s` late (s; negative: early).
+    pub torque_skew_s: f64,
+    /// Thermocouple first-order lag (s).
+    pub temp_lag_s: f64,
+    /// Measured temperature = temp_sensor(temperature).
+    pub temp_sensor: Option<GainOffset>,
+    /// Measured position = pos_sensor(position).
+    pub pos_sensor: Option<GainOffset>,
+}
+
+/// Measured variables at one torque sample besides the clutch context.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Extra {
+    /// Sliding acceleration d|ω_fc|/dt (rad/s²).
+    pub slide_acc: f64,
+}
+
+impl Terms {
+    pub fn is_nominal(&self) -> bool {
+        *self == Terms::default()
+    }
+
+    /// True when a term changes the torque at given measured inputs.
+    pub fn touches_torque(&self) -> bool {
+        self.mu.iter().any(Option::is_some)
+            || self.mu_static.is_some()
+            || self.spring.is_some()
+            || self.kiss.is_some()
+            || self.transfer.is_some()
+            || self.torque_sensor.is_some()
+            || self.torque_skew_s != 0.0
+            || self.pos_sensor.is_some()
+    }
+
+    /// The bearing position for a measured actuator position (sensor and transfer terms).
+    #[inline]
+    pub fn bearing(&self, x_measured: f64) -> f64 {
+        let x = match &self.pos_sensor {
+            Some(g) => g.invert(x_measured, X_REF_MM),
+            None => x_measured,
+        };
+        match &self.transfer {
+            Some(g) => g.apply(x, X_REF_MM),
+            None => x,
+        }
+    }
+
+    /// Clutch torque (13) with the library effects of `set` and these terms, at a context whose
+    /// `x_to_mm` is already the bearing position. Not the sensor terms (see
+    /// [`Terms::measured_torque`]).
+    #[inline]
+    pub fn torque(&self, p: &ClutchParams, set: &EffectSet, c: &TorqueContext, x: &Extra) -> f64 {
+        let needs_local = self.kiss.is_some() || self.mu_static.is_some();
+        let local;
+        let pc = if needs_local {
+            let mut q = *p;
+            if let Some((var, s)) = &self.kiss {
+                let d = s.eval(self.var(*var, p, c, x));
+                q.x_isp0_mm += d;
+                if *var == Variable::FrictionEnergy {
+                    q.x_to_max_mm += d;
+                }
+            }
+            if let Some(s) = &self.mu_static {
+                q.mu_s *= (1.0 + s.eval(c.theta_c)).max(0.05);
+            }
+            local = q;
+            &local
+        } else {
+            p
+        };
+        let t = effects::torque(pc, set, c);
+        if t == 0.0 {
+            return 0.0;
+        }
+        let mut f = 1.0;
+        if let Some(s) = &self.spring {
+            f *= (1.0 + s.eval(c.theta_c)).max(0.05);
+        }
+        for (var, s) in self.mu.iter().flatten() {
+            f *= (1.0 + s.eval(self.var(*var, pc, c, x))).max(0.05);
+        }
+        t * f
+    }
+
+    /// The torque as the sensor reports it.
+    #[inline]
+    pub fn measured_torque(&self, t: f64) -> f64 {
+        match &self.torque_sensor {
+            Some(g) => g.apply(t, 0.0),
+            None => t,
+        }
+    }
+
+    /// Value of a class variable at a torque sample.
+    #[inline]
+    fn var(&self, v: Variable, p: &ClutchParams, c: &TorqueContext, x: &Extra) -> f64 {
+        variable(v, p, c, x)
+    }
+}
+
+/// Value of a class variable at a torque sample (clamp load with the parameters `p`).
+#[inline]
+pub fn variable(v: Variable, p: &ClutchParams, c: &TorqueContext, x: &Extra) -> f64 {
+    match v {
+        Variable::Temperature => c.theta_c,
+        Variable::Slip => c.slip_radps.abs(),
+        Variable::ClampLoad => clutch::normal_force(p, c.x_to_mm, c.theta_c),
+        Variable::SlidingAcceleration => x.slide_acc,
+        Variable::FrictionEnergy => c.e_fric_j * 1e-6,
+        _ => 0.0,
+    }
+}
+
+/// First-order lag of a sampled series (time constant `tau_s`, step `dt`), starting at the first
+/// sample.
+pub fn lag(v: &[f64], tau_s: f64, dt: f64) -> Vec<f64> {
+    if tau_s <= 0.0 || v.is_empty() {
+        return v.to_vec();
+    }
+    let a = 1.0 - (-dt / tau_s).exp();
+    let mut y = v[0];
+    v.iter()
+        .map(|&x| {
+            let out = y;
+            y += a * (x - y);
+            out
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::params::Params;
+
+    #[test]
+    fn gain_offset_inverts() {
+        let g = GainOffset {
+            gain: 1.04,
+            offset: -0.3,
+        };
+        for v in [0.0, 3.0, 7.5] {
+            assert!((g.invert(g.apply(v, X_REF_MM), X_REF_MM) - v).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn nominal_terms_leave_the_torque_unchanged() {
+        let p = Params::default();
+        let c = TorqueContext::new(5.5, 150.0, 120.0);
+        let t0 = effects::torque(&p.clutch, &EffectSet::nominal(), &c);
+        let t = Terms::default().torque(&p.clutch, &EffectSet::nominal(), &c, &Extra::default());
+        assert_eq!(t, t0);
+    }
+
+    #[test]
+    fn a_spring_term_scales_the_torque() {
+        let p = Params::default();
+        let c = TorqueContext::new(5.5, 150.0, 120.0);
+        let t0 = clutch::torque(&p.clutch, 5.5, 150.0, 120.0);
+        let s = Shape::from_increments([25.0, 100.0, 150.0, 200.0, 250.0], &[-0.1, 0.0, 0.0, 0.0]);
+        let terms = Terms {
+            spring: Some(s),
+            ..Terms::default()
+        };
+        let t = terms.torque(&p.clutch, &EffectSet::nominal(), &c, &Extra::default());
+        assert!((t / t0 - (1.0 + s.eval(120.0))).abs() < 1e-12);
+    }
+
+    #[test]
+    fn lag_step_response_is_exponential() {
+        let v = vec![1.0; 1001];
+        let mut v = v;
+        v[0] = 0.0;
+        let y = lag(&v, 2.0, 0.01);
+        // y(t) = 1 − e^{−t/τ}, sampled one step late.
+        let t = 1.0;
+        assert!((y[101] - (1.0 - (-t / 2.0f64).exp())).abs() < 1e-9);
+    }
+}
