@@ -445,24 +445,6 @@ fn knots(model: &Model, train: &[File]) -> Knots {
     )
 }
 
-/// Effective training sample size per channel (autocorrelation of the residuals).
-fn effective_n(model: &Model, train: &[File], chans: &[Channel]) -> Vec<f64> {
-    let preds = context::predictions(model, train, chans, true, false);
-    let mut r: Vec<Vec<f64>> = vec![Vec::new(); Channel::ALL.len()];
-    context::for_each_residual(train, &preds, chans, true, |_, c, _, e| {
-        r[c.index()].push(e)
-    });
-    r.iter()
-        .map(|v| {
-            if v.is_empty() {
-                0.0
-            } else {
-                lsq::effective_n(v)
-            }
-        })
-        .collect()
-}
-
 /// The subsystems whose channels are checked, with their validation excess and significance.
 #[derive(Debug, Clone, PartialEq)]
 struct Excess {
@@ -900,7 +882,6 @@ pub fn diagnose(
             ))
         })
         .collect();
-    let n_eff = effective_n(&recal, &tr, &chans);
 
     // Classes this record set can check.
     let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
@@ -922,7 +903,6 @@ pub fn diagnose(
         knots: &kn,
         chans: &chans,
         nunits_v,
-        n_eff: &n_eff,
         bootstrap: o.bootstrap,
         threads,
         bic_threshold: o.bic_threshold,
@@ -982,6 +962,22 @@ pub fn diagnose(
         }
     });
     notes.extend(partial);
+    // A subsystem whose kept classes closed at least 90 % of its gap: what is left is the
+    // flexible term's approximation of the true form, not a second, unexplained effect.
+    let explained: Vec<Subsystem> = findings
+        .iter()
+        .filter_map(Finding::class)
+        .map(|c| classfit::group(c.class))
+        .collect();
+    let outside: Vec<OutsideFinding> = outside
+        .into_iter()
+        .filter(|x| {
+            !explained.contains(&x.subsystem)
+                || ex_rec
+                    .get(&x.subsystem)
+                    .is_none_or(|&e0| x.excess > 0.1 * e0)
+        })
+        .collect();
     findings.extend(recal_findings.into_iter().map(Finding::Recalibration));
     findings.extend(outside.iter().cloned().map(Finding::OutsideLibrary));
     if findings.is_empty() {
