@@ -2,7 +2,8 @@
 //! plant that simulates it, and a sim-to-real gap diagnosis.
 //!
 //! Layout: `can` (bus contract, buses, logs), `model` (pure physics), `plant` and `tcu` (pure
-//! cores stepped with `now` as an argument), `gap` (diagnosis).
+//! cores stepped with `now` as an argument), `gap` (diagnosis), `truth` (an independent truth generator for the
+//! diagnosis's blind test).
 
 pub mod can;
 pub mod daemon;
@@ -12,3 +13,4 @@ pub mod plant;
 pub mod plot;
 pub mod sim;
 pub mod tcu;
+pub mod truth;

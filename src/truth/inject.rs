@@ -1,0 +1,363 @@
+//! The truth's effects: what is injected into the truth's rig, per class (in the truth's own
+//! functional forms, see [`super::form`]) and outside every class. `ClassId` is used only as a
+//! label: which class of the diagnosis a truth belongs to.
+//!
+//! Driving variables are normalised to z ∈ [0, 1] (clamped):
+//!
+//! | variable | z |
+//! |---|---|
+//! | clutch temperature θ_c | (θ_c − 20 °C)/300 K |
+//! | slip ω | ln(1 + ω/2)/ln(1 + 240/2) (rad/s) |
+//! | clamp load F | F/7000 N |
+//! | friction energy E | E/1.2 MJ (per clutch) |
+//! | θ − θ_h (support conduction) | (θ − θ_h)/280 K |
+//! | dyno speed | ω/240 rad/s |
+//! | friction power P | P/30 kW |
+//!
+//! A multiplier is m(z) = 1 + a·f(z) (`anchor_top` false: nominal at the low end) or
+//! 1 + a·(f(z) − 1) (nominal at the top end), a shift s(z) = a·f(z) likewise.
+
+use super::form::{Family, Form};
+use super::rng::Xoshiro;
+use crate::gap::class::ClassId;
+use std::fmt;
+
+/// Effects outside every class of the diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutsideKind {
+    /// Torque judder: T·(1 + a·sin(2πft + φ)) while slipping, f 5–20 Hz.
+    Judder,
+    /// Friction drifting as a slow random walk in time (Ornstein–Uhlenbeck, τ 30–300 s),
+    /// uncorrelated with every variable.
+    FrictionDrift,
+    /// Clutch i's friction depending on the other clutch's clamp load (the central disk deflects).
+    CrossClutch,
+    /// Friction depending on the time since the engagement started (a·e^{−t/τ}, not energy).
+    EngagementTime,
+    /// A drag torque of the open clutch near its kiss point, growing with speed.
+    OpenDrag,
+}
+
+impl OutsideKind {
+    pub const ALL: [OutsideKind; 5] = [
+        OutsideKind::Judder,
+        OutsideKind::FrictionDrift,
+        OutsideKind::CrossClutch,
+        OutsideKind::EngagementTime,
+        OutsideKind::OpenDrag,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            OutsideKind::Judder => "judder",
+            OutsideKind::FrictionDrift => "friction_drift",
+            OutsideKind::CrossClutch => "cross_clutch",
+            OutsideKind::EngagementTime => "engagement_time",
+            OutsideKind::OpenDrag => "open_drag",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<OutsideKind> {
+        OutsideKind::ALL.iter().copied().find(|k| k.as_str() == s)
+    }
+}
+
+/// What an effect is: a member of a class, or outside every class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Target {
+    Class(ClassId),
+    Outside(OutsideKind),
+}
+
+impl fmt::Display for Target {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Target::Class(c) => f.write_str(c.as_str()),
+            Target::Outside(o) => write!(f, "outside:{}", o.as_str()),
+        }
+    }
+}
+
+/// The physics classes the truth's rig injects (engine classes need vehicle records; the
+/// sliding-acceleration class needs a changing slip while engaged, which the rig's dyno does not
+/// produce).
+pub const PHYSICS_CLASSES: [ClassId; 17] = [
+    ClassId::FrictionTemperature,
+    ClassId::FrictionStaticTemperature,
+    ClassId::FrictionSlip,
+    ClassId::FrictionClampLoad,
+    ClassId::FrictionEnergy,
+    ClassId::FrictionSurfaceTemperature,
+    ClassId::FacingTemperature,
+    ClassId::SpringTemperature,
+    ClassId::KissPointTemperature,
+    ClassId::KissPointEnergy,
+    ClassId::ActuatorDeadTime,
+    ClassId::ActuatorLag,
+    ClassId::ActuatorBacklash,
+    ClassId::ActuatorTransfer,
+    ClassId::SupportConduction,
+    ClassId::ConvectionSpeed,
+    ClassId::HeatPartition,
+];
+
+/// The sensor classes the truth's rig injects.
+pub const SENSOR_CLASSES: [ClassId; 5] = [
+    ClassId::SensorTorque,
+    ClassId::SensorTorqueSkew,
+    ClassId::SensorTemperatureLag,
+    ClassId::SensorTemperature,
+    ClassId::SensorPosition,
+];
+
+/// Classes of the diagnosis the truth does not inject, with the reason.
+pub fn skipped_classes() -> Vec<(ClassId, &'static str)> {
+    ClassId::ALL
+        .iter()
+        .copied()
+        .filter(|c| !PHYSICS_CLASSES.contains(c) && !SENSOR_CLASSES.contains(c))
+        .map(|c| {
+            (
+                c,
+                if c == ClassId::FrictionSlidingAcceleration {
+                    "the rig's dyno holds the slip constant while a clutch is engaged"
+                } else {
+                    "needs vehicle records (engine torque); the truth generates rig records"
+                },
+            )
+        })
+        .collect()
+}
+
+/// The range a magnitude is drawn from (log-uniform in |a|), its unit and the families.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MagnitudeRange {
+    pub lo: f64,
+    pub hi: f64,
+    pub unit: &'static str,
+    /// Both signs are drawn.
+    pub signed: bool,
+    pub families: &'static [Family],
+    /// What the magnitude is.
+    pub meaning: &'static str,
+}
+
+const SHAPES: &[Family] = &Family::SHAPES;
+const SCALAR: &[Family] = &[Family::Scalar];
+
+/// Magnitude range of an effect: from barely detectable (effect size about 0.3 of the noise on
+/// the truth's experiments) to large (about 50).
+pub fn range(t: Target) -> MagnitudeRange {
+    use ClassId as C;
+    #[rustfmt::skip]
+    let (lo, hi, unit, signed, families, meaning) = match t {
+        Target::Class(c) => match c {
+            C::FrictionTemperature => (0.0015, 0.25, "1", true, SHAPES, "relative change of μ over θ_c"),
+            C::FrictionStaticTemperature => (0.007, 0.6, "1", true, SHAPES, "relative change of μ_s over θ_c"),
+            C::FrictionSlip => (0.0012, 0.2, "1", true, SHAPES, "relative change of μ over the slip"),
+            C::FrictionClampLoad => (0.0012, 0.2, "1", true, SHAPES, "relative change of μ over the clamp load"),
+            C::FrictionEnergy => (0.002, 0.3, "1", true, SHAPES, "relative change of μ over the friction energy"),
+            C::FrictionSurfaceTemperature => (1.3, 300.0, "K", false, SHAPES, "steady flash temperature rise at 30 kW"),
+            C::FacingTemperature => (0.015, 1.0, "1", false, SCALAR, "weight w of the plate temperatures in the facing temperatures"),
+            C::SpringTemperature => (0.0015, 0.25, "1", false, SHAPES, "relative loss of flat-spring load over θ_c"),
+            C::KissPointTemperature => (0.002, 0.35, "mm", true, SHAPES, "kiss-point shift over θ_c"),
+            C::KissPointEnergy => (0.0025, 0.45, "mm", false, SHAPES, "kiss-point (and x_to,max) shift over the friction energy"),
+            C::ActuatorDeadTime => (0.01, 0.1, "s", false, SCALAR, "dead time before the lag"),
+            C::ActuatorLag => (1.02, 6.0, "×", false, SCALAR, "factor on the lag τ (or 1/factor)"),
+            C::ActuatorBacklash => (0.01, 0.5, "mm", false, SCALAR, "play width"),
+            C::ActuatorTransfer => (0.002, 0.3, "mm", true, SCALAR, "bearing minus measured position at 6 mm (gain and offset)"),
+            C::SupportConduction => (8e-6, 1.5e-3, "1/s", false, SHAPES, "conduction rate to the supports at θ − θ_h = 280 K"),
+            C::ConvectionSpeed => (0.01, 2.0, "1", false, SHAPES, "relative rise of convection from standstill to 240 rad/s"),
+            C::HeatPartition => (0.003, 0.5, "1", false, SHAPES, "share of the plate's friction heat moved to the clutch disk at 30 kW"),
+            C::SensorTorque => (0.15, 20.0, "N·m", true, SCALAR, "torque reading error at 100 N·m (gain and offset)"),
+            C::SensorTorqueSkew => (0.0005, 0.1, "s", true, SCALAR, "torque channel delay"),
+            C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple time constant"),
+            C::SensorTemperature => (0.15, 20.0, "K", true, SCALAR, "thermocouple reading error at 200 °C (gain and offset)"),
+            C::SensorPosition => (0.004, 0.3, "mm", true, SCALAR, "position reading error at 6 mm (gain and offset)"),
+            _ => (0.0, 0.0, "", false, SCALAR, "not injected"),
+        },
+        Target::Outside(o) => match o {
+            OutsideKind::Judder => (0.0015, 0.12, "1", false, SCALAR, "relative judder amplitude"),
+            OutsideKind::FrictionDrift => (0.001, 0.08, "1", false, SCALAR, "stationary σ of the friction drift"),
+            OutsideKind::CrossClutch => (0.01, 0.5, "1", true, SHAPES, "relative change of μ over the other clutch's clamp load"),
+            OutsideKind::EngagementTime => (0.0015, 0.25, "1", true, SCALAR, "relative change of μ at the start of an engagement"),
+            OutsideKind::OpenDrag => (0.5, 30.0, "N·m", false, SHAPES, "open-clutch drag at 240 rad/s at the kiss point"),
+        },
+    };
+    MagnitudeRange {
+        lo,
+        hi,
+        unit,
+        signed,
+        families,
+        meaning,
+    }
+}
+
+/// One injected effect.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Effect {
+    pub target: Target,
+    pub form: Form,
+    /// Signed magnitude in `unit` (see [`range`]).
+    pub magnitude: f64,
+    pub unit: &'static str,
+    /// The term is nominal at the top of its variable's range (else at the bottom).
+    pub anchor_top: bool,
+    /// Secondary parameters by name (time constants, gain/offset split, weights, …).
+    pub aux: Vec<(&'static str, f64)>,
+}
+
+impl Effect {
+    /// Draws an effect of `target`; `family` and `magnitude` (signed, in the range's unit) are
+    /// drawn when not given.
+    pub fn draw(
+        target: Target,
+        family: Option<Family>,
+        magnitude: Option<f64>,
+        rng: &mut Xoshiro,
+    ) -> Effect {
+        let rg = range(target);
+        let family = family
+            .filter(|f| rg.families.contains(f))
+            .unwrap_or_else(|| rg.families[rng.below(rg.families.len())]);
+        let form = Form::draw(family, rng);
+        let sign = if rg.signed { rng.sign() } else { 1.0 };
+        let mag_drawn = sign * rng.log_uniform(rg.lo, rg.hi);
+        let magnitude = magnitude.unwrap_or(mag_drawn);
+        let anchor_top = rng.uniform() < 0.5;
+        let mut aux: Vec<(&'static str, f64)> = Vec::new();
+        use ClassId as C;
+        match target {
+            Target::Class(C::FrictionSurfaceTemperature) => {
+                aux.push(("tau_s", rng.log_uniform(0.08, 2.0)));
+            }
+            Target::Class(C::ActuatorLag) => {
+                // Slower or faster than the model's lag.
+                aux.push(("faster", if rng.uniform() < 0.3 { 1.0 } else { 0.0 }));
+            }
+            Target::Class(C::ActuatorTransfer)
+            | Target::Class(C::SensorTorque)
+            | Target::Class(C::SensorTemperature)
+            | Target::Class(C::SensorPosition) => {
+                // Share of the error made by the gain (the rest by the offset), and the sign of
+                // the offset part relative to the gain part.
+                aux.push(("gain_share", rng.uniform()));
+                aux.push(("offset_sign", rng.sign()));
+            }
+            Target::Class(C::SupportConduction) => {
+                aux.push(("w_cd", rng.range(0.3, 1.0)));
+                aux.push(("w_pp", rng.range(0.0, 1.0)));
+                aux.push(("w_c", rng.range(0.0, 1.0)));
+            }
+            Target::Outside(OutsideKind::Judder) => {
+                aux.push(("freq_hz", rng.range(5.0, 20.0)));
+                aux.push(("phase_rad", rng.range(0.0, std::f64::consts::TAU)));
+            }
+            Target::Outside(OutsideKind::FrictionDrift) => {
+                aux.push(("tau_s", rng.log_uniform(30.0, 300.0)));
+                aux.push(("seed", (rng.next_u64() >> 12) as f64));
+            }
+            Target::Outside(OutsideKind::EngagementTime) => {
+                aux.push(("tau_s", rng.log_uniform(0.2, 3.0)));
+            }
+            _ => {}
+        }
+        Effect {
+            target,
+            form,
+            magnitude,
+            unit: rg.unit,
+            anchor_top,
+            aux,
+        }
+    }
+
+    pub fn aux(&self, key: &str) -> f64 {
+        self.aux
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, v)| *v)
+            .unwrap_or(0.0)
+    }
+
+    pub fn family(&self) -> Family {
+        self.form.family()
+    }
+
+    /// a·f(z) or a·(f(z) − 1) with this effect's magnitude `a`.
+    #[inline]
+    pub fn term(&self, z: f64) -> f64 {
+        let f = self.form.eval(z);
+        self.magnitude * if self.anchor_top { f - 1.0 } else { f }
+    }
+
+    /// Gain and offset of a linear error g·v + o that makes `magnitude` at `v_ref` (v measured
+    /// from `v0`), split by `gain_share`.
+    pub fn gain_offset(&self, v_ref: f64) -> (f64, f64) {
+        let share = self.aux("gain_share");
+        let g = share * self.magnitude / v_ref;
+        let o = (1.0 - share) * self.magnitude * self.aux("offset_sign");
+        (g, o)
+    }
+
+    /// One line for reports.
+    pub fn describe(&self) -> String {
+        let rg = range(self.target);
+        let aux = self
+            .aux
+            .iter()
+            .filter(|(k, _)| *k != "seed")
+            .map(|(k, v)| format!("{k} {v:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        format!(
+            "{}: {} {:+.4} {} ({}), form {}{}{}",
+            self.target,
+            rg.meaning,
+            self.magnitude,
+            self.unit,
+            if self.anchor_top {
+                "nominal at the top of the range"
+            } else {
+                "nominal at the bottom of the range"
+            },
+            self.form.describe(),
+            if aux.is_empty() { "" } else { "; " },
+            aux
+        )
+    }
+}
+
+/// z of the clutch temperature.
+#[inline]
+pub fn z_temp(theta: f64) -> f64 {
+    (theta - 20.0) / 300.0
+}
+/// z of the slip.
+#[inline]
+pub fn z_slip(w: f64) -> f64 {
+    (1.0 + w.abs() / 2.0).ln() / (1.0f64 + 120.0).ln()
+}
+/// z of the clamp load.
+#[inline]
+pub fn z_clamp(f: f64) -> f64 {
+    f / 7000.0
+}
+/// z of the friction energy (J).
+#[inline]
+pub fn z_energy(e: f64) -> f64 {
+    e / 1.2e6
+}
+/// z of the dyno speed.
+#[inline]
+pub fn z_speed(w: f64) -> f64 {
+    w.abs() / 240.0
+}
+/// z of the friction power (W).
+#[inline]
+pub fn z_power(p: f64) -> f64 {
+    p / 30e3
+}

@@ -1,0 +1,563 @@
+//! An independent truth generator for the blind test of the sim-to-real diagnosis (issue 17,
+//! item 6): its own rig simulator written from the paper's equations ([`physics`], [`sim`]), its
+//! own experiments ([`experiments`]), its own functional forms ([`form`]) and random numbers
+//! ([`rng`]), and effects injected per class of the diagnosis — in forms the diagnosis does not
+//! use — and outside every class ([`inject`]).
+//!
+//! Independence: nothing here calls the project's model code (`model::clutch`, `model::thermal`,
+//! `model::actuator`, `model::powertrain`, the effect library) nor the diagnosis; parameter
+//! values come from `model::params::Params`, `gap::class::ClassId` is used only as a label, and
+//! the records are CSV text in the documented columns (parsed by `gap::dataset::Dataset` like any
+//! bench file). The diagnosis never imports this module (checked by `tests/truth.rs`).
+//!
+//! A truth ([`Truth`]) is drawn per (seed, index) by [`draw`]: its kind (nominal, one physics
+//! class, one sensor class, a pair of classes, an effect outside every class), the effects' forms
+//! and magnitudes, baseline parameters detuned by up to ±20 %, variants (only `x_to1_req_mm`
+//! logged; the validation runs starting on the worn pack), and its magnitude band — the effect size
+//! over the noise, measured by simulating the records with and without the effect, noise-free.
+//! [`records`] then generates the noisy training and validation CSV records.
+
+pub mod experiments;
+pub mod form;
+pub mod inject;
+pub mod physics;
+pub mod rng;
+pub mod sim;
+
+use crate::gap::class::ClassId;
+use crate::model::params::Params;
+use experiments::RecordDef;
+use form::Family;
+use inject::{Effect, OutsideKind, Target, PHYSICS_CLASSES, SENSOR_CLASSES};
+use physics::Physics;
+use rng::{derive, Xoshiro};
+use sim::{Noise, Signals};
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// Largest relative detuning of the recalibratable baseline parameters.
+pub const DETUNE: f64 = 0.2;
+
+/// What a truth is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TruthKind {
+    /// Detuned baseline, no effect.
+    Nominal,
+    /// One physics class.
+    Class,
+    /// One sensor class.
+    Sensor,
+    /// Two classes at once.
+    Pair,
+    /// An effect outside every class.
+    Outside,
+}
+
+impl TruthKind {
+    pub const ALL: [TruthKind; 5] = [
+        TruthKind::Nominal,
+        TruthKind::Class,
+        TruthKind::Sensor,
+        TruthKind::Pair,
+        TruthKind::Outside,
+    ];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TruthKind::Nominal => "nominal",
+            TruthKind::Class => "class",
+            TruthKind::Sensor => "sensor",
+            TruthKind::Pair => "pair",
+            TruthKind::Outside => "outside",
+        }
+    }
+}
+
+impl fmt::Display for TruthKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Magnitude band: effect size over the noise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum Band {
+    #[serde(rename = "<1")]
+    Below1,
+    #[serde(rename = "1-3")]
+    From1To3,
+    #[serde(rename = ">3")]
+    Above3,
+}
+
+impl Band {
+    pub const ALL: [Band; 3] = [Band::Below1, Band::From1To3, Band::Above3];
+    pub fn of(size: f64) -> Band {
+        if size < 1.0 {
+            Band::Below1
+        } else if size <= 3.0 {
+            Band::From1To3
+        } else {
+            Band::Above3
+        }
+    }
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Band::Below1 => "<1",
+            Band::From1To3 => "1-3",
+            Band::Above3 => ">3",
+        }
+    }
+}
+
+impl fmt::Display for Band {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Variants of the records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct Variants {
+    /// Only `x_to1_req_mm` is logged (the `x_to2_req_mm` column is dropped).
+    pub only_req1: bool,
+    /// The friction energy carries on from the training records into the validation records
+    /// (the validation runs start on the worn pack); the diagnosis is then run with
+    /// `carry_energy`.
+    pub worn_validation: bool,
+}
+
+/// Effect size of a truth on one channel group.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct EffectSize {
+    /// `torque`, `temperature` or `position`.
+    pub channel: &'static str,
+    /// RMS over the channel's samples of (with − without) / σ.
+    pub size: f64,
+}
+
+/// A hidden truth.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Truth {
+    pub seed: u64,
+    pub index: usize,
+    pub kind: TruthKind,
+    /// The classes the truth belongs to (empty for nominal and outside truths).
+    pub classes: Vec<ClassId>,
+    pub outside: Option<OutsideKind>,
+    pub effects: Vec<Effect>,
+    /// Family of the (first) effect's form; `None` for nominal truths.
+    pub family: Option<Family>,
+    /// Magnitude of the (first) effect, signed, in `unit`.
+    pub magnitude: f64,
+    pub unit: &'static str,
+    /// Effect size over the noise (largest over the channel groups) and its band.
+    pub effect_size: f64,
+    pub effect_channel: &'static str,
+    pub band: Band,
+    /// Effect size of each effect alone (pairs: two entries).
+    pub effect_sizes: Vec<f64>,
+    /// Relative factor applied to each recalibratable baseline parameter (1 = nominal).
+    pub detune: BTreeMap<String, f64>,
+    pub variants: Variants,
+    pub description: String,
+    /// The truth rig's parameters (nominal detuned).
+    #[serde(skip)]
+    pub plant: Params,
+}
+
+impl Truth {
+    /// Label of the truth: the class, the pair `a+b`, `nominal` or `outside:<kind>`.
+    pub fn label(&self) -> String {
+        match self.kind {
+            TruthKind::Nominal => "nominal".into(),
+            TruthKind::Outside => format!(
+                "outside:{}",
+                self.outside.map(|o| o.as_str()).unwrap_or("?")
+            ),
+            _ => self
+                .classes
+                .iter()
+                .map(|c| c.as_str())
+                .collect::<Vec<_>>()
+                .join("+"),
+        }
+    }
+}
+
+/// The generated records: (name, CSV text).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TruthRecords {
+    pub train: Vec<(String, String)>,
+    pub validate: Vec<(String, String)>,
+}
+
+/// Detunes the baseline: each recalibratable parameter (kiss-point law λ0–λ2, the friction level —
+/// μ_s and c4 together —, α2, α3, α8, α9, the actuator lag) by a uniform factor in [1 − r, 1 + r].
+pub fn detune(nominal: &Params, r: f64, rng: &mut Xoshiro) -> (Params, BTreeMap<String, f64>) {
+    for _ in 0..50 {
+        let mut p = *nominal;
+        let mut f = BTreeMap::new();
+        let mut draw = |name: &str, v: &mut f64, rng: &mut Xoshiro| {
+            let k = 1.0 + r * rng.range(-1.0, 1.0);
+            *v *= k;
+            f.insert(name.to_string(), k);
+            k
+        };
+        draw("clutch.x_isp0_mm", &mut p.clutch.x_isp0_mm, rng);
+        draw("clutch.x_isp1_mm_per_c", &mut p.clutch.x_isp1_mm_per_c, rng);
+        draw(
+            "clutch.x_isp2_mm_per_c2",
+            &mut p.clutch.x_isp2_mm_per_c2,
+            rng,
+        );
+        let k = draw("clutch.friction_level", &mut p.clutch.mu_s, rng);
+        p.clutch.c4 *= k;
+        draw("thermal5.alpha2_per_s", &mut p.thermal5.alpha2_per_s, rng);
+        draw(
+            "thermal5.alpha3_k_per_j",
+            &mut p.thermal5.alpha3_k_per_j,
+            rng,
+        );
+        draw("thermal5.alpha8_per_s", &mut p.thermal5.alpha8_per_s, rng);
+        draw(
+            "thermal5.alpha9_k_per_j",
+            &mut p.thermal5.alpha9_k_per_j,
+            rng,
+        );
+        draw("actuator.tau_s", &mut p.actuator.tau_s, rng);
+        if p.validate().is_ok() {
+            return (p, f);
+        }
+    }
+    (*nominal, BTreeMap::new())
+}
+
+/// A truth chosen by hand (the CLI's `ddct gap truth`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseSpec {
+    /// Up to two targets (none: a nominal truth).
+    pub targets: Vec<Target>,
+    /// Form family of the (first) effect (default: drawn among the target's families).
+    pub family: Option<Family>,
+    /// Magnitude of the (first) effect, signed, in its unit (default: drawn).
+    pub magnitude: Option<f64>,
+    /// Largest relative detuning of the baseline (0: the nominal parameters).
+    pub detune: f64,
+    pub variants: Variants,
+    pub seed: u64,
+}
+
+/// Builds a truth by hand.
+pub fn build(spec: &CaseSpec, nominal: &Params) -> Result<Truth, String> {
+    if spec.targets.len() > 2 {
+        return Err("at most two effects".into());
+    }
+    for t in &spec.targets {
+        if let Target::Class(c) = t {
+            if !PHYSICS_CLASSES.contains(c) && !SENSOR_CLASSES.contains(c) {
+                return Err(format!(
+                    "class `{c}` is not injected by the truth generator ({})",
+                    inject::skipped_classes()
+                        .iter()
+                        .find(|(k, _)| k == c)
+                        .map(|(_, why)| *why)
+                        .unwrap_or("")
+                ));
+            }
+        }
+        if let (Some(f), rg) = (spec.family, inject::range(*t)) {
+            if t == &spec.targets[0] && !rg.families.contains(&f) {
+                return Err(format!(
+                    "{t} takes the families {}",
+                    rg.families
+                        .iter()
+                        .map(|f| f.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            }
+        }
+    }
+    let mut rng = Xoshiro::new(derive(spec.seed, &[0xCA5E]));
+    let effects: Vec<Effect> = spec
+        .targets
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            if k == 0 {
+                Effect::draw(*t, spec.family, spec.magnitude, &mut rng)
+            } else {
+                Effect::draw(*t, None, None, &mut rng)
+            }
+        })
+        .collect();
+    let (plant, factors) = if spec.detune > 0.0 {
+        detune(nominal, spec.detune, &mut rng)
+    } else {
+        (*nominal, BTreeMap::new())
+    };
+    let kind = match spec.targets.as_slice() {
+        [] => TruthKind::Nominal,
+        [Target::Outside(_)] => TruthKind::Outside,
+        [Target::Class(c)] if SENSOR_CLASSES.contains(c) => TruthKind::Sensor,
+        [Target::Class(_)] => TruthKind::Class,
+        _ => TruthKind::Pair,
+    };
+    Ok(finish(
+        spec.seed,
+        0,
+        kind,
+        effects,
+        plant,
+        factors,
+        spec.variants,
+    ))
+}
+
+/// Kinds in each block of ten trials (shuffled per block).
+const BLOCK: [TruthKind; 10] = [
+    TruthKind::Class,
+    TruthKind::Class,
+    TruthKind::Class,
+    TruthKind::Sensor,
+    TruthKind::Sensor,
+    TruthKind::Nominal,
+    TruthKind::Nominal,
+    TruthKind::Pair,
+    TruthKind::Outside,
+    TruthKind::Outside,
+];
+
+/// The kind of trial `index` and its rank among the trials of its kind (so classes are covered
+/// evenly: the j-th class trial takes the j-th class of a seeded permutation).
+pub fn kind_of(seed: u64, index: usize) -> (TruthKind, usize) {
+    let block = index / BLOCK.len();
+    let pos = index % BLOCK.len();
+    let perm = Xoshiro::new(derive(seed, &[0xB10C, block as u64])).permutation(BLOCK.len());
+    let kind = BLOCK[perm[pos]];
+    let per_block = BLOCK.iter().filter(|k| **k == kind).count();
+    let rank = (0..pos).filter(|&p| BLOCK[perm[p]] == kind).count();
+    (kind, block * per_block + rank)
+}
+
+/// Draws the truth of trial `index` (deterministic in seed and index).
+pub fn draw(seed: u64, index: usize, nominal: &Params) -> Truth {
+    let (kind, j) = kind_of(seed, index);
+    let mut rng = Xoshiro::new(derive(seed, &[0x7407, index as u64]));
+    let pick = |list: &[ClassId], salt: u64, j: usize| -> ClassId {
+        let round = j / list.len();
+        let perm = Xoshiro::new(derive(seed, &[salt, round as u64])).permutation(list.len());
+        list[perm[j % list.len()]]
+    };
+    let targets: Vec<Target> = match kind {
+        TruthKind::Nominal => vec![],
+        TruthKind::Class => vec![Target::Class(pick(&PHYSICS_CLASSES, 0xC1A5, j))],
+        TruthKind::Sensor => vec![Target::Class(pick(&SENSOR_CLASSES, 0x5E45, j))],
+        TruthKind::Outside => {
+            let round = j / OutsideKind::ALL.len();
+            let perm = Xoshiro::new(derive(seed, &[0x0075, round as u64]))
+                .permutation(OutsideKind::ALL.len());
+            vec![Target::Outside(
+                OutsideKind::ALL[perm[j % OutsideKind::ALL.len()]],
+            )]
+        }
+        TruthKind::Pair => {
+            let all: Vec<ClassId> = PHYSICS_CLASSES
+                .iter()
+                .chain(SENSOR_CLASSES.iter())
+                .copied()
+                .collect();
+            let a = all[rng.below(all.len())];
+            let mut b = a;
+            while b == a {
+                b = all[rng.below(all.len())];
+            }
+            vec![Target::Class(a), Target::Class(b)]
+        }
+    };
+    let effects: Vec<Effect> = targets
+        .iter()
+        .map(|t| Effect::draw(*t, None, None, &mut rng))
+        .collect();
+    let (plant, factors) = detune(nominal, DETUNE, &mut rng);
+    let has = |c: ClassId| targets.contains(&Target::Class(c));
+    let variants = Variants {
+        only_req1: (has(ClassId::ActuatorDeadTime)
+            || has(ClassId::ActuatorLag)
+            || has(ClassId::SensorPosition))
+            && rng.uniform() < 1.0 / 3.0,
+        worn_validation: (has(ClassId::KissPointEnergy) || has(ClassId::FrictionEnergy))
+            && rng.uniform() < 0.5,
+    };
+    finish(seed, index, kind, effects, plant, factors, variants)
+}
+
+fn finish(
+    seed: u64,
+    index: usize,
+    kind: TruthKind,
+    effects: Vec<Effect>,
+    plant: Params,
+    detune: BTreeMap<String, f64>,
+    variants: Variants,
+) -> Truth {
+    let classes: Vec<ClassId> = effects
+        .iter()
+        .filter_map(|e| match e.target {
+            Target::Class(c) => Some(c),
+            _ => None,
+        })
+        .collect();
+    let outside = effects.iter().find_map(|e| match e.target {
+        Target::Outside(o) => Some(o),
+        _ => None,
+    });
+    let fx_seed = derive(seed, &[0xEFF, index as u64]);
+    let (size, channel) = effect_size(&plant, &effects, variants, fx_seed);
+    let effect_sizes = if effects.len() > 1 {
+        effects
+            .iter()
+            .map(|e| effect_size(&plant, std::slice::from_ref(e), variants, fx_seed).0)
+            .collect()
+    } else {
+        vec![size]
+    };
+    let mut description = match effects.is_empty() {
+        true => "nominal physics (detuned baseline)".to_string(),
+        false => effects
+            .iter()
+            .map(Effect::describe)
+            .collect::<Vec<_>>()
+            .join(" | "),
+    };
+    if variants.only_req1 {
+        description.push_str(" | only x_to1_req_mm logged");
+    }
+    if variants.worn_validation {
+        description.push_str(" | validation starts on the worn pack");
+    }
+    Truth {
+        seed,
+        index,
+        kind,
+        family: effects.first().map(|e| e.family()),
+        magnitude: effects.first().map_or(0.0, |e| e.magnitude),
+        unit: effects.first().map_or("", |e| e.unit),
+        classes,
+        outside,
+        effects,
+        effect_size: size,
+        effect_channel: channel,
+        band: Band::of(size),
+        effect_sizes,
+        detune,
+        variants,
+        description,
+        plant,
+    }
+}
+
+/// Every record in order (training then validation) with the friction energy each starts with.
+fn simulate_all(
+    plant: &Params,
+    effects: &[Effect],
+    variants: Variants,
+    fx_seed: u64,
+) -> Vec<(RecordDef, sim::SimOut)> {
+    let ph = Physics::new(plant);
+    let mut e = [0.0; 2];
+    let mut out = Vec::new();
+    for (k, rec) in experiments::training()
+        .into_iter()
+        .chain(experiments::validation())
+        .enumerate()
+    {
+        let e0 = if variants.worn_validation {
+            e
+        } else {
+            [0.0; 2]
+        };
+        let s = sim::simulate(&ph, effects, &rec, e0, derive(fx_seed, &[k as u64]));
+        e = s.e_end;
+        out.push((rec, s));
+    }
+    out
+}
+
+/// Effect size over the noise: per channel group (torque, temperatures, positions) the RMS over
+/// the group's samples of (noise-free record with the effects − without) divided by the group's
+/// noise σ, over every record; the largest group. Torque samples are those where either record
+/// transmits more than 1 N·m (the torque channel says nothing while the clutch is open).
+pub fn effect_size(
+    plant: &Params,
+    effects: &[Effect],
+    variants: Variants,
+    fx_seed: u64,
+) -> (f64, &'static str) {
+    if effects.is_empty() {
+        return (0.0, "none");
+    }
+    let noise = Noise::default();
+    let with = simulate_all(plant, effects, variants, fx_seed);
+    let without = simulate_all(plant, &[], variants, fx_seed);
+    let (mut st, mut nt) = (0.0, 0usize);
+    let (mut sth, mut nth) = (0.0, 0usize);
+    let (mut sx, mut nx) = (0.0, 0usize);
+    for ((_, a), (_, b)) in with.iter().zip(&without) {
+        let (a, b): (&Signals, &Signals) = (&a.signals, &b.signals);
+        for k in 0..a.len() {
+            for i in 0..2 {
+                if a.torque[i][k].abs() > 1.0 || b.torque[i][k].abs() > 1.0 {
+                    st += (a.torque[i][k] - b.torque[i][k]).powi(2);
+                    nt += 1;
+                }
+                sth += (a.pp[i][k] - b.pp[i][k]).powi(2);
+                sx += (a.x[i][k] - b.x[i][k]).powi(2);
+                nth += 1;
+                nx += 1;
+            }
+            sth += (a.cd[k] - b.cd[k]).powi(2);
+            nth += 1;
+        }
+    }
+    let rms = |s: f64, n: usize| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
+    let groups = [
+        ("torque", rms(st, nt) / noise.torque_nm),
+        ("temperature", rms(sth, nth) / noise.temp_c),
+        ("position", rms(sx, nx) / noise.pos_mm),
+    ];
+    groups
+        .into_iter()
+        .map(|(c, v)| (v, c))
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .unwrap()
+}
+
+/// The noisy training and validation records of a truth, as CSV text. `seed` drives the sensor
+/// noise (the effects' own randomness comes from the truth).
+pub fn records(t: &Truth, seed: u64) -> TruthRecords {
+    records_with(t, seed, &Noise::default())
+}
+
+/// [`records`] with other sensor noise and quantisation (zero: the noise-free records).
+pub fn records_with(t: &Truth, seed: u64, noise: &Noise) -> TruthRecords {
+    let fx_seed = derive(t.seed, &[0xEFF, t.index as u64]);
+    let all = simulate_all(&t.plant, &t.effects, t.variants, fx_seed);
+    let mut out = TruthRecords {
+        train: Vec::new(),
+        validate: Vec::new(),
+    };
+    for (k, (rec, s)) in all.into_iter().enumerate() {
+        let mut rng = Xoshiro::new(derive(seed, &[0x4015E, t.index as u64, k as u64]));
+        let m = sim::measure(&s.signals, noise, &mut rng);
+        let csv = sim::to_csv(&m, t.variants.only_req1, noise.q_torque_nm == 0.0);
+        let name = format!("{}.csv", rec.name);
+        if k < 2 {
+            out.train.push((name, csv));
+        } else {
+            out.validate.push((name, csv));
+        }
+    }
+    out
+}

@@ -1,0 +1,744 @@
+//! The truth's rig simulator: the physics of [`super::physics`] with the injected effects of
+//! [`super::inject`], integrated by Heun's method (explicit trapezoid) at 1 ms — deliberately not
+//! the diagnosis's RK4 at 10 ms — sampled every 10 ms, with sensors (lag, gain/offset, skew),
+//! then noise and quantisation in a separate pass ([`measure`]).
+
+use super::experiments::{RecordDef, SAMPLE_S};
+use super::inject::{self, Effect, OutsideKind, Target};
+use super::physics::Physics;
+use super::rng::{derive, Xoshiro};
+use crate::gap::class::ClassId;
+
+/// Integration step (s).
+pub const STEP_S: f64 = 0.001;
+/// Integration steps per sample.
+const SUB: usize = 10;
+
+/// Sampled channels of a record (the documented CSV columns).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Signals {
+    pub time: Vec<f64>,
+    /// Measured bearing (actuator) positions x_to1, x_to2 (mm).
+    pub x: [Vec<f64>; 2],
+    /// Input (dyno) speed ω_f (rad/s).
+    pub wf: Vec<f64>,
+    /// Clutch (output) speeds ω_c1, ω_c2 (rad/s): braked.
+    pub wc: [Vec<f64>; 2],
+    /// Output shaft speed (rad/s): braked.
+    pub wout: Vec<f64>,
+    pub torque: [Vec<f64>; 2],
+    pub pp: [Vec<f64>; 2],
+    pub cd: Vec<f64>,
+    pub th: Vec<f64>,
+    /// Position requests (mm) as logged.
+    pub xreq: [Vec<f64>; 2],
+}
+
+impl Signals {
+    pub fn len(&self) -> usize {
+        self.time.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.time.is_empty()
+    }
+}
+
+/// A simulated record with the bookkeeping the tests check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOut {
+    pub signals: Signals,
+    /// True (noise-free, sensor-free) temperatures at the samples: pp1, pp2, c1, c2, cd.
+    pub true_temps: Vec<[f64; 5]>,
+    /// Friction energy of each clutch at the end, counted from `e0` (J).
+    pub e_end: [f64; 2],
+    /// ∫ (P1 + P2) dt from the 1 ms torques (trapezoid) (J).
+    pub friction_work_j: f64,
+    /// Heat lost to the housing air and the supports (J).
+    pub heat_lost_j: f64,
+}
+
+/// Sensor noise (σ) and quantisation steps.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Noise {
+    pub torque_nm: f64,
+    pub temp_c: f64,
+    pub pos_mm: f64,
+    pub speed_rpm: f64,
+    pub q_torque_nm: f64,
+    pub q_temp_c: f64,
+    pub q_pos_mm: f64,
+}
+
+impl Default for Noise {
+    fn default() -> Self {
+        Noise {
+            torque_nm: 0.5,
+            temp_c: 0.3,
+            pos_mm: 0.002,
+            speed_rpm: 0.5,
+            q_torque_nm: 0.1,
+            q_temp_c: 0.1,
+            q_pos_mm: 0.001,
+        }
+    }
+}
+
+/// Exact update of a first-order lag τ·ẏ = u − y over a step `h` with the input held.
+#[inline]
+pub fn lag_step(y: f64, u: f64, h: f64, tau: f64) -> f64 {
+    if tau > 0.0 {
+        u + (y - u) * (-h / tau).exp()
+    } else {
+        u
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct State {
+    xa: [f64; 2],
+    /// pp1, pp2, c1, c2, cd (°C).
+    th: [f64; 5],
+    e: [f64; 2],
+    flash: [f64; 2],
+    loss: f64,
+}
+
+impl State {
+    fn axpy(&self, k: f64, d: &State) -> State {
+        let mut s = *self;
+        for i in 0..2 {
+            s.xa[i] += k * d.xa[i];
+            s.e[i] += k * d.e[i];
+            s.flash[i] += k * d.flash[i];
+        }
+        for j in 0..5 {
+            s.th[j] += k * d.th[j];
+        }
+        s.loss += k * d.loss;
+        s
+    }
+}
+
+/// States outside the ODE, updated after each step.
+#[derive(Debug, Clone, Copy, Default)]
+struct Discrete {
+    /// Bearing positions behind the play (mm).
+    xb: [f64; 2],
+    /// Time since each clutch closed (s).
+    t_eng: [f64; 2],
+    /// Thermocouples of pp1, pp2, cd.
+    tc: [f64; 3],
+    /// Friction drift (relative).
+    drift: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Out {
+    torque: [f64; 2],
+    beta: [bool; 2],
+}
+
+/// The active effects, resolved once.
+#[derive(Default)]
+struct Fx<'a> {
+    mu_temp: Option<&'a Effect>,
+    mu_s_temp: Option<&'a Effect>,
+    mu_slip: Option<&'a Effect>,
+    mu_clamp: Option<&'a Effect>,
+    mu_energy: Option<&'a Effect>,
+    flash: Option<&'a Effect>,
+    facing: f64,
+    spring_temp: Option<&'a Effect>,
+    kiss_temp: Option<&'a Effect>,
+    kiss_energy: Option<&'a Effect>,
+    dead_time: f64,
+    lag_factor: f64,
+    backlash: f64,
+    transfer: (f64, f64),
+    support: Option<&'a Effect>,
+    conv: Option<&'a Effect>,
+    partition: Option<&'a Effect>,
+    s_torque: (f64, f64),
+    skew: f64,
+    tc_lag: f64,
+    s_temp: (f64, f64),
+    s_pos: (f64, f64),
+    judder: Option<&'a Effect>,
+    drift: Option<&'a Effect>,
+    cross: Option<&'a Effect>,
+    eng_time: Option<&'a Effect>,
+    drag: Option<&'a Effect>,
+}
+
+impl<'a> Fx<'a> {
+    fn new(effects: &'a [Effect]) -> Fx<'a> {
+        let mut f = Fx {
+            lag_factor: 1.0,
+            ..Fx::default()
+        };
+        for e in effects {
+            use ClassId as C;
+            match e.target {
+                Target::Class(c) => match c {
+                    C::FrictionTemperature => f.mu_temp = Some(e),
+                    C::FrictionStaticTemperature => f.mu_s_temp = Some(e),
+                    C::FrictionSlip => f.mu_slip = Some(e),
+                    C::FrictionClampLoad => f.mu_clamp = Some(e),
+                    C::FrictionEnergy => f.mu_energy = Some(e),
+                    C::FrictionSurfaceTemperature => f.flash = Some(e),
+                    C::FacingTemperature => f.facing = e.magnitude.clamp(0.0, 1.0),
+                    C::SpringTemperature => f.spring_temp = Some(e),
+                    C::KissPointTemperature => f.kiss_temp = Some(e),
+                    C::KissPointEnergy => f.kiss_energy = Some(e),
+                    C::ActuatorDeadTime => f.dead_time = e.magnitude.max(0.0),
+                    C::ActuatorLag => {
+                        let k = e.magnitude.max(1.0);
+                        f.lag_factor = if e.aux("faster") > 0.5 { 1.0 / k } else { k };
+                    }
+                    C::ActuatorBacklash => f.backlash = e.magnitude.max(0.0),
+                    C::ActuatorTransfer => f.transfer = e.gain_offset(6.0),
+                    C::SupportConduction => f.support = Some(e),
+                    C::ConvectionSpeed => f.conv = Some(e),
+                    C::HeatPartition => f.partition = Some(e),
+                    C::SensorTorque => f.s_torque = e.gain_offset(100.0),
+                    C::SensorTorqueSkew => f.skew = e.magnitude,
+                    C::SensorTemperatureLag => f.tc_lag = e.magnitude.max(0.0),
+                    C::SensorTemperature => {
+                        let (g, o) = e.gain_offset(200.0 - 25.0);
+                        f.s_temp = (g, o);
+                    }
+                    C::SensorPosition => f.s_pos = e.gain_offset(6.0),
+                    _ => {}
+                },
+                Target::Outside(o) => match o {
+                    OutsideKind::Judder => f.judder = Some(e),
+                    OutsideKind::FrictionDrift => f.drift = Some(e),
+                    OutsideKind::CrossClutch => f.cross = Some(e),
+                    OutsideKind::EngagementTime => f.eng_time = Some(e),
+                    OutsideKind::OpenDrag => f.drag = Some(e),
+                },
+            }
+        }
+        f
+    }
+}
+
+#[inline]
+fn mult(e: Option<&Effect>, z: f64) -> f64 {
+    match e {
+        Some(e) => (1.0 + e.term(z)).max(0.0),
+        None => 1.0,
+    }
+}
+
+#[inline]
+fn shift(e: Option<&Effect>, z: f64) -> f64 {
+    match e {
+        Some(e) => e.term(z),
+        None => 0.0,
+    }
+}
+
+struct Rig<'a> {
+    ph: &'a Physics,
+    rec: &'a RecordDef,
+    fx: Fx<'a>,
+    /// Q(ω) cache per clutch: (ω, Q).
+    q_cache: [(f64, f64); 2],
+}
+
+impl Rig<'_> {
+    fn q(&mut self, i: usize, w: f64) -> f64 {
+        if self.q_cache[i].0 != w {
+            self.q_cache[i] = (w, self.ph.q_slip(w));
+        }
+        self.q_cache[i].1
+    }
+
+    /// Bearing position seen by clutch i for actuator position xa.
+    #[inline]
+    fn bearing(&self, i: usize, xa: f64, d: &Discrete) -> f64 {
+        let b = self.fx.backlash;
+        let x = if b > 0.0 {
+            d.xb[i].clamp(xa - 0.5 * b, xa + 0.5 * b)
+        } else {
+            xa
+        };
+        let (g, o) = self.fx.transfer;
+        x + g * x + o
+    }
+
+    /// Derivative of the state at time `t` with the actuator requests `r`.
+    fn deriv(&mut self, s: &State, t: f64, r: [f64; 2], d: &Discrete) -> (State, Out) {
+        let ph = self.ph;
+        let w = self.rec.speed_radps(t);
+        let th_h = self.rec.housing_c(t);
+        let fx = &self.fx;
+        // Clamp loads first (the cross-clutch effect needs the other one).
+        let mut force = [0.0; 2];
+        let mut beta = [false; 2];
+        for i in 0..2 {
+            let tc = s.th[2 + i];
+            let xb = self.bearing(i, s.xa[i], d);
+            let ke = shift(fx.kiss_energy, inject::z_energy(s.e[i]));
+            let kiss = ph.kiss(tc) + shift(fx.kiss_temp, inject::z_temp(tc)) + ke;
+            let u = ph.compression(xb, kiss, ph.x_max + ke);
+            beta[i] = u > 0.0;
+            force[i] = ph.spring(u) * mult(fx.spring_temp, inject::z_temp(tc));
+        }
+        let mut torque = [0.0; 2];
+        let mut ds = State::default();
+        for i in 0..2 {
+            let tc = s.th[2 + i];
+            let f = force[i];
+            if f > 0.0 && w != 0.0 {
+                let fx = &self.fx;
+                let mu_s = ph.mu_s * mult(fx.mu_s_temp, inject::z_temp(tc));
+                let (pp, cd) = (s.th[i], s.th[4]);
+                let (th1, th2) = if fx.facing > 0.0 {
+                    (tc + fx.facing * (pp - tc), tc + fx.facing * (cd - tc))
+                } else {
+                    (tc, tc)
+                };
+                let fl = s.flash[i];
+                let m = mult(fx.mu_temp, inject::z_temp(tc))
+                    * mult(fx.mu_slip, inject::z_slip(w))
+                    * mult(fx.mu_clamp, inject::z_clamp(f))
+                    * mult(fx.mu_energy, inject::z_energy(s.e[i]))
+                    * mult(fx.cross, inject::z_clamp(force[1 - i]))
+                    * match fx.eng_time {
+                        Some(e) => {
+                            (1.0 + e.magnitude * (-d.t_eng[i] / e.aux("tau_s")).exp()).max(0.0)
+                        }
+                        None => 1.0,
+                    }
+                    * (1.0 + d.drift).max(0.0);
+                let jud = match fx.judder {
+                    Some(e) => {
+                        1.0 + e.magnitude
+                            * (std::f64::consts::TAU * e.aux("freq_hz") * t
+                                + e.aux("phase_rad")
+                                + i as f64)
+                                .sin()
+                    }
+                    None => 1.0,
+                };
+                let q = self.q(i, w);
+                let r_mu = ph.r_mu_q(q, mu_s, ph.mu_dyn(th1 + fl))
+                    + ph.r_mu_q(q, mu_s, ph.mu_dyn(th2 + fl));
+                torque[i] = w.signum() * r_mu * f * m * jud;
+            } else if let (Some(e), true) = (self.fx.drag, w != 0.0) {
+                // Drag of the open clutch near its kiss point.
+                let xb = self.bearing(i, s.xa[i], d);
+                let gap = (ph.kiss(tc) - xb).max(0.0);
+                torque[i] =
+                    w.signum() * e.magnitude * e.form.eval(inject::z_speed(w)) * (-gap / 1.0).exp();
+            }
+            // Flash temperature: first order towards its steady value at this power.
+            if let Some(e) = self.fx.flash {
+                let p = (torque[i] * w).max(0.0);
+                let target = e.magnitude * e.form.eval(inject::z_power(p));
+                ds.flash[i] = (target - s.flash[i]) / e.aux("tau_s");
+            }
+        }
+        // Thermal model in its physical form.
+        let fx = &self.fx;
+        let conv = mult(fx.conv, inject::z_speed(w));
+        let support = |theta: f64, c: f64, weight: f64| -> f64 {
+            match fx.support {
+                Some(e) if weight > 0.0 => {
+                    let dz = (theta - th_h) / 280.0;
+                    dz.signum() * e.magnitude * weight * c * 280.0 * e.form.eval(dz.abs())
+                }
+                _ => 0.0,
+            }
+        };
+        let (w_pp, w_c, w_cd) = match fx.support {
+            Some(e) => (e.aux("w_pp"), e.aux("w_c"), e.aux("w_cd")),
+            None => (0.0, 0.0, 0.0),
+        };
+        let mut q_cd = 0.0;
+        let mut loss = 0.0;
+        for i in 0..2 {
+            let b = if beta[i] { 1.0 } else { 0.0 };
+            let p = torque[i] * w;
+            let (mut phi_pp, mut phi_c) = (ph.phi_pp, ph.phi_c);
+            if let Some(e) = fx.partition {
+                let moved = ph.phi_pp * e.magnitude * e.form.eval(inject::z_power(p.abs()));
+                phi_pp -= moved;
+                phi_c += moved;
+            }
+            let (pp, c, cd) = (s.th[i], s.th[2 + i], s.th[4]);
+            let conv_pp = (1.0 - b) * ph.h_pp * conv * (th_h - pp);
+            let conv_c = (1.0 - b) * ph.h_c * conv * (th_h - c);
+            let sup_pp = support(pp, ph.c_pp, w_pp);
+            let sup_c = support(c, ph.c_c, w_c);
+            let q_pc = b * ph.g_pc * (c - pp);
+            let q_ccd = b * ph.g_ccd * (c - cd);
+            ds.th[i] = (q_pc + conv_pp + phi_pp * p - sup_pp) / ph.c_pp;
+            ds.th[2 + i] = (-q_pc - q_ccd + conv_c + phi_c * p - sup_c) / ph.c_c;
+            q_cd += q_ccd + ph.phi_cd * p;
+            loss += -conv_pp - conv_c + sup_pp + sup_c;
+            ds.e[i] = p;
+            // Actuator.
+            ds.xa[i] = ph.actuator_rate(s.xa[i], r[i], ph.tau * fx.lag_factor);
+        }
+        let nb = beta.iter().filter(|b| !**b).count() as f64;
+        let conv_cd = nb * ph.h_cd * conv * (th_h - s.th[4]);
+        let sup_cd = support(s.th[4], ph.c_cd, w_cd);
+        ds.th[4] = (q_cd + conv_cd - sup_cd) / ph.c_cd;
+        loss += -conv_cd + sup_cd;
+        ds.loss = loss;
+        (ds, Out { torque, beta })
+    }
+}
+
+/// Simulates one record. `e0`: friction energy of each clutch at the start (J) (a worn pack);
+/// `seed` drives the effects' own randomness (the friction drift), not the sensor noise.
+pub fn simulate(
+    ph: &Physics,
+    effects: &[Effect],
+    rec: &RecordDef,
+    e0: [f64; 2],
+    seed: u64,
+) -> SimOut {
+    let mut rig = Rig {
+        ph,
+        rec,
+        fx: Fx::new(effects),
+        q_cache: [(f64::NAN, 0.0); 2],
+    };
+    let n = rec.samples();
+    let steps = (n - 1) * SUB;
+    let mut s = State {
+        th: [rec.theta0_c; 5],
+        e: e0,
+        ..State::default()
+    };
+    let mut d = Discrete {
+        tc: [rec.theta0_c; 3],
+        ..Discrete::default()
+    };
+    let mut drift_rng = rig
+        .fx
+        .drift
+        .map(|e| Xoshiro::new(derive(seed, &[e.aux("seed") as u64])));
+    if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
+        d.drift = e.magnitude * r.normal();
+    }
+    let mut t_ms: [Vec<f64>; 2] = [Vec::with_capacity(steps + 1), Vec::with_capacity(steps + 1)];
+    let mut sig = Signals::default();
+    let mut true_temps = Vec::with_capacity(n);
+    let mut work = 0.0;
+    let mut p_prev = 0.0;
+    let h = STEP_S;
+    let tc_lag = rig.fx.tc_lag;
+    let dead = rig.fx.dead_time;
+    for j in 0..=steps {
+        let t = j as f64 * h;
+        let tm = t + 0.5 * h - dead;
+        let r = [rec.request(0, tm.max(-1.0)), rec.request(1, tm.max(-1.0))];
+        let r = if tm < 0.0 { [0.0; 2] } else { r };
+        let (k1, out) = rig.deriv(&s, t, r, &d);
+        t_ms[0].push(out.torque[0]);
+        t_ms[1].push(out.torque[1]);
+        let w = rec.speed_radps(t);
+        let p = (out.torque[0] + out.torque[1]) * w;
+        if j > 0 {
+            work += 0.5 * (p + p_prev) * h;
+        }
+        p_prev = p;
+        if j % SUB == 0 {
+            let tk = (j / SUB) as f64 * SAMPLE_S;
+            sig.time.push(tk);
+            let (g, o) = rig.fx.s_pos;
+            for i in 0..2 {
+                sig.x[i].push(s.xa[i] + g * s.xa[i] + o);
+                sig.wc[i].push(0.0);
+                sig.xreq[i].push(rec.request(i, tk));
+                sig.pp[i].push(d.tc[i]);
+            }
+            sig.cd.push(d.tc[2]);
+            sig.wf.push(w);
+            sig.wout.push(0.0);
+            sig.th.push(rec.housing_c(tk));
+            true_temps.push(s.th);
+        }
+        if j == steps {
+            break;
+        }
+        let sp = s.axpy(h, &k1);
+        let (k2, _) = rig.deriv(&sp, t + h, r, &d);
+        s = s.axpy(0.5 * h, &k1).axpy(0.5 * h, &k2);
+        // Discrete states.
+        let b = rig.fx.backlash;
+        for i in 0..2 {
+            if b > 0.0 {
+                d.xb[i] = d.xb[i].clamp(s.xa[i] - 0.5 * b, s.xa[i] + 0.5 * b);
+            }
+            d.t_eng[i] = if out.beta[i] { d.t_eng[i] + h } else { 0.0 };
+        }
+        for (k, j5) in [0usize, 1, 4].into_iter().enumerate() {
+            d.tc[k] = lag_step(d.tc[k], s.th[j5], h, tc_lag);
+        }
+        if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
+            if (j + 1) % SUB == 0 {
+                let a = (-SAMPLE_S / e.aux("tau_s")).exp();
+                d.drift = d.drift * a + e.magnitude * (1.0 - a * a).sqrt() * r.normal();
+            }
+        }
+    }
+    // Torque channel: skew, then gain and offset.
+    let (g, o) = rig.fx.s_torque;
+    let skew_steps = rig.fx.skew / h;
+    for (i, v) in t_ms.iter().enumerate() {
+        sig.torque[i] = (0..n)
+            .map(|k| {
+                let pos = ((k * SUB) as f64 - skew_steps).clamp(0.0, steps as f64);
+                let a = pos.floor() as usize;
+                let f = pos - a as f64;
+                let tq = if a < steps {
+                    v[a] * (1.0 - f) + v[a + 1] * f
+                } else {
+                    v[a]
+                };
+                tq + g * tq + o
+            })
+            .collect();
+    }
+    // Thermocouples: gain and offset (about 25 °C).
+    let (g, o) = rig.fx.s_temp;
+    if g != 0.0 || o != 0.0 {
+        let f = |v: &mut Vec<f64>| {
+            for x in v.iter_mut() {
+                *x += g * (*x - 25.0) + o;
+            }
+        };
+        f(&mut sig.pp[0]);
+        f(&mut sig.pp[1]);
+        f(&mut sig.cd);
+    }
+    SimOut {
+        signals: sig,
+        true_temps,
+        e_end: s.e,
+        friction_work_j: work,
+        heat_lost_j: s.loss,
+    }
+}
+
+/// Adds sensor noise and quantisation.
+pub fn measure(sig: &Signals, noise: &Noise, rng: &mut Xoshiro) -> Signals {
+    let q = |v: f64, step: f64| {
+        if step > 0.0 {
+            (v / step).round() * step
+        } else {
+            v
+        }
+    };
+    let mut out = sig.clone();
+    let w_sigma = noise.speed_rpm * std::f64::consts::PI / 30.0;
+    for k in 0..sig.len() {
+        for i in 0..2 {
+            out.x[i][k] = q(sig.x[i][k] + noise.pos_mm * rng.normal(), noise.q_pos_mm);
+            out.torque[i][k] = q(
+                sig.torque[i][k] + noise.torque_nm * rng.normal(),
+                noise.q_torque_nm,
+            );
+            out.pp[i][k] = q(sig.pp[i][k] + noise.temp_c * rng.normal(), noise.q_temp_c);
+            out.wc[i][k] = sig.wc[i][k] + w_sigma * rng.normal();
+            out.xreq[i][k] = q(sig.xreq[i][k], noise.q_pos_mm);
+        }
+        out.cd[k] = q(sig.cd[k] + noise.temp_c * rng.normal(), noise.q_temp_c);
+        out.th[k] = q(sig.th[k] + noise.temp_c * rng.normal(), noise.q_temp_c);
+        out.wf[k] = sig.wf[k] + w_sigma * rng.normal();
+        out.wout[k] = sig.wout[k] + w_sigma * rng.normal();
+    }
+    out
+}
+
+/// CSV text in the documented columns (`docs/gap.md`, "Input"); `only_req1` drops
+/// `x_to2_req_mm`; `precise` writes 6 decimals everywhere (for unquantised records), else the
+/// decimals of the quantisation.
+pub fn to_csv(sig: &Signals, only_req1: bool, precise: bool) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::with_capacity(sig.len() * 128);
+    s.push_str("time_s,x_to1_mm,x_to2_mm,w_f_radps,w_c1_radps,w_c2_radps,w_out_radps,T_c1_Nm,T_c2_Nm,th_pp1_C,th_pp2_C,th_cd_C,th_h_C,x_to1_req_mm");
+    if !only_req1 {
+        s.push_str(",x_to2_req_mm");
+    }
+    s.push('\n');
+    let (dx, dw, dt, dth) = if precise { (6, 6, 6, 6) } else { (3, 4, 1, 1) };
+    for k in 0..sig.len() {
+        let _ = write!(
+            s,
+            "{:.2},{:.dx$},{:.dx$},{:.dw$},{:.dw$},{:.dw$},{:.dw$},{:.dt$},{:.dt$},{:.dth$},{:.dth$},{:.dth$},{:.dth$},{:.dx$}",
+            sig.time[k],
+            sig.x[0][k],
+            sig.x[1][k],
+            sig.wf[k],
+            sig.wc[0][k],
+            sig.wc[1][k],
+            sig.wout[k],
+            sig.torque[0][k],
+            sig.torque[1][k],
+            sig.pp[0][k],
+            sig.pp[1][k],
+            sig.cd[k],
+            sig.th[k],
+            sig.xreq[0][k],
+        );
+        if !only_req1 {
+            let _ = write!(s, ",{:.dx$}", sig.xreq[1][k]);
+        }
+        s.push('\n');
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::params::Params;
+    use crate::truth::experiments;
+    use crate::truth::form::{Family, Form};
+
+    fn effect(c: ClassId, magnitude: f64) -> Effect {
+        Effect {
+            target: Target::Class(c),
+            form: Form::Scalar,
+            magnitude,
+            unit: "",
+            anchor_top: false,
+            aux: vec![],
+        }
+    }
+
+    /// Energy: the friction work ∫(T1 + T2)·ω dt equals the heat stored in the pack plus the heat
+    /// lost to the housing air (the shares of the friction power add up to one, conduction only
+    /// moves heat between the masses).
+    #[test]
+    fn friction_work_is_stored_or_lost() {
+        let ph = Physics::new(&Params::default());
+        for rec in [experiments::train_sweep(), experiments::validate_hot()] {
+            let s = simulate(&ph, &[], &rec, [0.0; 2], 1);
+            let (a, b) = (s.true_temps[0], *s.true_temps.last().unwrap());
+            let cap = [ph.c_pp, ph.c_pp, ph.c_c, ph.c_c, ph.c_cd];
+            let stored: f64 = (0..5).map(|j| cap[j] * (b[j] - a[j])).sum();
+            let balance = stored + s.heat_lost_j;
+            let rel = (s.friction_work_j - balance).abs() / s.friction_work_j;
+            assert!(
+                rel < 1e-3,
+                "{}: work {} vs stored+lost {balance} ({rel:e})",
+                rec.name,
+                s.friction_work_j
+            );
+            assert!((s.e_end[0] + s.e_end[1] - s.friction_work_j).abs() / s.friction_work_j < 1e-3);
+            // The sampled record tells the same: ∫T·ω over the 10 ms samples.
+            let g = &s.signals;
+            let p: Vec<f64> = (0..g.len())
+                .map(|k| (g.torque[0][k] + g.torque[1][k]) * (g.wf[k] - g.wc[0][k]))
+                .collect();
+            let sampled: f64 = p.windows(2).map(|w| 0.5 * (w[0] + w[1]) * SAMPLE_S).sum();
+            let rel = (sampled - s.friction_work_j).abs() / s.friction_work_j;
+            assert!(rel < 5e-3, "{}: sampled work off by {rel:e}", rec.name);
+        }
+    }
+
+    #[test]
+    fn first_order_lag_step_response() {
+        let tau = 3.0;
+        let mut y = 0.0;
+        for k in 1..=10_000 {
+            y = lag_step(y, 1.0, STEP_S, tau);
+            let t = k as f64 * STEP_S;
+            if k % 1000 == 0 {
+                assert!((y - (1.0 - (-t / tau).exp())).abs() < 1e-12, "t={t}");
+            }
+        }
+        // In the rig: a lagging thermocouple reads above a cooling central disk and settles on
+        // it to within the lag's offset (rate × τ).
+        let ph = Physics::new(&Params::default());
+        let rec = experiments::validate_hot();
+        let e = effect(ClassId::SensorTemperatureLag, 5.0);
+        let s = simulate(&ph, std::slice::from_ref(&e), &rec, [0.0; 2], 1);
+        let n = s.signals.len();
+        let k = n - 10;
+        let truth = s.true_temps[k][4];
+        let rate = (s.true_temps[k + 1][4] - s.true_temps[k - 1][4]) / (2.0 * SAMPLE_S);
+        let expected = truth - rate * 5.0;
+        assert!(s.signals.cd[k] > truth);
+        assert!((s.signals.cd[k] - expected).abs() < 0.05 * (rate * 5.0).abs() + 1e-3);
+    }
+
+    /// A dead time shifts the position response by the dead time (a multiple of the cycle).
+    #[test]
+    fn dead_time_shifts_the_position() {
+        let ph = Physics::new(&Params::default());
+        let rec = experiments::validate_mixed();
+        let a = simulate(&ph, &[], &rec, [0.0; 2], 1).signals;
+        let b = simulate(
+            &ph,
+            &[effect(ClassId::ActuatorDeadTime, 0.03)],
+            &rec,
+            [0.0; 2],
+            1,
+        )
+        .signals;
+        let worst = (3..a.len())
+            .map(|k| (b.x[0][k] - a.x[0][k - 3]).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.02, "{worst}");
+        assert_eq!(a.xreq, b.xreq, "the logged request is the command");
+    }
+
+    /// Sensor classes change readings only: the physics (true temperatures) is untouched.
+    #[test]
+    fn sensors_do_not_touch_the_physics() {
+        let ph = Physics::new(&Params::default());
+        let rec = experiments::train_hot();
+        let a = simulate(&ph, &[], &rec, [0.0; 2], 1);
+        for (c, m) in [
+            (ClassId::SensorTorque, 3.0),
+            (ClassId::SensorTemperature, 2.0),
+            (ClassId::SensorPosition, 0.1),
+        ] {
+            let mut e = effect(c, m);
+            e.aux = vec![("gain_share", 0.5), ("offset_sign", 1.0)];
+            let b = simulate(&ph, &[e], &rec, [0.0; 2], 1);
+            assert_eq!(a.true_temps, b.true_temps, "{c}");
+            assert_ne!(a.signals, b.signals, "{c}");
+        }
+    }
+
+    #[test]
+    fn a_multiplier_changes_the_torque_by_its_form() {
+        let ph = Physics::new(&Params::default());
+        let rec = experiments::train_sweep();
+        let a = simulate(&ph, &[], &rec, [0.0; 2], 1).signals;
+        let e = Effect {
+            target: Target::Class(ClassId::FrictionSlip),
+            form: Form::draw(Family::Power, &mut crate::truth::rng::Xoshiro::new(1)),
+            magnitude: 0.1,
+            unit: "1",
+            anchor_top: false,
+            aux: vec![],
+        };
+        let m = 1.0 + e.term(crate::truth::inject::z_slip(rec.speed_radps(5.0)));
+        let b = simulate(&ph, std::slice::from_ref(&e), &rec, [0.0; 2], 1).signals;
+        // Early in the record (before the extra heat changes the temperatures much) the torque
+        // ratio is the multiplier at the dyno speed.
+        let k = (0..a.len())
+            .find(|&k| {
+                a.torque[0][k] > 30.0
+                    && a.time[k] < 8.0
+                    && (rec.speed_radps(a.time[k]) - rec.speed_radps(5.0)).abs() < 1e-9
+            })
+            .expect("an engagement at the first speed");
+        assert!(
+            (b.torque[0][k] / a.torque[0][k] - m).abs() < 2e-3,
+            "{} vs {m}",
+            b.torque[0][k] / a.torque[0][k]
+        );
+    }
+}
