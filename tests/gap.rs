@@ -261,6 +261,315 @@ mod loaders {
         assert!(matches!(e, DatasetError::Io { .. }));
         std::fs::remove_dir_all(&dir).ok();
     }
+
+    // ---------------------------------------------- bad input: errors, not plausible records
+
+    /// A temporary directory removed on drop.
+    struct Tmp(std::path::PathBuf);
+    impl Tmp {
+        fn new(tag: &str) -> Tmp {
+            let d = std::env::temp_dir().join(format!("ddct_gap_{tag}_{}", std::process::id()));
+            std::fs::create_dir_all(&d).unwrap();
+            Tmp(d)
+        }
+        fn write(&self, name: &str, text: &str) -> std::path::PathBuf {
+            let p = self.0.join(name);
+            std::fs::write(&p, text).unwrap();
+            p
+        }
+    }
+    impl Drop for Tmp {
+        fn drop(&mut self) {
+            std::fs::remove_dir_all(&self.0).ok();
+        }
+    }
+
+    /// The simulated rig record (23 s, two engagements) as CSV with every logged column.
+    fn rig_csv() -> String {
+        Dataset::from_records("rig", frames().into_iter().map(Ok), 0.01)
+            .unwrap()
+            .to_csv()
+    }
+
+    /// `text` with field `column` of the data row on file line `line` replaced by `value`.
+    fn with_field(text: &str, line: usize, column: &str, value: &str) -> String {
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        let j = lines[0].split(',').position(|h| h == column).unwrap();
+        let mut f: Vec<String> = lines[line - 1].split(',').map(str::to_string).collect();
+        f[j] = value.into();
+        lines[line - 1] = f.join(",");
+        lines.join("\n") + "\n"
+    }
+
+    #[test]
+    fn impossible_csv_values_name_file_line_and_column() {
+        use ddct::gap::dataset::Segments;
+        let tmp = Tmp::new("bad_values");
+        let good = rig_csv();
+        let header: Vec<&str> = good.lines().next().unwrap().split(',').collect();
+        let index = |c: &str| header.iter().position(|h| *h == c).unwrap() + 1;
+        assert!(Segments::load(tmp.write("good.csv", &good)).is_ok());
+        let cases: [(&str, &str, &str); 9] = [
+            (
+                "th_pp1_C",
+                "812",
+                "812 °C is outside the physical range −60…600 °C",
+            ),
+            (
+                "th_pp2_C",
+                "-61",
+                "−61 °C is outside the physical range −60…600 °C",
+            ),
+            ("th_cd_C", "600.5", "600.5 °C is outside the physical range"),
+            ("th_h_C", "-273", "−273 °C is outside the physical range"),
+            (
+                "gear_odd",
+                "2",
+                "2 is not in the DBC value table of DCT_Actuators.GearOddAct",
+            ),
+            (
+                "gear_even",
+                "9",
+                "9 is not in the DBC value table of DCT_Actuators.GearEvenAct",
+            ),
+            (
+                "w_f_radps",
+                "31416",
+                "31416 rad/s is outside the physical range",
+            ),
+            ("x_to1_mm", "4000", "4000 mm is outside the physical range"),
+            ("T_c2_Nm", "nan", "`nan` is not a finite number"),
+        ];
+        for (k, (column, value, what)) in cases.into_iter().enumerate() {
+            let line = 3 + 100 * k;
+            let name = format!("bad_{column}.csv");
+            let p = tmp.write(&name, &with_field(&good, line, column, value));
+            let e = Segments::load(&p).unwrap_err().to_string();
+            let expected = format!(
+                "{}:{line}: column {} `{column}`: ",
+                p.display(),
+                index(column)
+            );
+            assert!(e.starts_with(&expected), "{e}\nexpected {expected}");
+            assert!(e.contains(what), "{e}");
+        }
+        // The pedal (not logged by the rig): a column added with one value above 100 %.
+        let mut text: Vec<String> = good.lines().map(str::to_string).collect();
+        for (i, l) in text.iter_mut().enumerate() {
+            l.push_str(match i {
+                0 => ",pedal_pct",
+                4 => ",100.1",
+                _ => ",20",
+            });
+        }
+        let p = tmp.write("pedal.csv", &(text.join("\n") + "\n"));
+        let e = Segments::load(&p).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!(
+                "{}:5: column {} `pedal_pct`: 100.1 % is outside the physical range 0…100 %",
+                p.display(),
+                header.len() + 1
+            )),
+            "{e}"
+        );
+        // Time: backwards, and two rows 0.05 ms apart.
+        let t3: f64 = good
+            .lines()
+            .nth(2)
+            .unwrap()
+            .split(',')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let p = tmp.write(
+            "back.csv",
+            &with_field(&good, 4, "time_s", &format!("{}", t3 - 0.005)),
+        );
+        let e = Segments::load(&p).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}:4: column 1 `time_s`", p.display()))
+                && e.contains("goes backwards"),
+            "{e}"
+        );
+        let p = tmp.write(
+            "fine.csv",
+            &with_field(&good, 4, "time_s", &format!("{}", t3 + 0.00005)),
+        );
+        let e = Segments::load(&p).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}:4: column 1 `time_s`", p.display()))
+                && e.contains("0.05 ms after the previous row"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_30_s_hole_gives_two_segments_holding_the_samples_present() {
+        use ddct::gap::dataset::Segments;
+        let tmp = Tmp::new("hole");
+        let good = rig_csv();
+        let mut rows = 0;
+        let text: String = good
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == 0 {
+                    return format!("{l}\n");
+                }
+                rows += 1;
+                let (t, rest) = l.split_once(',').unwrap();
+                let t: f64 = t.parse().unwrap();
+                let t = if t >= 10.0 { t + 30.0 } else { t };
+                format!("{t:.4},{rest}\n")
+            })
+            .collect();
+        let p = tmp.write("hole.csv", &text);
+        let s = Segments::load(&p).unwrap();
+        assert_eq!(s.datasets.len(), 2, "{:?}", s.notes());
+        assert_eq!(s.samples(), rows);
+        let file = p.display().to_string();
+        assert_eq!(s.datasets[0].source, format!("{file}[segment 1]"));
+        assert_eq!(s.datasets[1].source, format!("{file}[segment 2]"));
+        assert_eq!(s.gaps.len(), 1);
+        assert!((s.gaps[0].to_s - s.gaps[0].from_s - 30.01).abs() < 1e-6);
+        assert!(s.datasets.iter().all(|d| d.valid.iter().all(|v| *v)));
+        // Without the hole: one record, named after the file.
+        let s = Segments::load(tmp.write("whole.csv", &good)).unwrap();
+        assert_eq!(s.datasets.len(), 1);
+        assert_eq!(s.samples(), rows);
+        assert!(s.notes().is_empty());
+    }
+
+    #[test]
+    fn a_one_second_record_is_rejected() {
+        use ddct::gap::dataset::Segments;
+        let tmp = Tmp::new("short");
+        let good = rig_csv();
+        let text: String = good.lines().take(102).map(|l| format!("{l}\n")).collect();
+        let p = tmp.write("second.csv", &text);
+        let e = Segments::load(&p).unwrap_err();
+        assert!(matches!(e, DatasetError::RecordTooShort { .. }), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with(&format!("{}: the record lasts 1 s", p.display())),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn impossible_candump_signals_and_bus_silences() {
+        use ddct::can::e2e::{counter_of, protect};
+        use ddct::gap::dataset::Segments;
+        let recs = frames();
+        let nth = |id: u16, n: usize| {
+            recs.iter()
+                .enumerate()
+                .filter(|(_, r)| r.frame.raw_id() == u32::from(id))
+                .nth(n)
+                .unwrap()
+                .0
+        };
+        let patch = |recs: &mut Vec<LogRecord>, i: usize, f: &dyn Fn(&mut [u8; 8])| {
+            let id = recs[i].frame.raw_id() as u16;
+            let mut data = [0u8; 8];
+            data.copy_from_slice(recs[i].frame.bytes());
+            f(&mut data);
+            let counter = counter_of(&data);
+            protect(id, &mut data, counter);
+            recs[i].frame = ddct::can::CanFrame::standard(id, &data).unwrap();
+        };
+        // A gear outside the value table (raw 2 on the odd shaft), CRC intact.
+        let mut bad = recs.clone();
+        let i = nth(ids::DCT_ACTUATORS, 300);
+        patch(&mut bad, i, &|d| d[3] = (d[3] & 0x0F) | (2 << 4));
+        let e = Dataset::from_candump("gear.log", text(&bad).as_bytes(), 0.01).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "gear.log:{}: signal DCT_Actuators.GearOddAct: raw value 2 is not in the DBC value table (0 N, 1 G1, 3 G3, 5 G5)",
+                i + 1
+            )
+        );
+        // An engine speed beyond the DBC range (15 000 rpm).
+        let mut bad = recs.clone();
+        let i = nth(ids::ENG_STATUS, 500);
+        patch(&mut bad, i, &|d| {
+            d[..2].copy_from_slice(&30000u16.to_le_bytes())
+        });
+        let e = Dataset::from_candump("speed.log", text(&bad).as_bytes(), 0.01).unwrap_err();
+        assert!(
+            matches!(&e, DatasetError::SignalRange { line, signal, value, .. } if *line == i + 1 && signal == "ENG_Status.EngSpeed" && *value == 15000.0),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("15000 rpm is outside the DBC range 0…10000 rpm"),
+            "{e}"
+        );
+        // A timestamp 1 s back (a concatenated log).
+        let mut bad = recs.clone();
+        let i = 2000;
+        bad[i].timestamp -= std::time::Duration::from_secs(1);
+        let e = Dataset::from_candump("back.log", text(&bad).as_bytes(), 0.01).unwrap_err();
+        assert!(
+            matches!(e, DatasetError::LogTimeOrder { line, .. } if line == i + 1),
+            "{e}"
+        );
+        // A 30 s bus silence after 10 s: two segments, one sample per logged cycle.
+        let t0 = recs[0].timestamp;
+        let mut quiet = recs.clone();
+        for r in quiet.iter_mut() {
+            if r.timestamp - t0 >= std::time::Duration::from_secs(10) {
+                r.timestamp += std::time::Duration::from_secs(30);
+            }
+        }
+        let cycles = recs
+            .iter()
+            .filter(|r| r.frame.raw_id() == u32::from(ids::ENG_STATUS))
+            .count();
+        let s = Segments::from_candump("quiet.log", text(&quiet).as_bytes(), 0.01).unwrap();
+        assert_eq!(s.datasets.len(), 2, "{:?}", s.notes());
+        assert_eq!(s.samples(), cycles);
+        assert_eq!(s.datasets[1].source, "quiet.log[segment 2]");
+        assert!(
+            (s.datasets[1].start_s - 40.0).abs() < 0.02,
+            "{}",
+            s.datasets[1].start_s
+        );
+        assert_eq!(
+            s.datasets[0].stats.invalid_points + s.datasets[1].stats.invalid_points,
+            0
+        );
+        // The single-record decoder refuses the silence instead of filling it.
+        let e = Dataset::from_candump("quiet.log", text(&quiet).as_bytes(), 0.01).unwrap_err();
+        assert!(matches!(e, DatasetError::Gaps { segments: 2, .. }), "{e}");
+    }
+
+    /// The CLI stops on bad input with the loader's message.
+    #[test]
+    fn cli_refuses_bad_input() {
+        let bin = env!("CARGO_BIN_EXE_ddct");
+        let tmp = Tmp::new("cli_bad");
+        let bad = tmp.write("hot.csv", &with_field(&rig_csv(), 3, "th_pp1_C", "812"));
+        let st = std::process::Command::new(bin)
+            .args(["gap", "diagnose", "--train"])
+            .arg(&bad)
+            .arg("--validate")
+            .arg(&bad)
+            .arg("--out")
+            .arg(tmp.0.join("out"))
+            .output()
+            .unwrap();
+        assert!(!st.status.success());
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert!(err.contains("hot.csv:3: column "), "{err}");
+        assert!(
+            err.contains("`th_pp1_C`: 812 °C is outside the physical range −60…600 °C"),
+            "{err}"
+        );
+        assert!(!tmp.0.join("out").join("report.md").exists());
+    }
 }
 
 // ------------------------------------------------------------------------------- diagnosis

@@ -4,7 +4,7 @@
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand};
 use ddct::gap::blind::{self, TrialResult};
-use ddct::gap::dataset::Dataset;
+use ddct::gap::dataset::{Dataset, Segments};
 use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
 use ddct::gap::identify::{identify, IdentifyOptions};
 use ddct::gap::keys;
@@ -132,11 +132,19 @@ fn load_params(p: &Option<PathBuf>) -> anyhow::Result<Params> {
     }
 }
 
+/// Loads the records of `files` in order: each file is checked and cut at its gaps in time into
+/// segments, each segment a record of its own; the cuts and the segments left out are noted on
+/// stderr (stdout may be JSON).
 fn load_all(files: &[PathBuf]) -> anyhow::Result<Vec<Dataset>> {
-    files
-        .iter()
-        .map(|f| Dataset::load(f).map_err(anyhow::Error::from))
-        .collect()
+    let mut out = Vec::new();
+    for f in files {
+        let s = Segments::load(f)?;
+        for n in s.notes() {
+            eprintln!("note: {n}");
+        }
+        out.extend(s.datasets);
+    }
+    Ok(out)
 }
 
 pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {

@@ -18,10 +18,24 @@
 //! Every signal is resampled onto a uniform grid by linear interpolation (gears by zero-order
 //! hold); a grid point where a required signal has no sample within [`MAX_HOLD_S`] is marked
 //! invalid in [`Dataset::valid`]. Errors name the file, line and column.
+//!
+//! Bad input is an error, not a plausible record (issue 17 item 7): a value outside its column's
+//! physical range ([`Col::physical_range`]) or a gear outside the DBC value table
+//! ([`Col::gear_signal`]); in a candump log a signal of a message read here outside its DBC range
+//! or value table; a CSV time column going backwards or stepping less than [`MIN_STEP_S`]; a
+//! candump timestamp going back more than [`MAX_HOLD_S`]. A gap in time (consecutive samples of
+//! the clock — the CSV rows, the `ENG_Status` frames — further apart than the interpolation hold)
+//! cuts the record into segments, each resampled on its own: nothing is filled, memory stays
+//! proportional to the samples present. [`Segments`] (the loader of the `gap` and `identify`
+//! commands) keeps the segments that last at least [`MIN_RECORD_S`] and requires one clutch
+//! engagement in the file; the single-record constructors ([`Dataset::load`],
+//! [`Dataset::from_csv`], …) refuse a record with gaps ([`DatasetError::Gaps`]).
 
-use crate::can::candump::{LogError, LogReader, LogRecord};
+use super::events::{self, EventKind, SegmentOptions};
+use crate::can::candump::{parse_line, LineError, LogRecord};
+use crate::can::codec::{CodecError, SignalDef};
 use crate::can::e2e::{is_protected, E2eChecker, E2eConfig, E2eError};
-use crate::can::messages::{ids, Message};
+use crate::can::messages::{ids, message_def, DctActuators, Message};
 use embedded_can::Frame as _;
 use std::io::BufRead;
 use std::path::Path;
@@ -32,6 +46,24 @@ pub const RPM_TO_RADPS: f64 = std::f64::consts::PI / 30.0;
 pub const MAX_HOLD_S: f64 = 0.055;
 /// Default resampling step (s): the contract's 10 ms cycle.
 pub const DEFAULT_DT_S: f64 = 0.01;
+/// Shortest step (s) between two CSV rows: closer samples (or a median step below it) are not a
+/// bench record (a duplicated row, a time column in the wrong unit).
+pub const MIN_STEP_S: f64 = 1e-4;
+/// Shortest record or segment (s) that holds one engagement with the open time around it (an
+/// event block, `events.rs`): a launch slips for about a second, the rig's engagements last
+/// 2–5 s, and the event segmentation reports open phases from 2 s (`min_open_s`).
+pub const MIN_RECORD_S: f64 = 2.0;
+/// Physical range of the temperatures (°C): thermocouples and housing sensor.
+pub const TEMP_RANGE_C: (f64, f64) = (-60.0, 600.0);
+/// Largest |throw-out bearing position| (mm), measured or requested: the stroke is about 10 mm;
+/// beyond 100 mm the column is in another unit (µm) or broken.
+pub const MAX_POSITION_MM: f64 = 100.0;
+/// Largest |shaft speed| (rad/s), ≈ 19 100 rpm: twice any passenger-car engine or input shaft
+/// (the DBC's ranges stop at 10 000 rpm and 8 192 rpm).
+pub const MAX_SPEED_RADPS: f64 = 2000.0;
+/// Largest |torque| (N·m) of a clutch or the engine: ten times a passenger-car clutch's capacity,
+/// three times the DBC's ±3 276.8 N·m.
+pub const MAX_TORQUE_NM: f64 = 10_000.0;
 
 /// The columns of a dataset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -128,6 +160,52 @@ impl Col {
         matches!(self, Col::X1Req | Col::X2Req | Col::Pedal)
     }
 
+    /// Physical range `(min, max, unit)` of a column: a value outside it is impossible (a unit
+    /// error, a broken sensor, a corrupted file), not a measurement. Temperatures −60…600 °C,
+    /// pedal 0…100 %, positions ±[`MAX_POSITION_MM`], speeds ±[`MAX_SPEED_RADPS`], torques
+    /// ±[`MAX_TORQUE_NM`]. Gears have none: they follow the DBC value table
+    /// ([`Col::gear_signal`]).
+    pub fn physical_range(self) -> Option<(f64, f64, &'static str)> {
+        match self {
+            Col::X1 | Col::X2 | Col::X1Req | Col::X2Req => {
+                Some((-MAX_POSITION_MM, MAX_POSITION_MM, "mm"))
+            }
+            Col::Wf | Col::Wc1 | Col::Wc2 | Col::Wout => {
+                Some((-MAX_SPEED_RADPS, MAX_SPEED_RADPS, "rad/s"))
+            }
+            Col::T1 | Col::T2 | Col::Te => Some((-MAX_TORQUE_NM, MAX_TORQUE_NM, "N·m")),
+            Col::Pp1 | Col::Pp2 | Col::Cd | Col::Th => Some((TEMP_RANGE_C.0, TEMP_RANGE_C.1, "°C")),
+            Col::Pedal => Some((0.0, 100.0, "%")),
+            Col::GearOdd | Col::GearEven => None,
+        }
+    }
+
+    /// The DBC signal whose value table a gear column follows (`DCT_Actuators.GearOddAct`,
+    /// `GearEvenAct`, from the generated contract).
+    pub fn gear_signal(self) -> Option<&'static SignalDef> {
+        let def = DctActuators::def();
+        match self {
+            Col::GearOdd => Some(&def.signals[2]),
+            Col::GearEven => Some(&def.signals[3]),
+            _ => None,
+        }
+    }
+
+    /// Whether `v` is possible in this column.
+    fn check(self, v: f64) -> Result<(), Impossible> {
+        if let Some((min, max, unit)) = self.physical_range() {
+            if !(min..=max).contains(&v) {
+                return Err(Impossible::Range { min, max, unit });
+            }
+        }
+        if let Some(s) = self.gear_signal() {
+            if !s.values.iter().any(|(raw, _)| *raw as f64 == v) {
+                return Err(Impossible::Table(s));
+            }
+        }
+        Ok(())
+    }
+
     fn idx(self) -> usize {
         self as usize
     }
@@ -186,7 +264,9 @@ pub enum DatasetError {
         text: String,
     },
     #[error(
-        "{file}:{line}: column {index} `time_s`: {value} does not increase (previous {previous})"
+        "{file}:{line}: column {index} `time_s`: {} s goes backwards (previous row {} s)",
+        num(.value),
+        num(.previous)
     )]
     TimeOrder {
         file: String,
@@ -194,6 +274,134 @@ pub enum DatasetError {
         index: usize,
         value: f64,
         previous: f64,
+    },
+    #[error(
+        "{file}:{line}: column {index} `time_s`: {} s is {} ms after the previous row ({} s): \
+         steps below {} ms are not a bench record",
+        num(.value),
+        num(&(1e3 * (.value - .previous))),
+        num(.previous),
+        num(&(1e3 * MIN_STEP_S))
+    )]
+    TimeStep {
+        file: String,
+        line: usize,
+        index: usize,
+        value: f64,
+        previous: f64,
+    },
+    #[error(
+        "{file}:{line}: column {index} `{column}`: {} {unit} is outside the physical range {}…{} {unit}",
+        num(.value),
+        num(.min),
+        num(.max)
+    )]
+    OutOfRange {
+        file: String,
+        line: usize,
+        index: usize,
+        column: String,
+        value: f64,
+        min: f64,
+        max: f64,
+        unit: &'static str,
+    },
+    #[error(
+        "{file}:{line}: column {index} `{column}`: {} is not in the DBC value table of {signal} ({table})",
+        num(.value)
+    )]
+    NotInTable {
+        file: String,
+        line: usize,
+        index: usize,
+        column: String,
+        value: f64,
+        signal: String,
+        table: String,
+    },
+    #[error(
+        "{file}:{line}: signal {signal}: {} {unit} is outside the DBC range {}…{} {unit}",
+        num(.value),
+        num(.min),
+        num(.max)
+    )]
+    SignalRange {
+        file: String,
+        line: usize,
+        signal: String,
+        value: f64,
+        min: f64,
+        max: f64,
+        unit: String,
+    },
+    #[error(
+        "{file}:{line}: signal {signal}: raw value {raw} is not in the DBC value table ({table})"
+    )]
+    SignalValue {
+        file: String,
+        line: usize,
+        signal: String,
+        raw: u64,
+        table: String,
+    },
+    #[error(
+        "{file}:{line}: timestamp goes back {} s (to {} s after the first frame, after {} s)",
+        num(&(.previous - .value)),
+        num(.value),
+        num(.previous)
+    )]
+    LogTimeOrder {
+        file: String,
+        line: usize,
+        value: f64,
+        previous: f64,
+    },
+    #[error(
+        "{file}: the record lasts {} s, shorter than one engagement with the open time around it \
+         ({} s)",
+        num(.duration_s),
+        num(.min_s)
+    )]
+    RecordTooShort {
+        file: String,
+        duration_s: f64,
+        min_s: f64,
+    },
+    #[error(
+        "{file}: gaps in time cut the record into {segments} segments and none lasts one \
+         engagement ({} s; the longest {} s)",
+        num(.min_s),
+        num(.longest_s)
+    )]
+    NoUsableSegment {
+        file: String,
+        segments: usize,
+        longest_s: f64,
+        min_s: f64,
+    },
+    #[error(
+        "{file}: no engagement: neither clutch torque (T_c1_Nm, T_c2_Nm) exceeds {} N·m for \
+         {} s, there is nothing to identify or diagnose",
+        num(.torque_on),
+        num(.min_s)
+    )]
+    NoEngagement {
+        file: String,
+        torque_on: f64,
+        min_s: f64,
+    },
+    #[error(
+        "{file}:{line}: a gap in time ({} s → {} s) cuts the record into {segments} segments; \
+         load it as segments (`Segments`)",
+        num(.from_s),
+        num(.to_s)
+    )]
+    Gaps {
+        file: String,
+        line: usize,
+        from_s: f64,
+        to_s: f64,
+        segments: usize,
     },
     #[error("{file}: {rows} sample(s) — at least {min} are needed")]
     TooShort {
@@ -215,6 +423,65 @@ pub enum DatasetError {
     },
     #[error("{file}: the required signals never overlap in time")]
     NoOverlap { file: String },
+}
+
+/// Why a value is impossible in its column.
+enum Impossible {
+    Range {
+        min: f64,
+        max: f64,
+        unit: &'static str,
+    },
+    Table(&'static SignalDef),
+}
+
+impl Impossible {
+    fn at(self, file: &str, line: usize, index: usize, c: Col, value: f64) -> DatasetError {
+        match self {
+            Impossible::Range { min, max, unit } => DatasetError::OutOfRange {
+                file: file.into(),
+                line,
+                index,
+                column: c.name().into(),
+                value,
+                min,
+                max,
+                unit,
+            },
+            Impossible::Table(s) => DatasetError::NotInTable {
+                file: file.into(),
+                line,
+                index,
+                column: c.name().into(),
+                value,
+                signal: format!("{}.{}", DctActuators::NAME, s.name),
+                table: value_table(s),
+            },
+        }
+    }
+}
+
+/// A DBC value table as `0 N, 1 G1, …`.
+fn value_table(s: &SignalDef) -> String {
+    s.values
+        .iter()
+        .map(|(raw, label)| format!("{raw} {label}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A number for a message: shortest round-trip form, with a real minus sign.
+fn num(v: &f64) -> String {
+    let s = if v.abs() >= 1e12 {
+        format!("{v:e}")
+    } else if v.fract() == 0.0 || v.abs() < 1e-3 {
+        format!("{v}")
+    } else {
+        // Enough digits for a bench value, without the binary noise of a difference.
+        let t = format!("{v:.6}");
+        t.trim_end_matches('0').trim_end_matches('.').to_string()
+    };
+    s.replace('-', "\u{2212}")
 }
 
 /// What the loader saw besides the samples.
@@ -248,6 +515,9 @@ pub struct Dataset {
     /// False where a required signal had no fresh sample (a gap in the log).
     pub valid: Vec<bool>,
     pub stats: LoadStats,
+    /// Time of the first sample on the file's clock (s): CSV `time_s`, candump seconds since the
+    /// first frame; 0 for a record built in memory. A segment after a gap starts later.
+    pub start_s: f64,
 }
 
 impl Dataset {
@@ -299,6 +569,7 @@ impl Dataset {
             cols,
             valid: vec![true; n],
             stats: LoadStats::default(),
+            start_s: 0.0,
         })
     }
 
@@ -385,39 +656,269 @@ impl Dataset {
         s
     }
 
-    /// Loads a CSV or candump file, chosen by content: a candump log starts with `(`.
+    /// Loads a CSV or candump file, chosen by content: a candump log starts with `(`. One record:
+    /// a file with gaps in time is refused ([`DatasetError::Gaps`]); [`Segments::load`] cuts it.
     pub fn load(path: impl AsRef<Path>) -> Result<Dataset, DatasetError> {
-        let path = path.as_ref();
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| DatasetError::Io {
-            file: file.clone(),
-            message: e.to_string(),
-        })?;
-        if text.trim_start().starts_with('(') {
-            Dataset::from_candump(&file, text.as_bytes(), DEFAULT_DT_S)
-        } else {
-            Dataset::from_csv(&file, &text)
-        }
+        let (file, raw) = read_file(path.as_ref())?;
+        raw.single(&file)
     }
 
-    /// Parses CSV text (comma separated, one header line, `#` comment lines allowed).
+    /// Parses CSV text (comma separated, one header line, `#` comment lines allowed) into one
+    /// record (see [`Segments::from_csv`] for records with gaps).
     pub fn from_csv(file: &str, text: &str) -> Result<Dataset, DatasetError> {
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-        let Some((hline, header)) = lines.next() else {
-            return Err(DatasetError::Empty { file: file.into() });
-        };
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        let mut map: Vec<Option<Col>> = Vec::with_capacity(names.len());
-        let mut time_idx = None;
-        let mut seen = [false; NCOL];
-        let mut stats = LoadStats::default();
-        for (j, name) in names.iter().enumerate() {
-            if *name == "time_s" {
-                if time_idx.is_some() {
+        parse_csv(file, text)?.single(file)
+    }
+
+    /// Decodes a candump log with the contract and resamples it at `dt` seconds (one record).
+    pub fn from_candump(file: &str, input: impl BufRead, dt: f64) -> Result<Dataset, DatasetError> {
+        decode_log(file, candump_lines(file, input), dt)?.single(file)
+    }
+
+    /// Decodes logged frames (e.g. straight from an in-process bus) and resamples them (one
+    /// record). Errors name the frame's 1-based position as its line (the line of a log written
+    /// one frame per line).
+    pub fn from_records(
+        file: &str,
+        records: impl IntoIterator<Item = Result<LogRecord, DatasetError>>,
+        dt: f64,
+    ) -> Result<Dataset, DatasetError> {
+        decode_log(file, numbered(records), dt)?.single(file)
+    }
+}
+
+/// A gap in time that cuts a record.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TimeGap {
+    /// Line of the first sample after the gap (the CSV row; the `ENG_Status` frame of a log).
+    pub line: usize,
+    /// Time of the last sample before the gap (s, the file's clock).
+    pub from_s: f64,
+    /// Time of the first sample after it.
+    pub to_s: f64,
+}
+
+/// A segment left out of the diagnosis.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DroppedSegment {
+    /// `file[segment k]`.
+    pub source: String,
+    /// Its first and last sample of the clock (s, the file's clock).
+    pub from_s: f64,
+    pub to_s: f64,
+    /// Samples of the clock in it.
+    pub samples: usize,
+    pub reason: String,
+}
+
+/// A file cut at its gaps in time: the segments long enough for the diagnosis, each a record of
+/// its own (`file[segment k]` when there are several), in time order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Segments {
+    pub file: String,
+    pub datasets: Vec<Dataset>,
+    /// Where the file was cut.
+    pub gaps: Vec<TimeGap>,
+    /// Segments shorter than [`MIN_RECORD_S`] (or without the required signals), left out.
+    pub dropped: Vec<DroppedSegment>,
+}
+
+impl Segments {
+    /// Loads a CSV or candump file (chosen by content, as [`Dataset::load`]) and cuts it at its
+    /// gaps in time. Errors: anything [`Dataset::load`] rejects except the gaps; a file with one
+    /// segment shorter than [`MIN_RECORD_S`] ([`DatasetError::RecordTooShort`]), with no segment
+    /// that long ([`DatasetError::NoUsableSegment`]) or in which no clutch ever closes
+    /// ([`DatasetError::NoEngagement`]).
+    pub fn load(path: impl AsRef<Path>) -> Result<Segments, DatasetError> {
+        let (file, raw) = read_file(path.as_ref())?;
+        Segments::build(file, raw)
+    }
+
+    /// [`Segments::load`] of CSV text.
+    pub fn from_csv(file: &str, text: &str) -> Result<Segments, DatasetError> {
+        Segments::build(file.into(), parse_csv(file, text)?)
+    }
+
+    /// [`Segments::load`] of a candump log, resampled at `dt` seconds.
+    pub fn from_candump(
+        file: &str,
+        input: impl BufRead,
+        dt: f64,
+    ) -> Result<Segments, DatasetError> {
+        Segments::build(
+            file.into(),
+            decode_log(file, candump_lines(file, input), dt)?,
+        )
+    }
+
+    /// [`Segments::load`] of logged frames.
+    pub fn from_records(
+        file: &str,
+        records: impl IntoIterator<Item = Result<LogRecord, DatasetError>>,
+        dt: f64,
+    ) -> Result<Segments, DatasetError> {
+        Segments::build(file.into(), decode_log(file, numbered(records), dt)?)
+    }
+
+    fn build(file: String, raw: RawRecord) -> Result<Segments, DatasetError> {
+        let (parts, gaps) = raw.split(&file);
+        let single = parts.len() == 1;
+        let n_parts = parts.len();
+        let mut datasets = Vec::new();
+        let mut dropped = Vec::new();
+        let mut longest = 0.0f64;
+        for p in parts {
+            let reason = match p.result {
+                Ok(d) if d.duration() >= MIN_RECORD_S - 1e-9 => {
+                    datasets.push(d);
+                    continue;
+                }
+                Ok(d) => {
+                    longest = longest.max(d.duration());
+                    if single {
+                        return Err(DatasetError::RecordTooShort {
+                            file,
+                            duration_s: d.duration(),
+                            min_s: MIN_RECORD_S,
+                        });
+                    }
+                    format!(
+                        "it lasts {} s, shorter than one engagement ({} s)",
+                        num(&d.duration()),
+                        num(&MIN_RECORD_S)
+                    )
+                }
+                Err(e) if single => return Err(e),
+                Err(e) => e.to_string(),
+            };
+            dropped.push(DroppedSegment {
+                source: p.source,
+                from_s: p.from_s,
+                to_s: p.to_s,
+                samples: p.samples,
+                reason,
+            });
+        }
+        if datasets.is_empty() {
+            return Err(DatasetError::NoUsableSegment {
+                file,
+                segments: n_parts,
+                longest_s: longest,
+                min_s: MIN_RECORD_S,
+            });
+        }
+        // One engagement: a clutch closed (above the event threshold, long enough to be an
+        // event) somewhere in the file.
+        let o = SegmentOptions::default();
+        let engaged = datasets.iter().any(|d| {
+            events::segment(d, &o)
+                .events
+                .iter()
+                .any(|e| matches!(e.kind, EventKind::Engagement | EventKind::Locked))
+        });
+        if !engaged {
+            return Err(DatasetError::NoEngagement {
+                file,
+                torque_on: o.torque_on,
+                min_s: o.min_engagement_s,
+            });
+        }
+        Ok(Segments {
+            file,
+            datasets,
+            gaps,
+            dropped,
+        })
+    }
+
+    /// Samples of the segments kept.
+    pub fn samples(&self) -> usize {
+        self.datasets.iter().map(Dataset::len).sum()
+    }
+
+    /// One line per gap and per dropped segment, for the user (empty for a plain record).
+    pub fn notes(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if !self.gaps.is_empty() {
+            let segs = self.gaps.len() + 1;
+            for g in &self.gaps {
+                out.push(format!(
+                    "{}:{}: a gap in time of {} s ({} s → {} s): the record is cut there",
+                    self.file,
+                    g.line,
+                    num(&(g.to_s - g.from_s)),
+                    num(&g.from_s),
+                    num(&g.to_s)
+                ));
+            }
+            out.push(format!(
+                "{}: {segs} segments, {} kept as separate records ({} samples)",
+                self.file,
+                self.datasets.len(),
+                self.samples()
+            ));
+        }
+        for d in &self.dropped {
+            out.push(format!(
+                "{} ({} s → {} s, {} samples) left out: {}",
+                d.source,
+                num(&d.from_s),
+                num(&d.to_s),
+                d.samples,
+                d.reason
+            ));
+        }
+        out
+    }
+}
+
+/// Reads a file and parses it as CSV or candump (a log starts with `(`).
+fn read_file(path: &Path) -> Result<(String, RawRecord), DatasetError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| DatasetError::Io {
+        file: file.clone(),
+        message: e.to_string(),
+    })?;
+    let raw = if text.trim_start().starts_with('(') {
+        decode_log(&file, candump_lines(&file, text.as_bytes()), DEFAULT_DT_S)?
+    } else {
+        parse_csv(&file, &text)?
+    };
+    Ok((file, raw))
+}
+
+/// Parses CSV text: the header, every value checked (finite, inside its physical range, gears
+/// in the DBC table), the time column increasing by at least [`MIN_STEP_S`].
+fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((hline, header)) = lines.next() else {
+        return Err(DatasetError::Empty { file: file.into() });
+    };
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let mut map: Vec<Option<Col>> = Vec::with_capacity(names.len());
+    let mut time_idx = None;
+    let mut seen = [false; NCOL];
+    let mut stats = LoadStats::default();
+    for (j, name) in names.iter().enumerate() {
+        if *name == "time_s" {
+            if time_idx.is_some() {
+                return Err(DatasetError::DuplicateColumn {
+                    file: file.into(),
+                    line: hline,
+                    index: j + 1,
+                    column: name.to_string(),
+                });
+            }
+            time_idx = Some(j);
+            map.push(None);
+            continue;
+        }
+        match Col::from_name(name) {
+            Some(c) => {
+                if seen[c.idx()] {
                     return Err(DatasetError::DuplicateColumn {
                         file: file.into(),
                         line: hline,
@@ -425,185 +926,277 @@ impl Dataset {
                         column: name.to_string(),
                     });
                 }
-                time_idx = Some(j);
-                map.push(None);
-                continue;
+                seen[c.idx()] = true;
+                map.push(Some(c));
             }
-            match Col::from_name(name) {
-                Some(c) => {
-                    if seen[c.idx()] {
-                        return Err(DatasetError::DuplicateColumn {
-                            file: file.into(),
-                            line: hline,
-                            index: j + 1,
-                            column: name.to_string(),
-                        });
-                    }
-                    seen[c.idx()] = true;
-                    map.push(Some(c));
-                }
-                None => {
-                    stats.ignored_columns.push(name.to_string());
-                    map.push(None);
-                }
+            None => {
+                stats.ignored_columns.push(name.to_string());
+                map.push(None);
             }
         }
-        let Some(time_idx) = time_idx else {
+    }
+    let Some(time_idx) = time_idx else {
+        return Err(DatasetError::MissingColumn {
+            file: file.into(),
+            line: hline,
+            column: "time_s".into(),
+        });
+    };
+    for c in Col::ALL.iter().filter(|c| c.required()) {
+        if !seen[c.idx()] {
             return Err(DatasetError::MissingColumn {
                 file: file.into(),
                 line: hline,
-                column: "time_s".into(),
+                column: c.name().into(),
             });
-        };
-        for c in Col::ALL.iter().filter(|c| c.required()) {
-            if !seen[c.idx()] {
-                return Err(DatasetError::MissingColumn {
-                    file: file.into(),
-                    line: hline,
-                    column: c.name().into(),
-                });
-            }
         }
-        let mut t = Vec::new();
-        let mut cols: Vec<Vec<f64>> = vec![Vec::new(); NCOL];
-        for (line, l) in lines {
-            let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-            if fields.len() != names.len() {
-                return Err(DatasetError::FieldCount {
-                    file: file.into(),
-                    line,
-                    expected: names.len(),
-                    found: fields.len(),
-                });
-            }
-            for (j, f) in fields.iter().enumerate() {
-                let is_time = j == time_idx;
-                let Some(c) = map[j] else {
-                    if !is_time {
-                        continue;
-                    }
-                    let v = parse_num(f).ok_or_else(|| DatasetError::BadNumber {
-                        file: file.into(),
-                        line,
-                        index: j + 1,
-                        column: "time_s".into(),
-                        text: f.to_string(),
-                    })?;
-                    if let Some(&prev) = t.last() {
-                        if v <= prev {
-                            return Err(DatasetError::TimeOrder {
-                                file: file.into(),
-                                line,
-                                index: j + 1,
-                                value: v,
-                                previous: prev,
-                            });
-                        }
-                    }
-                    t.push(v);
-                    continue;
-                };
-                let v = parse_num(f).ok_or_else(|| DatasetError::BadNumber {
-                    file: file.into(),
-                    line,
-                    index: j + 1,
-                    column: c.name().into(),
-                    text: f.to_string(),
-                })?;
-                cols[c.idx()].push(v);
-            }
-            stats.records += 1;
-        }
-        if t.len() < 2 {
-            return Err(DatasetError::TooShort {
+    }
+    let mut t = Vec::new();
+    let mut row_lines = Vec::new();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); NCOL];
+    for (line, l) in lines {
+        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
+        if fields.len() != names.len() {
+            return Err(DatasetError::FieldCount {
                 file: file.into(),
-                rows: t.len(),
-                min: 2,
+                line,
+                expected: names.len(),
+                found: fields.len(),
             });
         }
-        let series: Vec<Option<Series>> = Col::ALL
-            .iter()
-            .map(|c| {
-                seen[c.idx()].then(|| Series {
-                    t: t.clone(),
-                    v: std::mem::take(&mut cols[c.idx()]),
-                })
-            })
-            .collect();
-        // Keep the file's own step when it is uniform, else resample at its median step.
-        let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        steps.sort_by(f64::total_cmp);
-        let dt = steps[steps.len() / 2];
-        let hold = (dt * 5.5).max(MAX_HOLD_S);
-        resample(file, series, dt, hold, stats, false)
-    }
-
-    /// Decodes a candump log with the contract and resamples it at `dt` seconds.
-    pub fn from_candump(file: &str, input: impl BufRead, dt: f64) -> Result<Dataset, DatasetError> {
-        let records = LogReader::new(input).map(|r| {
-            r.map_err(|e| match e {
-                LogError::Line { line, kind } => DatasetError::LogLine {
-                    file: file.into(),
-                    line,
-                    message: kind.to_string(),
-                },
-                LogError::Io(e) => DatasetError::Io {
-                    file: file.into(),
-                    message: e.to_string(),
-                },
-            })
-        });
-        Dataset::from_records(file, records, dt)
-    }
-
-    /// Decodes logged frames (e.g. straight from an in-process bus) and resamples them.
-    pub fn from_records(
-        file: &str,
-        records: impl IntoIterator<Item = Result<LogRecord, DatasetError>>,
-        dt: f64,
-    ) -> Result<Dataset, DatasetError> {
-        let mut raw = CandumpColumns::default();
-        let mut stats = LoadStats::default();
-        let mut checker: Option<E2eChecker> = None;
-        let mut t0: Option<std::time::Duration> = None;
-        for rec in records {
-            let rec = rec?;
-            stats.records += 1;
-            let frame = &rec.frame;
-            if frame.is_extended() || frame.is_remote_frame() {
-                stats.undecodable += 1;
-                continue;
-            }
-            let id = frame.raw_id();
-            if id == u32::from(ids::SIM_TRUTH) {
-                stats.ignored_truth += 1;
-                continue;
-            }
-            let start = *t0.get_or_insert(rec.timestamp);
-            let t = rec.timestamp.saturating_sub(start).as_secs_f64();
-            if is_protected(id) {
-                let ch =
-                    checker.get_or_insert_with(|| E2eChecker::all(E2eConfig::default(), start));
-                match ch.check(rec.timestamp, id, frame.bytes()) {
-                    Ok(()) | Err(E2eError::CounterSkipped { .. }) => {}
-                    Err(_) => {
-                        stats.dropped_e2e += 1;
-                        continue;
+        for (j, f) in fields.iter().enumerate() {
+            let column = match map[j] {
+                Some(c) => c.name(),
+                None if j == time_idx => "time_s",
+                None => continue,
+            };
+            let v = parse_num(f).ok_or_else(|| DatasetError::BadNumber {
+                file: file.into(),
+                line,
+                index: j + 1,
+                column: column.into(),
+                text: f.to_string(),
+            })?;
+            let Some(c) = map[j] else {
+                if let Some(&previous) = t.last() {
+                    if v < previous {
+                        return Err(DatasetError::TimeOrder {
+                            file: file.into(),
+                            line,
+                            index: j + 1,
+                            value: v,
+                            previous,
+                        });
+                    }
+                    // Relative tolerance: a 0.1 ms step written with 4 decimals still passes.
+                    if v - previous < MIN_STEP_S * (1.0 - 1e-6) {
+                        return Err(DatasetError::TimeStep {
+                            file: file.into(),
+                            line,
+                            index: j + 1,
+                            value: v,
+                            previous,
+                        });
                     }
                 }
-            }
-            let Ok(msg) = Message::decode(id, frame.bytes()) else {
-                stats.undecodable += 1;
+                t.push(v);
                 continue;
             };
-            raw.push(t, &msg);
+            c.check(v).map_err(|e| e.at(file, line, j + 1, c, v))?;
+            cols[c.idx()].push(v);
         }
-        raw.into_dataset(file, dt, stats)
+        row_lines.push(line);
+        stats.records += 1;
     }
+    if t.len() < 2 {
+        return Err(DatasetError::TooShort {
+            file: file.into(),
+            rows: t.len(),
+            min: 2,
+        });
+    }
+    // Keep the file's own step when it is uniform, else resample at its median step (every step
+    // is at least MIN_STEP_S, so is the median).
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let dt = steps[steps.len() / 2];
+    drop(steps);
+    let hold = (dt * 5.5).max(MAX_HOLD_S);
+    Ok(RawRecord {
+        cols: Col::ALL
+            .iter()
+            .map(|c| seen[c.idx()].then(|| (0, std::mem::take(&mut cols[c.idx()]))))
+            .collect(),
+        times: vec![t],
+        clock: 0,
+        clock_lines: row_lines,
+        dt,
+        hold,
+        cycles: false,
+        stats,
+    })
 }
 
 fn parse_num(s: &str) -> Option<f64> {
     s.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+/// The lines of a candump log, numbered as in the file (blank lines skipped).
+fn candump_lines<'a>(
+    file: &'a str,
+    input: impl BufRead + 'a,
+) -> impl Iterator<Item = Result<(usize, LogRecord), DatasetError>> + 'a {
+    input
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.as_ref().map_or(true, |l| !l.trim().is_empty()))
+        .map(move |(i, l)| {
+            let line = i + 1;
+            let l = l.map_err(|e| {
+                if e.kind() == std::io::ErrorKind::InvalidData {
+                    DatasetError::LogLine {
+                        file: file.into(),
+                        line,
+                        message: LineError::Timestamp.to_string(),
+                    }
+                } else {
+                    DatasetError::Io {
+                        file: file.into(),
+                        message: e.to_string(),
+                    }
+                }
+            })?;
+            parse_line(&l)
+                .map(|r| (line, r))
+                .map_err(|kind| DatasetError::LogLine {
+                    file: file.into(),
+                    line,
+                    message: kind.to_string(),
+                })
+        })
+}
+
+/// In-memory frames numbered from 1.
+fn numbered(
+    records: impl IntoIterator<Item = Result<LogRecord, DatasetError>>,
+) -> impl Iterator<Item = Result<(usize, LogRecord), DatasetError>> {
+    records
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| r.map(|r| (i + 1, r)))
+}
+
+/// The messages whose signals become columns: a decoding failure of one of them (a value outside
+/// the DBC range or value table) is an impossible value, not a frame to skip.
+fn read_here(id: u32) -> bool {
+    [
+        ids::ENG_STATUS,
+        ids::DCT_SENSORS,
+        ids::DCT_ACTUATORS,
+        ids::BENCH_TORQUE,
+        ids::BENCH_TEMPS,
+        ids::TCU_CLUTCH_CMD,
+        ids::DRV_PEDAL,
+    ]
+    .into_iter()
+    .any(|m| u32::from(m) == id)
+}
+
+/// Decodes numbered frames with the contract into per-signal series.
+fn decode_log(
+    file: &str,
+    records: impl Iterator<Item = Result<(usize, LogRecord), DatasetError>>,
+    dt: f64,
+) -> Result<RawRecord, DatasetError> {
+    let mut raw = CandumpColumns::default();
+    let mut stats = LoadStats::default();
+    let mut checker: Option<E2eChecker> = None;
+    let mut t0: Option<std::time::Duration> = None;
+    let mut latest = 0.0f64;
+    for rec in records {
+        let (line, rec) = rec?;
+        stats.records += 1;
+        let frame = &rec.frame;
+        if frame.is_extended() || frame.is_remote_frame() {
+            stats.undecodable += 1;
+            continue;
+        }
+        let id = frame.raw_id();
+        if id == u32::from(ids::SIM_TRUTH) {
+            stats.ignored_truth += 1;
+            continue;
+        }
+        let start = *t0.get_or_insert(rec.timestamp);
+        // Signed seconds since the first frame (a frame older than it is reordering too).
+        let t = match rec.timestamp.checked_sub(start) {
+            Some(d) => d.as_secs_f64(),
+            None => -(start - rec.timestamp).as_secs_f64(),
+        };
+        if t < latest - MAX_HOLD_S {
+            return Err(DatasetError::LogTimeOrder {
+                file: file.into(),
+                line,
+                value: t,
+                previous: latest,
+            });
+        }
+        latest = latest.max(t);
+        if is_protected(id) {
+            let ch = checker.get_or_insert_with(|| E2eChecker::all(E2eConfig::default(), start));
+            match ch.check(rec.timestamp, id, frame.bytes()) {
+                Ok(()) | Err(E2eError::CounterSkipped { .. }) => {}
+                Err(_) => {
+                    stats.dropped_e2e += 1;
+                    continue;
+                }
+            }
+        }
+        let msg = match Message::decode(id, frame.bytes()) {
+            Ok(m) => m,
+            Err(CodecError::OutOfRange {
+                message,
+                signal,
+                value,
+                min,
+                max,
+            }) if read_here(id) => {
+                let unit = message_def(id)
+                    .and_then(|d| d.signals.iter().find(|s| s.name == signal))
+                    .map_or("", |s| s.unit);
+                return Err(DatasetError::SignalRange {
+                    file: file.into(),
+                    line,
+                    signal: format!("{message}.{signal}"),
+                    value,
+                    min,
+                    max,
+                    unit: unit.into(),
+                });
+            }
+            Err(CodecError::UnknownValue {
+                message,
+                signal,
+                raw: r,
+            }) if read_here(id) => {
+                let table = message_def(id)
+                    .and_then(|d| d.signals.iter().find(|s| s.name == signal))
+                    .map_or_else(String::new, value_table);
+                return Err(DatasetError::SignalValue {
+                    file: file.into(),
+                    line,
+                    signal: format!("{message}.{signal}"),
+                    raw: r,
+                    table,
+                });
+            }
+            Err(_) => {
+                stats.undecodable += 1;
+                continue;
+            }
+        };
+        raw.push(t, line, &msg);
+    }
+    raw.into_raw(file, dt, stats)
 }
 
 /// One signal's samples at its own times.
@@ -614,13 +1207,24 @@ struct Series {
 }
 
 impl Series {
-    fn push(&mut self, t: f64, v: f64) {
+    /// Appends a sample; false (and nothing kept) for one not newer than the last.
+    fn push(&mut self, t: f64, v: f64) -> bool {
         // Logs are in time order; a frame with an older timestamp (reordering) is ignored.
         if self.t.last().is_none_or(|&last| t > last) {
             self.t.push(t);
             self.v.push(v);
+            true
+        } else {
+            false
         }
     }
+}
+
+/// A borrowed piece of a series.
+#[derive(Debug, Clone, Copy)]
+struct SeriesRef<'a> {
+    t: &'a [f64],
+    v: &'a [f64],
 }
 
 /// A bench measurement sitting at its DBC range limit is clipped, not measured: NaN (the grid
@@ -638,6 +1242,8 @@ fn unsaturated(def: &crate::can::codec::MessageDef, si: usize, v: f64) -> f64 {
 #[derive(Debug, Default)]
 struct CandumpColumns {
     s: Vec<Series>,
+    /// Line of each `ENG_Status` sample kept (the clock).
+    clock_lines: Vec<usize>,
 }
 
 impl CandumpColumns {
@@ -648,10 +1254,12 @@ impl CandumpColumns {
         &mut self.s[c.idx()]
     }
 
-    fn push(&mut self, t: f64, m: &Message) {
+    fn push(&mut self, t: f64, line: usize, m: &Message) {
         match m {
             Message::EngStatus(e) => {
-                self.col(Col::Wf).push(t, e.eng_speed * RPM_TO_RADPS);
+                if self.col(Col::Wf).push(t, e.eng_speed * RPM_TO_RADPS) {
+                    self.clock_lines.push(line);
+                }
                 self.col(Col::Te).push(t, e.eng_torque_act);
             }
             Message::DctSensors(d) => {
@@ -698,12 +1306,12 @@ impl CandumpColumns {
         }
     }
 
-    fn into_dataset(
+    fn into_raw(
         mut self,
         file: &str,
         dt: f64,
         stats: LoadStats,
-    ) -> Result<Dataset, DatasetError> {
+    ) -> Result<RawRecord, DatasetError> {
         if self.s.is_empty() {
             self.s = vec![Series::default(); NCOL];
         }
@@ -733,12 +1341,133 @@ impl CandumpColumns {
                 });
             }
         }
-        let series: Vec<Option<Series>> = self
-            .s
-            .into_iter()
-            .map(|s| (s.t.len() >= 2).then_some(s))
+        let mut times = Vec::new();
+        let mut cols = Vec::with_capacity(NCOL);
+        for s in self.s {
+            if s.t.len() >= 2 {
+                cols.push(Some((times.len(), s.v)));
+                times.push(s.t);
+            } else {
+                cols.push(None);
+            }
+        }
+        let clock = cols[Col::Wf.idx()]
+            .as_ref()
+            .map(|(k, _)| *k)
+            .expect("ENG_Status present");
+        Ok(RawRecord {
+            times,
+            cols,
+            clock,
+            clock_lines: self.clock_lines,
+            dt,
+            hold: MAX_HOLD_S,
+            cycles: true,
+            stats,
+        })
+    }
+}
+
+/// A record as read, before resampling: every present column's samples at their own times.
+struct RawRecord {
+    /// Sample times (CSV: one vector for every column; candump: one per column).
+    times: Vec<Vec<f64>>,
+    /// Per column: its index in `times` and its values.
+    cols: Vec<Option<(usize, Vec<f64>)>>,
+    /// The clock whose gaps cut the record (index in `times`): CSV rows, ENG_Status frames.
+    clock: usize,
+    /// File line of each clock sample.
+    clock_lines: Vec<usize>,
+    dt: f64,
+    /// Longest interval interpolated over; a longer one in the clock is a gap.
+    hold: f64,
+    /// Bus log: the grid follows the plant's cycles (see [`resample`]).
+    cycles: bool,
+    stats: LoadStats,
+}
+
+/// One segment of a record, resampled (or why it could not be).
+struct Part {
+    source: String,
+    from_s: f64,
+    to_s: f64,
+    samples: usize,
+    result: Result<Dataset, DatasetError>,
+}
+
+impl RawRecord {
+    /// Cuts the record where consecutive clock samples are more than `hold` apart (at the middle
+    /// of each gap, so every sample lands in one segment) and resamples each segment on its own:
+    /// nothing is filled across a gap.
+    fn split(&self, file: &str) -> (Vec<Part>, Vec<TimeGap>) {
+        let clock = &self.times[self.clock];
+        let gaps: Vec<TimeGap> = (1..clock.len())
+            .filter(|&k| clock[k] - clock[k - 1] > self.hold)
+            .map(|k| TimeGap {
+                line: self.clock_lines.get(k).copied().unwrap_or(0),
+                from_s: clock[k - 1],
+                to_s: clock[k],
+            })
             .collect();
-        resample(file, series, dt, MAX_HOLD_S, stats, true)
+        let mut cuts = vec![f64::NEG_INFINITY];
+        cuts.extend(gaps.iter().map(|g| 0.5 * (g.from_s + g.to_s)));
+        cuts.push(f64::INFINITY);
+        let parts = cuts
+            .windows(2)
+            .enumerate()
+            .map(|(i, w)| {
+                let range = |t: &[f64]| {
+                    t.partition_point(|&x| x <= w[0])..t.partition_point(|&x| x <= w[1])
+                };
+                let series: Vec<Option<SeriesRef>> = self
+                    .cols
+                    .iter()
+                    .map(|c| {
+                        c.as_ref().map(|(ti, v)| {
+                            let t = &self.times[*ti];
+                            let r = range(t);
+                            SeriesRef {
+                                t: &t[r.clone()],
+                                v: &v[r],
+                            }
+                        })
+                    })
+                    .collect();
+                let source = if gaps.is_empty() {
+                    file.to_string()
+                } else {
+                    format!("{file}[segment {}]", i + 1)
+                };
+                let c = &clock[range(clock)];
+                let mut stats = self.stats.clone();
+                if !self.cycles {
+                    stats.records = c.len();
+                }
+                Part {
+                    from_s: c.first().copied().unwrap_or(f64::NAN),
+                    to_s: c.last().copied().unwrap_or(f64::NAN),
+                    samples: c.len(),
+                    result: resample(&source, &series, self.dt, self.hold, stats, self.cycles),
+                    source,
+                }
+            })
+            .collect();
+        (parts, gaps)
+    }
+
+    /// The record as one dataset; an error if gaps cut it.
+    fn single(&self, file: &str) -> Result<Dataset, DatasetError> {
+        let (mut parts, gaps) = self.split(file);
+        if parts.len() == 1 {
+            return parts.pop().expect("one part").result;
+        }
+        Err(DatasetError::Gaps {
+            file: file.into(),
+            line: gaps[0].line,
+            from_s: gaps[0].from_s,
+            to_s: gaps[0].to_s,
+            segments: parts.len(),
+        })
     }
 }
 
@@ -751,7 +1480,7 @@ impl CandumpColumns {
 /// are interpolated linearly.
 fn resample(
     file: &str,
-    series: Vec<Option<Series>>,
+    series: &[Option<SeriesRef>],
     dt: f64,
     hold: f64,
     mut stats: LoadStats,
@@ -761,11 +1490,21 @@ fn resample(
     let mut t_end = f64::INFINITY;
     for c in Col::ALL.iter().filter(|c| c.required()) {
         let s = series[c.idx()].as_ref().expect("required series present");
-        t_start = t_start.max(s.t[0]);
-        t_end = t_end.min(*s.t.last().expect("non-empty"));
+        if s.t.len() < 2 && !cycles {
+            return Err(DatasetError::TooShort {
+                file: file.into(),
+                rows: s.t.len(),
+                min: 2,
+            });
+        }
+        let (Some(&first), Some(&last)) = (s.t.first(), s.t.last()) else {
+            return Err(DatasetError::NoOverlap { file: file.into() });
+        };
+        t_start = t_start.max(first);
+        t_end = t_end.min(last);
     }
     if cycles {
-        let clock = &series[Col::Wf.idx()]
+        let clock = series[Col::Wf.idx()]
             .as_ref()
             .expect("required series present")
             .t;
@@ -793,6 +1532,10 @@ fn resample(
         let Some(s) = series[c.idx()].as_ref() else {
             continue;
         };
+        if s.t.is_empty() {
+            // An optional signal silent in this segment: absent here.
+            continue;
+        }
         let mut out = Vec::with_capacity(n);
         let mut j = 0usize;
         for (k, &t) in grid.iter().enumerate() {
@@ -841,6 +1584,7 @@ fn resample(
         cols,
         valid,
         stats,
+        start_s: t_start,
     })
 }
 
@@ -902,7 +1646,7 @@ mod tests {
         );
         assert!(matches!(
             Dataset::from_csv("d.csv", &text).unwrap_err(),
-            DatasetError::TimeOrder {
+            DatasetError::TimeStep {
                 line: 3,
                 index: 1,
                 ..
@@ -938,5 +1682,257 @@ mod tests {
         for (k, v) in d.req(Col::T1).iter().enumerate() {
             assert!((v - 10.0 * k as f64).abs() < 1e-9);
         }
+    }
+
+    /// A row of the required columns: clutch 1 closes (20 N·m, slipping) between 1 and 2 s of
+    /// each 4 s, temperatures at 25 °C.
+    fn row(t: f64) -> String {
+        let tq = if (1.0..2.0).contains(&t.rem_euclid(4.0)) {
+            20.0
+        } else {
+            0.0
+        };
+        format!("{t:.6},4,0,100,0,0,{tq},0,25,25,25,25\n")
+    }
+
+    fn csv(times: impl IntoIterator<Item = f64>) -> String {
+        let mut s = format!("{HEADER}\n");
+        for t in times {
+            s.push_str(&row(t));
+        }
+        s
+    }
+
+    #[test]
+    fn impossible_values_name_file_line_column_and_value() {
+        let base = "0,4,0,100,0,0,1,0,25,25,25,25";
+        let with = |extra_header: &str, bad: &str| {
+            format!("{HEADER}{extra_header}\n{base}{}\n{bad}\n", {
+                let n = extra_header.matches(',').count();
+                ",0".repeat(n)
+            })
+        };
+        let e = Dataset::from_csv("run.csv", &with("", "0.01,4,0,100,0,0,1,0,812,25,25,25"))
+            .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "run.csv:3: column 9 `th_pp1_C`: 812 °C is outside the physical range \u{2212}60…600 °C"
+        );
+        assert!(matches!(
+            e,
+            DatasetError::OutOfRange { line: 3, index: 9, value, .. } if value == 812.0
+        ));
+        let e = Dataset::from_csv("run.csv", &with("", "0.01,4,0,100,0,0,1,0,25,25,25,-61"))
+            .unwrap_err();
+        assert!(
+            matches!(&e, DatasetError::OutOfRange { index: 12, column, .. } if column == "th_h_C"),
+            "{e}"
+        );
+        for c in ["th_pp2_C", "th_cd_C"] {
+            let j = HEADER.split(',').position(|h| h == c).unwrap();
+            let mut f: Vec<&str> = "0.01,4,0,100,0,0,1,0,25,25,25,25".split(',').collect();
+            f[j] = "600.5";
+            let e = Dataset::from_csv("run.csv", &with("", &f.join(","))).unwrap_err();
+            assert!(
+                matches!(&e, DatasetError::OutOfRange { column, line: 3, .. } if column == c),
+                "{e}"
+            );
+        }
+        let e = Dataset::from_csv(
+            "run.csv",
+            &with(",pedal_pct", "0.01,4,0,100,0,0,1,0,25,25,25,25,100.5"),
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "run.csv:3: column 13 `pedal_pct`: 100.5 % is outside the physical range 0…100 %"
+        );
+        let e = Dataset::from_csv(
+            "run.csv",
+            &with(",gear_odd", "0.01,4,0,100,0,0,1,0,25,25,25,25,2"),
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "run.csv:3: column 13 `gear_odd`: 2 is not in the DBC value table of \
+             DCT_Actuators.GearOddAct (0 N, 1 G1, 3 G3, 5 G5)"
+        );
+        for bad in ["1.5", "8", "-1"] {
+            let e = Dataset::from_csv(
+                "run.csv",
+                &with(
+                    ",gear_even",
+                    &format!("0.01,4,0,100,0,0,1,0,25,25,25,25,{bad}"),
+                ),
+            )
+            .unwrap_err();
+            assert!(
+                matches!(&e, DatasetError::NotInTable { column, index: 13, .. } if column == "gear_even"),
+                "{e}"
+            );
+        }
+        // Every gear of the table passes; so do the limits of the ranges.
+        let ok = format!(
+            "{HEADER},gear_odd,gear_even,pedal_pct\n0,4,0,100,0,0,1,0,-60,600,25,25,5,7,0\n0.01,4,0,100,0,0,1,0,25,25,25,25,3,6,100\n"
+        );
+        Dataset::from_csv("ok.csv", &ok).unwrap();
+        // Non-finite values stay refused.
+        let e = Dataset::from_csv("run.csv", &with("", "0.01,4,0,100,0,0,1,0,inf,25,25,25"))
+            .unwrap_err();
+        assert!(matches!(e, DatasetError::BadNumber { index: 9, .. }), "{e}");
+    }
+
+    #[test]
+    fn gear_tables_come_from_the_dbc() {
+        use crate::can::messages::{GearEvenAct, GearOddAct};
+        let raws = |c: Col| -> Vec<u64> {
+            c.gear_signal()
+                .unwrap()
+                .values
+                .iter()
+                .map(|v| v.0)
+                .collect()
+        };
+        let odd: Vec<u64> = GearOddAct::ALL.iter().map(|g| *g as u64).collect();
+        let even: Vec<u64> = GearEvenAct::ALL.iter().map(|g| *g as u64).collect();
+        assert_eq!(raws(Col::GearOdd), odd);
+        assert_eq!(raws(Col::GearEven), even);
+        assert_eq!(Col::GearOdd.gear_signal().unwrap().name, "GearOddAct");
+        assert_eq!(Col::GearEven.gear_signal().unwrap().name, "GearEvenAct");
+        // The DBC ranges of the logged temperatures and the pedal lie inside the physical ranges
+        // (a decoded frame cannot hold an impossible value the CSV check would refuse).
+        use crate::can::messages::{BenchTemps, DctSensors, DrvPedal};
+        for s in BenchTemps::def().signals.iter().chain(
+            DctSensors::def()
+                .signals
+                .iter()
+                .filter(|s| s.unit == "degC"),
+        ) {
+            assert!(
+                s.min >= TEMP_RANGE_C.0 && s.max <= TEMP_RANGE_C.1,
+                "{}",
+                s.name
+            );
+        }
+        let p = &DrvPedal::def().signals[0];
+        assert_eq!((p.min, p.max), (0.0, 100.0));
+    }
+
+    #[test]
+    fn time_going_backwards_or_too_fine_is_refused() {
+        let e = Dataset::from_csv("t.csv", &csv([0.0, 0.01, 0.005])).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DatasetError::TimeOrder {
+                    line: 4,
+                    index: 1,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(e
+            .to_string()
+            .starts_with("t.csv:4: column 1 `time_s`: 0.005 s goes backwards"));
+        let e = Dataset::from_csv("t.csv", &csv([0.0, 0.01, 0.01005])).unwrap_err();
+        assert!(matches!(e, DatasetError::TimeStep { line: 4, .. }), "{e}");
+        assert!(
+            e.to_string().contains("0.05 ms after the previous row"),
+            "{e}"
+        );
+        // A 0.1 ms step is allowed (written with 4 decimals).
+        let d = Dataset::from_csv("t.csv", &csv((0..50).map(|k| k as f64 * 1e-4))).unwrap();
+        assert!((d.dt - 1e-4).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_gap_cuts_the_record_into_segments_without_filling() {
+        // 0–10 s at 10 ms, a 30 s hole, 40–50 s.
+        let times: Vec<f64> = (0..=1000)
+            .map(|k| k as f64 * 0.01)
+            .chain((0..=1000).map(|k| 40.0 + k as f64 * 0.01))
+            .collect();
+        let text = csv(times.iter().copied());
+        let s = Segments::from_csv("hole.csv", &text).unwrap();
+        assert_eq!(s.datasets.len(), 2);
+        assert_eq!(s.samples(), times.len());
+        assert_eq!(s.datasets[0].source, "hole.csv[segment 1]");
+        assert_eq!(s.datasets[1].source, "hole.csv[segment 2]");
+        assert!((s.datasets[1].start_s - 40.0).abs() < 1e-9);
+        assert!(s.datasets.iter().all(|d| d.stats.invalid_points == 0));
+        assert_eq!(s.gaps.len(), 1);
+        assert_eq!(s.gaps[0].line, 1003);
+        assert!(s.dropped.is_empty());
+        assert!(
+            s.notes()[0].starts_with("hole.csv:1003: a gap in time of 30 s"),
+            "{:?}",
+            s.notes()
+        );
+        // The single-record loader refuses it rather than filling 30 s.
+        let e = Dataset::from_csv("hole.csv", &text).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DatasetError::Gaps {
+                    line: 1003,
+                    segments: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        // Short interpolation holes (below 5.5 steps) stay one record.
+        let times: Vec<f64> = (0..=300)
+            .filter(|k| !(100..104).contains(k))
+            .map(|k| k as f64 * 0.01)
+            .collect();
+        let s = Segments::from_csv("small.csv", &csv(times)).unwrap();
+        assert_eq!(s.datasets.len(), 1);
+        assert_eq!(s.datasets[0].source, "small.csv");
+        assert_eq!(s.datasets[0].len(), 301);
+    }
+
+    #[test]
+    fn short_segments_are_left_out_short_records_refused() {
+        // 0–10 s, a 20 s hole, 0.5 s, a hole, 40–45 s: the middle segment is left out.
+        let times: Vec<f64> = (0..=1000)
+            .map(|k| k as f64 * 0.01)
+            .chain((0..=50).map(|k| 30.0 + k as f64 * 0.01))
+            .chain((0..=500).map(|k| 40.0 + k as f64 * 0.01))
+            .collect();
+        let s = Segments::from_csv("mid.csv", &csv(times)).unwrap();
+        assert_eq!(s.datasets.len(), 2);
+        assert_eq!(s.datasets[1].source, "mid.csv[segment 3]");
+        assert_eq!(s.dropped.len(), 1);
+        assert_eq!(s.dropped[0].source, "mid.csv[segment 2]");
+        assert_eq!(s.dropped[0].samples, 51);
+        assert!(s
+            .notes()
+            .iter()
+            .any(|n| n.contains("mid.csv[segment 2]") && n.contains("left out")));
+        // A 1 s record.
+        let e =
+            Segments::from_csv("one.csv", &csv((0..=100).map(|k| k as f64 * 0.01))).unwrap_err();
+        assert!(matches!(e, DatasetError::RecordTooShort { .. }), "{e}");
+        assert!(
+            e.to_string().starts_with("one.csv: the record lasts 1 s"),
+            "{e}"
+        );
+        // Only short segments.
+        let times: Vec<f64> = (0..=100)
+            .map(|k| k as f64 * 0.01)
+            .chain((0..=100).map(|k| 10.0 + k as f64 * 0.01))
+            .collect();
+        let e = Segments::from_csv("bits.csv", &csv(times)).unwrap_err();
+        assert!(
+            matches!(e, DatasetError::NoUsableSegment { segments: 2, .. }),
+            "{e}"
+        );
+        // Long enough but no clutch ever closes.
+        let text = csv((0..=300).map(|k| k as f64 * 0.01)).replace(",20,0,25", ",0,0,25");
+        let e = Segments::from_csv("open.csv", &text).unwrap_err();
+        assert!(matches!(e, DatasetError::NoEngagement { .. }), "{e}");
+        assert!(e.to_string().starts_with("open.csv: no engagement"), "{e}");
     }
 }
