@@ -137,6 +137,57 @@ pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool)
     }
 }
 
+/// Which representation of a class is fitted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Form {
+    /// The flexible term (diagnosis).
+    Flexible,
+    /// The library member's parametric form (the calibration the TCU and the plant read).
+    Member,
+}
+
+/// Free parameters of a class in a form.
+pub fn params_in(class: ClassId, base: &Model, form: Form) -> Vec<ParamSpec> {
+    match (form, class.member()) {
+        (Form::Member, Some(id)) => member_params(id),
+        _ => params(class, base),
+    }
+}
+
+/// Sets the class's term in a form.
+pub fn apply_in(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64], form: Form) {
+    match (form, class.member()) {
+        (Form::Member, Some(id)) => m.set.set_clamped(id, v),
+        _ => apply(class, knots, m, v),
+    }
+}
+
+/// Removes a class's term from a model (flexible term and member).
+pub fn remove(class: ClassId, m: &mut Model) {
+    use ClassId::*;
+    let var = shape_variable(class);
+    match class {
+        FrictionTemperature
+        | FrictionSlip
+        | FrictionClampLoad
+        | FrictionSlidingAcceleration
+        | FrictionEnergy => {
+            for slot in m.terms.mu.iter_mut() {
+                if slot.is_some_and(|(v, _)| Some(v) == var) {
+                    *slot = None;
+                }
+            }
+        }
+        FrictionStaticTemperature => m.terms.mu_static = None,
+        SpringTemperature => m.terms.spring = None,
+        KissPointTemperature | KissPointEnergy => m.terms.kiss = None,
+        _ => {}
+    }
+    if let Some(id) = class.member() {
+        m.set.remove(id);
+    }
+}
+
 /// Free parameters of a class.
 pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
     use ClassId::*;

@@ -398,6 +398,7 @@ fn recalibrate(
         }
         let job = Job {
             class: None,
+            form: classfit::Form::Flexible,
             recal: select::recal_keys(sub),
             chans: ch,
             wide,
@@ -537,6 +538,7 @@ fn recalibration_findings(
         }
         let job = Job {
             class: None,
+            form: classfit::Form::Flexible,
             recal: keys_,
             chans: ch.clone(),
             wide: true,
@@ -803,18 +805,42 @@ fn ranking(r: Option<&Round>, chans: &[Channel]) -> Vec<Ranked> {
         .collect()
 }
 
-/// The calibration for the TCU and the plant: the final parameters and the library members of
-/// the named classes (shapes converted to their member's form).
-fn calibration(model: &Model, findings: &[Finding]) -> (Params, EffectSet) {
-    let mut set = model.set;
+/// The calibration for the TCU and the plant, which read the library's parametric forms: for
+/// every named class with a flexible term, the library member of its ambiguity set (the class
+/// first) refitted in its own form jointly with the recalibration of its subsystem, in place of
+/// the flexible term.
+fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, EffectSet) {
+    let mut m = *model;
     for f in findings {
-        if let Some(c) = f.class() {
-            if let Some((id, v)) = classfit::member_from_shape(c.class, model) {
-                set.set_clamped(id, &v);
-            }
+        let Some(c) = f.class() else { continue };
+        if classfit::shape_variable(c.class).is_none() {
+            continue;
         }
+        let Some(member) = std::iter::once(c.class)
+            .chain(c.ambiguous_with.iter().copied())
+            .find(|k| k.member().is_some())
+        else {
+            continue;
+        };
+        let mut base = m;
+        classfit::remove(c.class, &mut base);
+        let group = classfit::group(member);
+        let chans: Vec<Channel> = classfit::group_channels(group)
+            .into_iter()
+            .filter(|ch| s.chans.contains(ch))
+            .collect();
+        let job = Job {
+            class: Some(member),
+            form: classfit::Form::Member,
+            recal: select::recal_keys(group),
+            chans,
+            wide: false,
+            cached_disk: group == Subsystem::TorqueCharacteristic,
+            max_iter: 30,
+        };
+        m = select::fit_model(&base, s, &job);
     }
-    (model.p, set)
+    (m.p, m.set)
 }
 
 /// Runs the diagnosis.
@@ -1083,7 +1109,7 @@ pub fn diagnose(
         },
     };
     let traces = traces(&nominal_model, &model_after, &va, main.as_ref());
-    let calibrated = Some(calibration(&model_after, &findings));
+    let calibrated = Some(calibration(&setup, &model_after, &findings));
     let outside_library_depends_on = outside
         .iter()
         .flat_map(|x| x.depends_on.iter().cloned())

@@ -77,6 +77,8 @@ fn recal_spec(key: &'static str, base: &Model, nominal: &Params, wide: bool) -> 
 #[derive(Debug, Clone)]
 pub struct Job {
     pub class: Option<ClassId>,
+    /// The class's representation.
+    pub form: classfit::Form,
     pub recal: Vec<&'static str>,
     pub chans: Vec<Channel>,
     /// Recalibration bounds widened to a tenth … ten times nominal.
@@ -96,7 +98,7 @@ pub fn fit(
 ) -> (Model, Option<Fit>) {
     let mut specs: Vec<ParamSpec> = job
         .class
-        .map(|c| classfit::params(c, base))
+        .map(|c| classfit::params_in(c, base, job.form))
         .unwrap_or_default();
     let nc = specs.len();
     specs.extend(
@@ -111,7 +113,7 @@ pub fn fit(
     let build = |v: &[f64]| -> Option<Model> {
         let mut m = *base;
         if let Some(c) = job.class {
-            classfit::apply(c, knots, &mut m, &v[..nc]);
+            classfit::apply_in(c, knots, &mut m, &v[..nc], job.form);
         }
         for (k, x) in job.recal.iter().zip(&v[nc..]) {
             keys::set(&mut m.p, k, *x);
@@ -260,6 +262,7 @@ fn candidate(
     let torque_only = group == Subsystem::TorqueCharacteristic;
     let job = Job {
         class: Some(class),
+        form: classfit::Form::Flexible,
         recal,
         chans: fit_chans.clone(),
         wide: false,
@@ -282,6 +285,7 @@ fn candidate(
         if !tq.is_empty() {
             let job = Job {
                 class: None,
+                form: classfit::Form::Flexible,
                 recal: recal_keys(Subsystem::TorqueCharacteristic),
                 chans: tq,
                 wide: false,
