@@ -2,9 +2,10 @@
 //! plant that simulates it, and a sim-to-real gap diagnosis.
 //!
 //! Layout: `can` (bus contract, buses, logs), `model` (pure physics), `plant` and `tcu` (pure
-//! cores stepped with `now` as an argument), `gap` (diagnosis), `truth` (an independent truth generator for the
-//! diagnosis's blind test).
+//! cores stepped with `now` as an argument), `gap` (diagnosis), `truth` (an independent truth generator) and `blind` (the
+//! diagnosis's blind test against it).
 
+pub mod blind;
 pub mod can;
 pub mod daemon;
 pub mod gap;

@@ -3,14 +3,19 @@
 
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand};
-use ddct::gap::blind::{self, TrialResult};
+use ddct::blind::{self, TrialResult};
+use ddct::gap::class::ClassId;
 use ddct::gap::dataset::{Dataset, Segments};
 use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
+use ddct::gap::experiment::{self, PlantTruth};
 use ddct::gap::identify::{identify, IdentifyOptions};
 use ddct::gap::keys;
 use ddct::gap::report;
 use ddct::model::effects::EffectId;
 use ddct::model::Params;
+use ddct::truth::form::Family;
+use ddct::truth::inject::{OutsideKind, Target};
+use ddct::truth::{self, CaseSpec, Variants};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -76,10 +81,12 @@ pub struct DiagnoseArgs {
 
 #[derive(Debug, Args)]
 pub struct BlindArgs {
-    /// Number of trials.
+    /// Number of trials (kinds in blocks of ten: three physics classes, two sensor classes, two
+    /// nominal, one pair, two outside every class).
     #[arg(long, default_value_t = 40)]
     trials: usize,
-    /// Seed of the hidden truths and of the plant's sensor noise.
+    /// Seed of the hidden truths (kinds, classes, forms, magnitudes, detuning) and of the sensor
+    /// noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Print the trials and the summary as JSON on stdout.
@@ -88,14 +95,97 @@ pub struct BlindArgs {
     /// Worker threads (default: the available cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// Nominal parameter file given to the diagnosis and to the plant.
+    /// Nominal parameter file given to the diagnosis (the truths detune it by up to ±20 %).
     #[arg(long, env = "DDCT_PARAMS")]
     params: Option<PathBuf>,
-    /// Detune the plant's recalibratable parameters (kiss-point law, convective and heating
-    /// terms, actuator lag) by up to this relative error per trial (e.g. 0.05), so that every
-    /// effect has to beat plain recalibration.
+    /// Output directory: report.txt, report.json (trials and summary), detectability.svg.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// A class of the diagnosis (`gap::class::ClassId`).
+fn parse_class(s: &str) -> Result<ClassId, String> {
+    ClassId::parse(s).ok_or_else(|| {
+        format!(
+            "unknown class `{s}` (known: {})",
+            ClassId::ALL
+                .iter()
+                .map(|c| c.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })
+}
+
+/// An effect outside every class (`truth::inject::OutsideKind`).
+fn parse_outside(s: &str) -> Result<OutsideKind, String> {
+    OutsideKind::parse(s).ok_or_else(|| {
+        format!(
+            "unknown outside effect `{s}` (known: {})",
+            OutsideKind::ALL
+                .iter()
+                .map(|k| k.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })
+}
+
+/// A form family (`truth::form::Family`).
+fn parse_family(s: &str) -> Result<Family, String> {
+    Family::parse(s).ok_or_else(|| {
+        format!(
+            "unknown family `{s}` (known: {})",
+            Family::ALL
+                .iter()
+                .map(|f| f.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })
+}
+
+#[derive(Debug, Args)]
+pub struct TruthArgs {
+    /// Class of the hidden effect (give it twice for a pair; neither `--class` nor `--outside`:
+    /// a nominal truth).
+    #[arg(long, value_parser = parse_class, num_args = 1, action = clap::ArgAction::Append)]
+    class: Vec<ClassId>,
+    /// An effect outside every class instead (judder, friction_drift, cross_clutch,
+    /// engagement_time, open_drag).
+    #[arg(long, value_parser = parse_outside, conflicts_with = "class")]
+    outside: Option<OutsideKind>,
+    /// Form family of the (first) effect: spline, power, exponential, saturating,
+    /// piecewise_linear, or scalar for effects without a driving variable (default: drawn).
+    #[arg(long, value_parser = parse_family)]
+    family: Option<Family>,
+    /// Magnitude of the (first) effect, signed, in its unit (`ddct gap truth --class C` prints
+    /// the meaning, unit and range; default: drawn log-uniform over the range).
+    #[arg(long, allow_hyphen_values = true)]
+    magnitude: Option<f64>,
+    /// Detune the baseline's recalibratable parameters by up to this relative error (0.2 =
+    /// ±20 %, as the blind test does; default 0: the nominal parameters).
     #[arg(long, default_value_t = 0.0)]
-    perturb: f64,
+    detune: f64,
+    /// Log only x_to1_req_mm (drop the x_to2_req_mm column).
+    #[arg(long)]
+    only_req1: bool,
+    /// The validation records start on the worn pack (friction energy carried on from the
+    /// training records); diagnose them with `--carry-energy`.
+    #[arg(long)]
+    worn_validation: bool,
+    /// Regenerate trial N of `ddct gap blind --seed S` instead (ignores the options above).
+    #[arg(long)]
+    trial: Option<usize>,
+    /// Seed of the forms, the detuning and the sensor noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Nominal parameter file (the baseline the truth detunes).
+    #[arg(long, env = "DDCT_PARAMS")]
+    params: Option<PathBuf>,
+    /// Output directory: train_*.csv, validate_*.csv and truth.json.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -119,9 +209,13 @@ pub struct ExperimentArgs {
 pub enum GapCmd {
     /// Diagnose the gap between the nominal model and bench records: where, which effect, how far.
     Diagnose(DiagnoseArgs),
-    /// Blind test: hidden truths in the plant, diagnosis without them, scored.
+    /// Blind test: hidden truths from the independent generator, diagnosis without them, scored
+    /// per class, magnitude band and form family.
     Blind(BlindArgs),
-    /// Generate the blind test's training and validation records for a given truth.
+    /// Generate the records of one hidden truth of the independent generator (CSV), chosen by
+    /// hand or a blind trial's.
+    Truth(TruthArgs),
+    /// Generate plant records (candump logs) with a truth from the effect library.
     Experiment(ExperimentArgs),
 }
 
@@ -376,145 +470,141 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .clamp(1, 64);
-    let opts = DiagnoseOptions::default();
     let started = Instant::now();
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let (tx, rx) = std::sync::mpsc::channel::<TrialResult>();
-    let mut results: Vec<TrialResult> = Vec::with_capacity(a.trials);
-    std::thread::scope(|s| {
-        for _ in 0..threads.min(a.trials) {
-            let tx = tx.clone();
-            let next = &next;
-            let opts = &opts;
-            let p = &p;
-            s.spawn(move || loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if i >= a.trials {
-                    break;
-                }
-                if tx
-                    .send(blind::run_trial(a.seed, i, p, opts, a.perturb))
-                    .is_err()
-                {
-                    break;
-                }
-            });
-        }
-        drop(tx);
-        progress(0, a.trials, started, 0);
-        for r in rx {
-            results.push(r);
-            let correct = results.iter().filter(|r| r.correct).count();
-            progress(results.len(), a.trials, started, correct);
-        }
+    let done = std::sync::Mutex::new((0usize, 0usize));
+    progress(0, a.trials, started, 0);
+    let results = blind::run(a.seed, a.trials, threads, &p, &|r: &TrialResult| {
+        let mut d = done.lock().unwrap_or_else(|e| e.into_inner());
+        d.0 += 1;
+        d.1 += usize::from(r.correct);
+        progress(d.0, a.trials, started, d.1);
     });
     eprintln!();
-    results.sort_by_key(|r| r.index);
-    let summary = blind::summarize(&results);
     let secs = started.elapsed().as_secs_f64();
-    if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "seed": a.seed,
-                "trials": results,
-                "summary": summary,
-                "seconds": secs,
-            }))?
-        );
-        return Ok(ExitCode::SUCCESS);
-    }
-    println!(
-        "{:>3}  {:<31} {:<15} {:<22} {:<22} {:>4} {:>7}",
-        "#", "truth", "magnitude", "verdict", "subsystem", "ok", "red. %"
-    );
-    for r in &results {
-        let mag = r
-            .truth
-            .params
-            .iter()
-            .map(|v| format!("{v:.3e}"))
-            .collect::<Vec<_>>()
-            .join(",");
-        println!(
-            "{:>3}  {:<31} {:<15} {:<22} {:<22} {:>4} {:>7}",
-            r.index,
-            if r.truth.kind == "outside_library" {
-                format!("{} (outside)", r.truth.effect)
-            } else {
-                r.truth.effect.clone()
-            },
-            mag,
-            r.verdict_effect,
-            r.verdict_subsystem,
-            if r.correct { "yes" } else { "NO" },
-            if r.truth.kind == "library" {
-                format!("{:.1}", r.reduction_pct)
-            } else {
-                "".into()
-            }
-        );
-    }
-    println!("\nconfusion matrix (rows: hidden truth, columns: verdict):");
-    let mut cols: Vec<String> = summary
-        .confusion
-        .values()
-        .flat_map(|m| m.keys().cloned())
-        .collect();
-    cols.sort();
-    cols.dedup();
-    let short = |s: &str| -> String { s.chars().take(12).collect() };
-    print!("{:<40}", "");
-    for c in &cols {
-        print!(" {:>12}", short(c));
-    }
-    println!();
-    for (t, row) in &summary.confusion {
-        print!("{t:<40}");
-        for c in &cols {
-            print!(" {:>12}", row.get(c).copied().unwrap_or(0));
-        }
-        println!();
-    }
-    println!();
-    println!(
-        "library trials: {:>3}  top-1 effect:              {:>6.1} %  (goal ≥ 90 %)",
-        summary.library_trials, summary.top1_pct
-    );
-    println!(
-        "                      subsystem named first:     {:>6.1} %  (goal ≥ 95 %, library + outside trials)",
-        summary.subsystem_first_pct
-    );
-    println!(
-        "nominal trials: {:>3}  no effect claimed:         {:>6.1} %  (goal ≥ 90 %)",
-        summary.nominal_trials, summary.nominal_clean_pct
-    );
-    println!(
-        "outside trials: {:>3}  flagged outside_library:   {:>6.1} %  (goal ≥ 80 %)",
-        summary.outside_trials, summary.outside_flagged_pct
-    );
-    println!(
-        "median validation gap reduction, correct library trials: {:.1} % RMSE ({:.1} % of the gap above noise) (goal ≥ 70 %)",
-        summary.median_reduction_pct, summary.median_gap_reduction_pct
-    );
-    println!(
-        "{} trials in {secs:.0} s on {threads} thread(s){}",
+    let summary = blind::summarize(&results);
+    let mut text = blind::render_text(&results, &summary);
+    text.push_str(&format!(
+        "{} trials in {secs:.0} s on {threads} thread(s), seed {}\n",
         results.len(),
-        if a.perturb > 0.0 {
-            format!(
-                ", plant parameters detuned by up to ±{:.0} %",
-                100.0 * a.perturb
-            )
+        a.seed
+    ));
+    let json = serde_json::to_string_pretty(&serde_json::json!({
+        "seed": a.seed,
+        "trials": results,
+        "summary": summary,
+        "seconds": secs,
+        "threads": threads,
+        "skipped_classes": truth::inject::skipped_classes()
+            .iter()
+            .map(|(c, why)| serde_json::json!({"class": c, "reason": why}))
+            .collect::<Vec<_>>(),
+    }))?;
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (name, body) in [
+            ("report.txt", text.clone()),
+            ("report.json", json.clone()),
+            ("detectability.svg", blind::detectability_svg(&summary)),
+        ] {
+            let path = dir.join(name);
+            std::fs::write(&path, body).with_context(|| format!("writing {}", path.display()))?;
+        }
+    }
+    if a.json {
+        println!("{json}");
+    } else {
+        print!("{text}");
+        if let Some(dir) = &a.out {
+            println!("wrote {}", dir.display());
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
+    let p = load_params(&a.params)?;
+    let t = match a.trial {
+        Some(i) => truth::draw(a.seed, i, &p),
+        None => {
+            let mut targets: Vec<Target> = a.class.iter().map(|c| Target::Class(*c)).collect();
+            targets.extend(a.outside.map(Target::Outside));
+            if targets.len() > 2 {
+                bail!("at most two classes");
+            }
+            if !(0.0..1.0).contains(&a.detune) {
+                bail!("--detune must lie in 0 ≤ r < 1");
+            }
+            let spec = CaseSpec {
+                targets,
+                family: a.family,
+                magnitude: a.magnitude,
+                detune: a.detune,
+                variants: Variants {
+                    only_req1: a.only_req1,
+                    worn_validation: a.worn_validation,
+                },
+                seed: a.seed,
+            };
+            truth::build(&spec, &p).map_err(anyhow::Error::msg)?
+        }
+    };
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let recs = truth::records(&t, a.seed);
+    let mut names = (Vec::new(), Vec::new());
+    for (set, list) in [(&recs.train, &mut names.0), (&recs.validate, &mut names.1)] {
+        for (name, csv) in set {
+            let path = a.out.join(name);
+            std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
+            list.push(path.display().to_string());
+        }
+    }
+    let path = a.out.join("truth.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&t)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("truth: {} ({})", t.label(), t.kind);
+    println!("  {}", t.description);
+    for e in &t.effects {
+        let r = truth::inject::range(e.target);
+        println!(
+            "  {}: magnitude range {}…{} {}{}",
+            e.target,
+            r.lo,
+            r.hi,
+            r.unit,
+            if r.signed { " (either sign)" } else { "" }
+        );
+    }
+    println!(
+        "  effect size over the noise {:.2} ({}), band {}",
+        t.effect_size, t.effect_channel, t.band
+    );
+    if !t.detune.is_empty() {
+        println!(
+            "  baseline detuned: {}",
+            t.detune
+                .iter()
+                .map(|(k, v)| format!("{k} ×{v:.3}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    println!(
+        "wrote {} and truth.json; diagnose with:\n  ddct gap diagnose --train {} --validate {}{} --out DIR",
+        a.out.display(),
+        names.0.join(" "),
+        names.1.join(" "),
+        if t.variants.worn_validation {
+            " --carry-energy"
         } else {
-            String::new()
+            ""
         }
     );
     Ok(ExitCode::SUCCESS)
 }
 
-fn parse_truth(s: &str) -> anyhow::Result<blind::Truth> {
+fn parse_truth(s: &str) -> anyhow::Result<PlantTruth> {
     if s == "none" {
-        return Ok(blind::Truth {
+        return Ok(PlantTruth {
             effect: "none".into(),
             kind: "none".into(),
             subsystem: "none".into(),
@@ -554,7 +644,7 @@ fn parse_truth(s: &str) -> anyhow::Result<blind::Truth> {
         );
     }
     ddct::model::effects::EffectSet::single(id, &params)?;
-    Ok(blind::Truth {
+    Ok(PlantTruth {
         effect: id.as_str().into(),
         kind: if id.in_library() {
             "library".into()
@@ -569,7 +659,7 @@ fn parse_truth(s: &str) -> anyhow::Result<blind::Truth> {
 fn run_experiment(a: ExperimentArgs) -> anyhow::Result<ExitCode> {
     let truth = parse_truth(&a.truth)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let recs = blind::experiment_records(&truth, a.seed, &Params::default());
+    let recs = experiment::experiment_records(&truth, a.seed, &Params::default());
     for (name, records) in recs {
         let path = a.out.join(format!("{name}.log"));
         let file =
@@ -593,6 +683,7 @@ pub fn run(cmd: GapCmd) -> anyhow::Result<ExitCode> {
     match cmd {
         GapCmd::Diagnose(a) => run_diagnose(a),
         GapCmd::Blind(a) => run_blind(a),
+        GapCmd::Truth(a) => run_truth(a),
         GapCmd::Experiment(a) => run_experiment(a),
     }
 }

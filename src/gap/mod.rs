@@ -9,7 +9,6 @@
 //! Pure: nothing here reads a clock, touches a socket or uses tokio.
 
 pub mod blackbox;
-pub mod blind;
 pub mod candidates;
 pub mod class;
 pub mod classfit;

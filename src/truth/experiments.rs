@@ -7,7 +7,7 @@
 //! 7.2 mm), trapezoids, staircases, triangles and waves (direction changes for play), both clutches
 //! engaged at once at different levels, packs soaked at 25 to 270 °C, cooling phases at different
 //! dyno speeds, housing temperature constant or slowly rising. These profiles differ on purpose
-//! from those of `ddct gap experiment` (the plant-based experiments of `gap::experiment`).
+//! from those of the plant-based `ddct gap experiment`.
 
 /// Sampling period of the records (s).
 pub const SAMPLE_S: f64 = 0.01;

@@ -15,7 +15,8 @@
 //! | friction power P | P/30 kW |
 //!
 //! A multiplier is m(z) = 1 + a·f(z) (`anchor_top` false: nominal at the low end) or
-//! 1 + a·(f(z) − 1) (nominal at the top end), a shift s(z) = a·f(z) likewise.
+//! 1 + a·(f(z) − 1) (nominal at the top end), a shift s(z) = a·f(z) likewise; the flat-spring
+//! load is scaled by 1 − a·f(z) (it falls with temperature).
 
 use super::form::{Family, Form};
 use super::rng::Xoshiro;
@@ -227,7 +228,21 @@ impl Effect {
         let sign = if rg.signed { rng.sign() } else { 1.0 };
         let mag_drawn = sign * rng.log_uniform(rg.lo, rg.hi);
         let magnitude = magnitude.unwrap_or(mag_drawn);
-        let anchor_top = rng.uniform() < 0.5;
+        // Where the term is nominal: multipliers and shifts of a variable with no natural zero
+        // are anchored at either end; energy effects start at zero energy; the other forms
+        // (flash temperature, heat flows, drag) are zero at z = 0 by construction.
+        let anchored = matches!(
+            target,
+            Target::Class(
+                ClassId::FrictionTemperature
+                    | ClassId::FrictionStaticTemperature
+                    | ClassId::FrictionSlip
+                    | ClassId::FrictionClampLoad
+                    | ClassId::SpringTemperature
+                    | ClassId::KissPointTemperature
+            ) | Target::Outside(OutsideKind::CrossClutch)
+        );
+        let anchor_top = anchored && rng.uniform() < 0.5;
         let mut aux: Vec<(&'static str, f64)> = Vec::new();
         use ClassId as C;
         match target {
@@ -314,15 +329,16 @@ impl Effect {
             .collect::<Vec<_>>()
             .join(", ");
         format!(
-            "{}: {} {:+.4} {} ({}), form {}{}{}",
+            "{}: {} {:+.4}{}{} ({}), form {}{}{}",
             self.target,
             rg.meaning,
             self.magnitude,
-            self.unit,
+            if self.unit == "1" { "" } else { " " },
+            if self.unit == "1" { "" } else { self.unit },
             if self.anchor_top {
-                "nominal at the top of the range"
+                "nominal at the top of its variable's range"
             } else {
-                "nominal at the bottom of the range"
+                "nominal at the bottom of its variable's range"
             },
             self.form.describe(),
             if aux.is_empty() { "" } else { "; " },

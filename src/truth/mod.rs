@@ -4,11 +4,10 @@
 //! ([`rng`]), and effects injected per class of the diagnosis — in forms the diagnosis does not
 //! use — and outside every class ([`inject`]).
 //!
-//! Independence: nothing here calls the project's model code (`model::clutch`, `model::thermal`,
-//! `model::actuator`, `model::powertrain`, the effect library) nor the diagnosis; parameter
-//! values come from `model::params::Params`, `gap::class::ClassId` is used only as a label, and
-//! the records are CSV text in the documented columns (parsed by `gap::dataset::Dataset` like any
-//! bench file). The diagnosis never imports this module (checked by `tests/truth.rs`).
+//! Independence: nothing here calls the project's model code (the clutch, thermal, actuator and
+//! powertrain models, the effect library) nor the diagnosis; parameter values come from
+//! `Params`, `ClassId` is used only as a label, and the records are CSV text in the documented
+//! columns (parsed by the diagnosis's loader like any bench file). The diagnosis never imports this module (checked by `tests/truth.rs`).
 //!
 //! A truth ([`Truth`]) is drawn per (seed, index) by [`draw`]: its kind (nominal, one physics
 //! class, one sensor class, a pair of classes, an effect outside every class), the effects' forms
@@ -560,4 +559,93 @@ pub fn records_with(t: &Truth, seed: u64, noise: &Noise) -> TruthRecords {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kinds_come_in_balanced_blocks() {
+        for seed in [1, 2, 3] {
+            let mut count: BTreeMap<TruthKind, usize> = BTreeMap::new();
+            let mut ranks: BTreeMap<TruthKind, Vec<usize>> = BTreeMap::new();
+            for i in 0..30 {
+                let (k, j) = kind_of(seed, i);
+                *count.entry(k).or_default() += 1;
+                ranks.entry(k).or_default().push(j);
+            }
+            for k in TruthKind::ALL {
+                let per = BLOCK.iter().filter(|b| **b == k).count();
+                assert_eq!(count[&k], 3 * per, "{k}");
+                let mut r = ranks[&k].clone();
+                r.sort();
+                assert_eq!(r, (0..3 * per).collect::<Vec<_>>(), "{k}");
+            }
+        }
+    }
+
+    #[test]
+    fn detuning_stays_within_bounds_and_validates() {
+        let p = Params::default();
+        let mut rng = Xoshiro::new(9);
+        for _ in 0..50 {
+            let (q, f) = detune(&p, DETUNE, &mut rng);
+            assert!(q.validate().is_ok());
+            assert_eq!(f.len(), 9);
+            for v in f.values() {
+                assert!((0.8..=1.2).contains(v));
+            }
+            let k = f["clutch.friction_level"];
+            assert!((q.clutch.mu_s / p.clutch.mu_s - k).abs() < 1e-12);
+            assert!((q.clutch.c4 / p.clutch.c4 - k).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn nominal_truth_has_no_effect_and_a_truth_is_deterministic() {
+        let p = Params::default();
+        let spec = CaseSpec {
+            targets: vec![],
+            family: None,
+            magnitude: None,
+            detune: 0.0,
+            variants: Variants::default(),
+            seed: 4,
+        };
+        let t = build(&spec, &p).unwrap();
+        assert_eq!(
+            (t.kind, t.effect_size, t.band),
+            (TruthKind::Nominal, 0.0, Band::Below1)
+        );
+        assert_eq!(t.plant, p);
+        let spec = CaseSpec {
+            targets: vec![Target::Class(ClassId::KissPointTemperature)],
+            family: Some(Family::Saturating),
+            magnitude: Some(0.1),
+            detune: 0.2,
+            variants: Variants::default(),
+            seed: 4,
+        };
+        let a = build(&spec, &p).unwrap();
+        let b = build(&spec, &p).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.family, Some(Family::Saturating));
+        assert_eq!(a.magnitude, 0.1);
+        assert_eq!(a.band, Band::of(a.effect_size));
+        assert!(
+            a.effect_size > 3.0,
+            "0.1 mm of kiss-point shift is large: {}",
+            a.effect_size
+        );
+        assert_eq!(records(&a, 5), records(&b, 5));
+        assert_ne!(records(&a, 5), records(&a, 6));
+        // A family the class does not take is refused.
+        let bad = CaseSpec {
+            family: Some(Family::Power),
+            targets: vec![Target::Class(ClassId::ActuatorDeadTime)],
+            ..spec
+        };
+        assert!(build(&bad, &p).is_err());
+    }
 }

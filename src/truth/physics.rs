@@ -12,7 +12,8 @@
 //!   that C·θ̇ reproduces (16) term by term (α1 = G_pc/C_pp, α4 = G_pc/C_c, α5 = G_ccd/C_c =
 //!   G_ccd/C_cd, α2 = h_pp/C_pp, α6 = h_c/C_c, α8 = h_cd/C_cd, α3 = φ_pp/C_pp, α7 = φ_c/C_c,
 //!   α9 = φ_cd/C_cd) and the shares add up to one — the heat that leaves a clutch disk by
-//!   conduction enters the central disk (the project's sign of (16e), see `model::thermal`);
+//!   conduction enters the central disk (the project's sign of (16e), see the
+//!   documentation of its thermal model);
 //! - the actuator: first-order lag with rate limit on the clamped request.
 
 use crate::model::params::Params;

@@ -1,5 +1,5 @@
 //! The truth generator's own seeded random numbers: xoshiro256** seeded through splitmix64,
-//! normal deviates by Box–Muller. Independent of the diagnosis's `gap::stats::Rng` on purpose.
+//! normal deviates by Box–Muller. Independent of the diagnosis's own generator on purpose.
 
 /// splitmix64 step: a good 64-bit mixer, used to seed and to derive sub-seeds.
 #[inline]

@@ -284,7 +284,8 @@ impl Rig<'_> {
             let kiss = ph.kiss(tc) + shift(fx.kiss_temp, inject::z_temp(tc)) + ke;
             let u = ph.compression(xb, kiss, ph.x_max + ke);
             beta[i] = u > 0.0;
-            force[i] = ph.spring(u) * mult(fx.spring_temp, inject::z_temp(tc));
+            // The spring loses load with temperature: 1 − a·f(z) (or 1 + a·(1 − f(z))).
+            force[i] = ph.spring(u) * (1.0 - shift(fx.spring_temp, inject::z_temp(tc))).max(0.0);
         }
         let mut torque = [0.0; 2];
         let mut ds = State::default();
