@@ -307,11 +307,55 @@ fn torque_at(
 
 /// Evaluates `model` on the channels `chans` of file `m` at the samples `s` (the others NaN).
 pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> Predictions {
+    let corrected = corrected_inputs(&model.terms, m);
+    let mm = corrected.as_ref().unwrap_or(m);
     let disk =
-        want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks(model.set), m));
-    let mut pr = predict_inner(model, m, s, chans, disk.as_ref());
+        want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks(model.set), mm));
+    let mut pr = predict_inner(model, mm, s, chans, disk.as_ref());
     pr.disk = disk;
     pr
+}
+
+/// The measured inputs of the replays as the sensor terms say they really were: thermocouple
+/// readings un-lagged (θ + τ·dθ/dt, derivative over ±1 s) and corrected for gain and offset,
+/// the friction power and energy from the corrected torque. `None` without sensor terms.
+fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
+    if t.temp_lag_s <= 0.0 && t.temp_sensor.is_none() && t.torque_sensor.is_none() {
+        return None;
+    }
+    let mut c = m.clone();
+    let fix_temp = |v: &mut Vec<f64>| {
+        if t.temp_lag_s > 0.0 {
+            let half = ((1.0 / m.dt).round() as usize).max(1);
+            let d = replay::derivative(v, m.dt, half);
+            for (x, dx) in v.iter_mut().zip(&d) {
+                *x += t.temp_lag_s * dx;
+            }
+        }
+        if let Some(g) = &t.temp_sensor {
+            for x in v.iter_mut() {
+                *x = g.invert(*x, THETA_REF_C);
+            }
+        }
+    };
+    fix_temp(&mut c.pp[0]);
+    fix_temp(&mut c.pp[1]);
+    fix_temp(&mut c.cd);
+    if let Some(g) = &t.torque_sensor {
+        for i in 0..2 {
+            let mut e = m.e_cum[i].first().copied().unwrap_or(0.0);
+            for k in 0..m.n {
+                c.power[i][k] = g.invert(m.torque[i][k], 0.0) * m.slip[i][k];
+            }
+            for k in 0..m.n {
+                c.e_cum[i][k] = e;
+                if k + 1 < m.n {
+                    e += 0.5 * (c.power[i][k] + c.power[i][k + 1]) * m.dt;
+                }
+            }
+        }
+    }
+    Some(c)
 }
 
 /// [`predict`] with the disk temperature estimate given (it depends only on the thermal

@@ -41,6 +41,15 @@ pub fn group(class: ClassId) -> Subsystem {
 /// The channels a class is fitted on (sensor position: the position channel and the torque).
 pub fn channels(class: ClassId) -> Vec<Channel> {
     match class {
+        // A torque reading error is a friction-level error to the torque alone; the heat the
+        // measured power implies tells them apart.
+        ClassId::SensorTorque => vec![
+            Channel::Torque(0),
+            Channel::Torque(1),
+            Channel::Temp(0),
+            Channel::Temp(1),
+            Channel::Temp(2),
+        ],
         ClassId::SensorPosition => vec![
             Channel::Pos(0),
             Channel::Pos(1),
@@ -162,8 +171,9 @@ pub fn apply_in(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64], form: F
     }
 }
 
-/// Removes a class's term from a model (flexible term and member).
-pub fn remove(class: ClassId, m: &mut Model) {
+/// Removes a class's term from a model (flexible term and member); a class that moves a model
+/// parameter (the actuator lag) gets `reference`'s value back.
+pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
     use ClassId::*;
     let var = shape_variable(class);
     match class {
@@ -181,6 +191,13 @@ pub fn remove(class: ClassId, m: &mut Model) {
         FrictionStaticTemperature => m.terms.mu_static = None,
         SpringTemperature => m.terms.spring = None,
         KissPointTemperature | KissPointEnergy => m.terms.kiss = None,
+        ActuatorLag => m.p.actuator.tau_s = reference.p.actuator.tau_s,
+        ActuatorTransfer => m.terms.transfer = None,
+        SensorTorque => m.terms.torque_sensor = None,
+        SensorTorqueSkew => m.terms.torque_skew_s = 0.0,
+        SensorTemperatureLag => m.terms.temp_lag_s = 0.0,
+        SensorTemperature => m.terms.temp_sensor = None,
+        SensorPosition => m.terms.pos_sensor = None,
         _ => {}
     }
     if let Some(id) = class.member() {

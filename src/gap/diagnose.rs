@@ -375,7 +375,8 @@ fn needs(files: &[&File], chans: &[Channel]) -> impl Fn(Needs) -> bool {
 }
 
 /// Phase 1: plain recalibration, subsystem by subsystem (thermal first: the torque needs its
-/// disk model), bounded to the plausible ranges.
+/// disk model), bounded to the plausible ranges; thermal and torque twice, because which clutch
+/// is closed (β of (16)) depends on the kiss point.
 fn recalibrate(
     nominal: &Params,
     chans: &[Channel],
@@ -385,6 +386,8 @@ fn recalibrate(
 ) -> Model {
     let mut m = Model::nominal(*nominal);
     for sub in [
+        Subsystem::Thermal,
+        Subsystem::TorqueCharacteristic,
         Subsystem::Thermal,
         Subsystem::TorqueCharacteristic,
         Subsystem::Actuator,
@@ -397,7 +400,7 @@ fn recalibrate(
             continue;
         }
         let job = Job {
-            class: None,
+            classes: vec![],
             form: classfit::Form::Flexible,
             recal: select::recal_keys(sub),
             chans: ch,
@@ -537,7 +540,7 @@ fn recalibration_findings(
             continue;
         }
         let job = Job {
-            class: None,
+            classes: vec![],
             form: classfit::Form::Flexible,
             recal: keys_,
             chans: ch.clone(),
@@ -823,14 +826,14 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
             continue;
         };
         let mut base = m;
-        classfit::remove(c.class, &mut base);
+        classfit::remove(c.class, &mut base, model);
         let group = classfit::group(member);
         let chans: Vec<Channel> = classfit::group_channels(group)
             .into_iter()
             .filter(|ch| s.chans.contains(ch))
             .collect();
         let job = Job {
-            class: Some(member),
+            classes: vec![member],
             form: classfit::Form::Member,
             recal: select::recal_keys(group),
             chans,
@@ -957,6 +960,13 @@ pub fn diagnose(
     for r in &rounds {
         if let Some(k) = r.kept {
             let c = &r.candidates[k];
+            if r.dropped {
+                notes.push(format!(
+                    "{} was selected, then dropped: not significant once the later classes were in",
+                    c.class
+                ));
+                continue;
+            }
             let aff: Vec<Channel> = select::affected(c.class)
                 .into_iter()
                 .filter(|ch| chans.contains(ch))

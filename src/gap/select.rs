@@ -76,7 +76,8 @@ fn recal_spec(key: &'static str, base: &Model, nominal: &Params, wide: bool) -> 
 /// One fit: an optional class jointly with recalibration parameters on some channels.
 #[derive(Debug, Clone)]
 pub struct Job {
-    pub class: Option<ClassId>,
+    /// Classes fitted together (their terms must not be in the base model).
+    pub classes: Vec<ClassId>,
     /// The class's representation.
     pub form: classfit::Form,
     pub recal: Vec<&'static str>,
@@ -96,10 +97,14 @@ pub fn fit(
     files: &[File],
     knots: &Knots,
 ) -> (Model, Option<Fit>) {
-    let mut specs: Vec<ParamSpec> = job
-        .class
-        .map(|c| classfit::params_in(c, base, job.form))
-        .unwrap_or_default();
+    // The classes' parameters first (one slice each), then the recalibration's.
+    let mut specs: Vec<ParamSpec> = Vec::new();
+    let mut slices = Vec::new();
+    for c in &job.classes {
+        let p = classfit::params_in(*c, base, job.form);
+        slices.push((*c, specs.len(), specs.len() + p.len()));
+        specs.extend(p);
+    }
     let nc = specs.len();
     specs.extend(
         job.recal
@@ -112,8 +117,8 @@ pub fn fit(
     }
     let build = |v: &[f64]| -> Option<Model> {
         let mut m = *base;
-        if let Some(c) = job.class {
-            classfit::apply_in(c, knots, &mut m, &v[..nc], job.form);
+        for (c, a, b) in &slices {
+            classfit::apply_in(*c, knots, &mut m, &v[*a..*b], job.form);
         }
         for (k, x) in job.recal.iter().zip(&v[nc..]) {
             keys::set(&mut m.p, k, *x);
@@ -252,6 +257,9 @@ fn candidate(
     if class == ClassId::ActuatorLag {
         recal.clear();
     }
+    if class == ClassId::SensorTorque {
+        recal.extend(recal_keys(Subsystem::Thermal));
+    }
     let fit_chans: Vec<Channel> = classfit::channels(class)
         .into_iter()
         .filter(|c| s.chans.contains(c))
@@ -261,7 +269,7 @@ fn candidate(
     }
     let torque_only = group == Subsystem::TorqueCharacteristic;
     let job = Job {
-        class: Some(class),
+        classes: vec![class],
         form: classfit::Form::Flexible,
         recal,
         chans: fit_chans.clone(),
@@ -284,7 +292,7 @@ fn candidate(
             .collect();
         if !tq.is_empty() {
             let job = Job {
-                class: None,
+                classes: vec![],
                 form: classfit::Form::Flexible,
                 recal: recal_keys(Subsystem::TorqueCharacteristic),
                 chans: tq,
@@ -381,6 +389,9 @@ pub struct Round {
     pub kept: Option<usize>,
     /// Classes as good as the kept one (its ambiguity set without it).
     pub ambiguous: Vec<ClassId>,
+    /// The kept class was dropped by the backward check (not significant once the classes
+    /// selected after it were in).
+    pub dropped: bool,
 }
 
 /// Fits every class of `classes` on top of `base` on the available cores.
@@ -478,10 +489,101 @@ pub fn select(
             candidates: cands,
             kept,
             ambiguous,
+            dropped: false,
         });
         if stop {
             break;
         }
     }
+    backward(
+        s,
+        base,
+        &mut current,
+        &mut cur_val,
+        &mut rounds,
+        &mut chosen,
+        seed,
+    );
     (current, cur_val, rounds)
+}
+
+/// Backward check: each selected class is removed in turn and the others refitted jointly with
+/// the recalibration; the class is dropped when the (c) and (b) criteria of the forward step no
+/// longer hold for it (a class that only explained what a later class explains better).
+fn backward(
+    s: &Setup,
+    base: &Model,
+    current: &mut Model,
+    cur_val: &mut Scores,
+    rounds: &mut [Round],
+    chosen: &mut Vec<ClassId>,
+    seed: u64,
+) {
+    for c in chosen.clone() {
+        if chosen.len() < 2 {
+            return;
+        }
+        let others: Vec<ClassId> = chosen.iter().copied().filter(|k| *k != c).collect();
+        let mut b = *current;
+        for k in chosen.iter() {
+            classfit::remove(*k, &mut b, base);
+        }
+        let mut groups: Vec<Subsystem> = chosen.iter().map(|k| classfit::group(*k)).collect();
+        groups.sort();
+        groups.dedup();
+        let recal: Vec<&'static str> = groups.iter().flat_map(|g| recal_keys(*g)).collect();
+        let mut chans: Vec<Channel> = chosen
+            .iter()
+            .flat_map(|k| classfit::channels(*k))
+            .filter(|ch| s.chans.contains(ch))
+            .collect();
+        chans.sort();
+        chans.dedup();
+        let job = Job {
+            classes: others,
+            form: classfit::Form::Flexible,
+            recal,
+            chans,
+            wide: false,
+            cached_disk: false,
+            max_iter: 25,
+        };
+        let minus = fit_model(&b, s, &job);
+        let mut aff: Vec<Channel> = chosen
+            .iter()
+            .flat_map(|k| affected(*k))
+            .filter(|ch| s.chans.contains(ch))
+            .collect();
+        aff.sort();
+        aff.dedup();
+        let v_minus = cur_val.with(&Scores::of(&minus, s.validate, &aff, s.nunits_v), &aff);
+        let u: Vec<f64> = v_minus
+            .unit_std(s.chans)
+            .iter()
+            .zip(&cur_val.unit_std(s.chans))
+            .map(|(a, b)| a - b)
+            .collect();
+        let gain: f64 = u.iter().sum();
+        let mut rng = Rng::new(seed ^ 0xBAC4 ^ c as u64);
+        let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+            idx.iter().map(|&j| u[j]).sum::<f64>()
+        });
+        let own: Vec<Channel> = affected(c)
+            .into_iter()
+            .filter(|ch| s.chans.contains(ch))
+            .collect();
+        let (z, n) = v_minus.total(&own);
+        let tol: f64 = v_minus.unit_tolerance(&own).iter().sum();
+        let need = (s.min_gain * (z - n).max(0.0)).max(0.5 * tol).max(0.02 * n);
+        if ci.0 <= 0.0 || gain < need {
+            *current = minus;
+            *cur_val = v_minus;
+            chosen.retain(|k| *k != c);
+            for r in rounds.iter_mut() {
+                if r.kept.map(|k| r.candidates[k].class) == Some(c) {
+                    r.dropped = true;
+                }
+            }
+        }
+    }
 }
