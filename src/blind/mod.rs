@@ -377,7 +377,13 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
     for k in TruthKind::ALL {
         let v = of_kind(k);
         if !v.is_empty() {
-            by_kind.insert(k.as_str().to_string(), Rate::of(&v));
+            let mut r = Rate::of(&v);
+            if matches!(k, TruthKind::Nominal | TruthKind::Outside) {
+                // Nothing to shrink: no gap was put in (nominal) or none is attributable.
+                r.median_gap_reduction_pct = f64::NAN;
+                r.median_reduction_pct = f64::NAN;
+            }
+            by_kind.insert(k.as_str().to_string(), r);
         }
     }
     let group = |key: &dyn Fn(&TrialResult) -> String| -> BTreeMap<String, Rate> {
@@ -574,7 +580,11 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
             } else {
                 "NO"
             },
-            f1(r.gap_reduction_pct)
+            if matches!(t.kind, TruthKind::Nominal | TruthKind::Outside) {
+                "–".to_string()
+            } else {
+                f1(r.gap_reduction_pct)
+            }
         );
         if let Some(e) = &r.error {
             let _ = writeln!(o, "      error: {e}");

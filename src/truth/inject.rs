@@ -168,15 +168,15 @@ pub fn range(t: Target) -> MagnitudeRange {
             C::ActuatorDeadTime => (0.01, 0.1, "s", false, SCALAR, "dead time before the lag"),
             C::ActuatorLag => (1.02, 6.0, "×", false, SCALAR, "factor on the lag τ (or 1/factor)"),
             C::ActuatorBacklash => (0.01, 0.5, "mm", false, SCALAR, "play width"),
-            C::ActuatorTransfer => (0.002, 0.3, "mm", true, SCALAR, "bearing minus measured position at 6 mm (gain and offset)"),
+            C::ActuatorTransfer => (0.002, 0.3, "mm", true, SCALAR, "bearing minus measured position: gain part share·m at 6 mm, offset part ±(1 − share)·m"),
             C::SupportConduction => (8e-6, 1.5e-3, "1/s", false, SHAPES, "conduction rate to the supports at θ − θ_h = 280 K"),
             C::ConvectionSpeed => (0.01, 2.0, "1", false, SHAPES, "relative rise of convection from standstill to 240 rad/s"),
             C::HeatPartition => (0.003, 0.5, "1", false, SHAPES, "share of the plate's friction heat moved to the clutch disk at 30 kW"),
-            C::SensorTorque => (0.15, 20.0, "N·m", true, SCALAR, "torque reading error at 100 N·m (gain and offset)"),
+            C::SensorTorque => (0.15, 20.0, "N·m", true, SCALAR, "torque reading error: gain part share·m at 100 N·m, offset part ±(1 − share)·m"),
             C::SensorTorqueSkew => (0.0005, 0.1, "s", true, SCALAR, "torque channel delay"),
             C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple time constant"),
-            C::SensorTemperature => (0.15, 20.0, "K", true, SCALAR, "thermocouple reading error at 200 °C (gain and offset)"),
-            C::SensorPosition => (0.004, 0.3, "mm", true, SCALAR, "position reading error at 6 mm (gain and offset)"),
+            C::SensorTemperature => (0.15, 20.0, "K", true, SCALAR, "thermocouple reading error: gain part share·m at 200 °C, offset part ±(1 − share)·m"),
+            C::SensorPosition => (0.004, 0.3, "mm", true, SCALAR, "position reading error: gain part share·m at 6 mm, offset part ±(1 − share)·m"),
             _ => (0.0, 0.0, "", false, SCALAR, "not injected"),
         },
         Target::Outside(o) => match o {
@@ -309,8 +309,8 @@ impl Effect {
         self.magnitude * if self.anchor_top { f - 1.0 } else { f }
     }
 
-    /// Gain and offset of a linear error g·v + o that makes `magnitude` at `v_ref` (v measured
-    /// from `v0`), split by `gain_share`.
+    /// Gain and offset of a linear error g·v + o: the gain makes `gain_share`·magnitude at
+    /// `v_ref`, the offset (1 − `gain_share`)·magnitude with the sign `offset_sign`.
     pub fn gain_offset(&self, v_ref: f64) -> (f64, f64) {
         let share = self.aux("gain_share");
         let g = share * self.magnitude / v_ref;
