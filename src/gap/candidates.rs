@@ -161,8 +161,8 @@ impl Samples {
         for j in 0..3 {
             idx[Channel::Temp(j).index()] = temps.clone();
         }
-        if m.x_req.is_some() {
-            for i in 0..2 {
+        for i in 0..2 {
+            if m.x_req[i].is_some() {
                 idx[Channel::Pos(i).index()] = (0..m.n).filter(|&k| m.valid[k]).collect();
             }
         }
@@ -454,13 +454,14 @@ fn predict_inner(
             y[c.index()] = v;
         }
     }
-    if let Some(xr) = &m.x_req {
-        for i in 0..2 {
+    for i in 0..2 {
+        let Some(xr) = &m.x_req[i] else { continue };
+        {
             let c = Channel::Pos(i);
             if !want(c) {
                 continue;
             }
-            let req = delayed_requests(&model.set, &xr[i], m.dt);
+            let req = delayed_requests(&model.set, xr, m.dt);
             let x0 = t
                 .pos_sensor
                 .map_or(m.x[i][0], |g| g.invert(m.x[i][0], X_REF_MM));

@@ -269,11 +269,21 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
         },
         Checkable {
             subsystem: "actuator".into(),
-            checkable: any(Col::X1Req) && any(Col::X2Req),
-            detail: if any(Col::X1Req) {
-                "x_to1_mm, x_to2_mm replayed from x_to1_req_mm, x_to2_req_mm through the lag".into()
-            } else {
-                "not checkable: x_to1_req_mm / x_to2_req_mm not logged (TCU_ClutchCmd)".into()
+            checkable: any(Col::X1Req) || any(Col::X2Req),
+            detail: match (any(Col::X1Req), any(Col::X2Req)) {
+                (true, true) => {
+                    "x_to1_mm, x_to2_mm replayed from x_to1_req_mm, x_to2_req_mm through the lag"
+                        .into()
+                }
+                (true, false) => "x_to1_mm replayed from x_to1_req_mm through the lag (clutch 2: \
+                                  x_to2_req_mm not logged)"
+                    .into(),
+                (false, true) => "x_to2_mm replayed from x_to2_req_mm through the lag (clutch 1: \
+                                  x_to1_req_mm not logged)"
+                    .into(),
+                (false, false) => {
+                    "not checkable: x_to1_req_mm / x_to2_req_mm not logged (TCU_ClutchCmd)".into()
+                }
             },
         },
         Checkable {
@@ -364,7 +374,7 @@ fn rms_std(s: &Scores, chans: &[Channel]) -> f64 {
 fn needs(files: &[&File], chans: &[Channel]) -> impl Fn(Needs) -> bool {
     let torque = chans.contains(&Channel::Torque(0)) || chans.contains(&Channel::Torque(1));
     let temps = chans.contains(&Channel::Temp(0));
-    let req = files.iter().any(|f| f.m.x_req.is_some());
+    let req = files.iter().any(|f| f.m.x_req.iter().any(Option::is_some));
     let engine = chans.contains(&Channel::Engine);
     move |n| match n {
         Needs::Torque => torque,
@@ -461,7 +471,10 @@ struct Excess {
     unit: Vec<f64>,
 }
 
-fn excesses(s: &Scores, chans: &[Channel], o: &DiagnoseOptions, rng: &mut Rng) -> Vec<Excess> {
+/// The excess of every checked subsystem and whether it is flagged: above the noise floor by more
+/// than the practical tolerance, significantly. Deterministic for a given seed (the verdict and
+/// the "where" table use the same flags).
+fn excesses(s: &Scores, chans: &[Channel], o: &DiagnoseOptions) -> Vec<Excess> {
     [
         Subsystem::TorqueCharacteristic,
         Subsystem::Thermal,
@@ -488,7 +501,8 @@ fn excesses(s: &Scores, chans: &[Channel], o: &DiagnoseOptions, rng: &mut Rng) -
             .zip(&ut)
             .map(|((a, b), t)| a - b * (1.0 + o.tolerance) - t)
             .collect();
-        let ci = stats::bootstrap(unit.len(), o.bootstrap, rng, |idx| {
+        let mut rng = Rng::new(o.seed ^ (0x5eed << 8) ^ sub as u64);
+        let ci = stats::bootstrap(unit.len(), o.bootstrap, &mut rng, |idx| {
             idx.iter().map(|&j| unit[j]).sum::<f64>()
         });
         let excess = z / n - 1.0;
@@ -626,11 +640,10 @@ fn outside_library(
     val: &Scores,
     train_preds: &Scores,
     o: &DiagnoseOptions,
-    rng: &mut Rng,
 ) -> (Vec<OutsideFinding>, Option<BlackBoxResult>) {
     let mut out = Vec::new();
     let mut bb_out = None;
-    for ex in excesses(val, s.chans, o, rng) {
+    for ex in excesses(val, s.chans, o) {
         if !ex.flagged {
             continue;
         }
@@ -953,7 +966,7 @@ pub fn diagnose(
         &chans,
         context::units(&tr),
     );
-    let (outside, blackbox) = outside_library(&setup, &after, &after_val, &sc_t, o, &mut rng);
+    let (outside, blackbox) = outside_library(&setup, &after, &after_val, &sc_t, o);
 
     // Phase 6: the verdict.
     let mut findings: Vec<Finding> = Vec::new();
@@ -978,10 +991,9 @@ pub fn diagnose(
     // A kept class whose subsystem is still far above its floor explains too little of it to be
     // the cause: it stays in the report as a partial fit and the subsystem's residual is outside
     // the library.
-    let ex_rec: BTreeMap<Subsystem, f64> = excesses(&sc_rec_v, &chans, o, &mut rng)
-        .into_iter()
-        .map(|e| (e.subsystem, e.excess))
-        .collect();
+    let ex_rec_all = excesses(&sc_rec_v, &chans, o);
+    let ex_rec: BTreeMap<Subsystem, f64> =
+        ex_rec_all.iter().map(|e| (e.subsystem, e.excess)).collect();
     let mut partial = Vec::new();
     findings.retain(|f| {
         let Some(c) = f.class() else { return true };
@@ -1032,6 +1044,16 @@ pub fn diagnose(
         &chans,
         o.fdr_q,
     );
+    // Where and which agree: a subsystem is significant in the "where" table exactly when it is
+    // flagged after recalibration by the verdict's criterion.
+    for r in where_.residual_subsystems.iter_mut() {
+        if let Some(e) = ex_rec_all
+            .iter()
+            .find(|e| e.subsystem.as_str() == r.subsystem)
+        {
+            r.significant = e.flagged;
+        }
+    }
     let first = findings.first().cloned().unwrap_or(Finding::Nothing);
     let subsystem = first
         .subsystem()

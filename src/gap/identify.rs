@@ -223,9 +223,9 @@ pub fn output_fits(p: &Params, h: &dyn Hooks, ms: &[Measured]) -> Vec<OutputFit>
                 .collect();
             out.push(output_fit(f, name, "equation", &m.torque[i], &eq, &m.valid));
         }
-        if let Some(xr) = &m.x_req {
-            for i in 0..2 {
-                let xs = replay::actuator_replay(&p.actuator, &xr[i], m.x[i][0], m.dt);
+        for i in 0..2 {
+            if let Some(xr) = &m.x_req[i] {
+                let xs = replay::actuator_replay(&p.actuator, xr, m.x[i][0], m.dt);
                 out.push(output_fit(
                     f,
                     ["x_to1_mm", "x_to2_mm"][i],

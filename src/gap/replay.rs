@@ -45,7 +45,8 @@ pub struct Measured {
     pub power: [Vec<f64>; 2],
     /// Cumulative friction energy from the start of the first file of the sequence (J).
     pub e_cum: [Vec<f64>; 2],
-    pub x_req: Option<[Vec<f64>; 2]>,
+    /// Position requests of each clutch, where logged (one logged column checks its actuator).
+    pub x_req: [Option<Vec<f64>>; 2],
     pub t_e: Option<Vec<f64>>,
     pub w_out: Option<Vec<f64>>,
     pub gears: Option<[Vec<f64>; 2]>,
@@ -104,10 +105,7 @@ impl Measured {
                 })
                 .collect::<Vec<usize>>()
         });
-        let x_req = match (d.get(Col::X1Req), d.get(Col::X2Req)) {
-            (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
-            _ => None,
-        };
+        let x_req = [Col::X1Req, Col::X2Req].map(|c| d.get(c).map(<[f64]>::to_vec));
         let gears = match (d.get(Col::GearOdd), d.get(Col::GearEven)) {
             (Some(a), Some(b)) => Some([a.to_vec(), b.to_vec()]),
             _ => None,
@@ -530,8 +528,8 @@ mod tests {
             / m.torque_idx[0].len() as f64;
         assert!(e.sqrt() < 1.5, "replay torque rms {}", e.sqrt());
         // Actuator replay from the request.
-        let xr = m.x_req.as_ref().unwrap();
-        let xs = actuator_replay(&p.actuator, &xr[0], m.x[0][0], m.dt);
+        let xr = m.x_req[0].as_ref().unwrap();
+        let xs = actuator_replay(&p.actuator, xr, m.x[0][0], m.dt);
         let worst = (0..m.n)
             .map(|k| (xs[k] - m.x[0][k]).abs())
             .fold(0.0, f64::max);
