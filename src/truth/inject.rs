@@ -36,7 +36,7 @@ pub enum OutsideKind {
     CrossClutch,
     /// Friction depending on the time since the engagement started (a·e^{−t/τ}, not energy).
     EngagementTime,
-    /// A drag torque of the open clutch near its kiss point, growing with speed.
+    /// A drag torque of the open clutch, growing with speed and towards the kiss point.
     OpenDrag,
 }
 
@@ -184,7 +184,7 @@ pub fn range(t: Target) -> MagnitudeRange {
             OutsideKind::FrictionDrift => (0.001, 0.08, "1", false, SCALAR, "stationary σ of the friction drift"),
             OutsideKind::CrossClutch => (0.01, 0.5, "1", true, SHAPES, "relative change of μ over the other clutch's clamp load"),
             OutsideKind::EngagementTime => (0.0015, 0.25, "1", true, SCALAR, "relative change of μ at the start of an engagement"),
-            OutsideKind::OpenDrag => (0.5, 30.0, "N·m", false, SHAPES, "open-clutch drag at 240 rad/s at the kiss point"),
+            OutsideKind::OpenDrag => (0.15, 8.0, "N·m", false, SHAPES, "open-clutch drag at 240 rad/s at the kiss point (30 % of it fully open)"),
         },
     };
     MagnitudeRange {

@@ -329,11 +329,14 @@ impl Rig<'_> {
                     + ph.r_mu_q(q, mu_s, ph.mu_dyn(th2 + fl));
                 torque[i] = w.signum() * r_mu * f * m * jud;
             } else if let (Some(e), true) = (self.fx.drag, w != 0.0) {
-                // Drag of the open clutch near its kiss point.
+                // Drag of the open clutch: air and residual contact, growing with speed and
+                // towards the kiss point (30 % of it fully open).
                 let xb = self.bearing(i, s.xa[i], d);
                 let gap = (ph.kiss(tc) - xb).max(0.0);
-                torque[i] =
-                    w.signum() * e.magnitude * e.form.eval(inject::z_speed(w)) * (-gap / 1.0).exp();
+                torque[i] = w.signum()
+                    * e.magnitude
+                    * e.form.eval(inject::z_speed(w))
+                    * (0.3 + 0.7 * (-gap / 1.0).exp());
             }
             // Flash temperature: first order towards its steady value at this power.
             if let Some(e) = self.fx.flash {
