@@ -22,7 +22,14 @@ use crate::model::thermal::{Thermal5State, ThermalInputs};
 
 /// An effect set as powertrain hooks (no backlash state: the replays see the measured position).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct SetHooks(pub EffectSet);
+pub struct SetHooks(pub EffectSet, pub Option<terms::Support>);
+
+impl SetHooks {
+    /// The hooks of a model: its library effects and its thermal class terms.
+    pub fn of(m: &Model) -> Self {
+        SetHooks(m.set, m.terms.support)
+    }
+}
 
 fn torque_context(c: &ClutchContext) -> TorqueContext {
     TorqueContext {
@@ -51,7 +58,11 @@ impl Hooks for SetHooks {
         effects::engine_real_torque(&self.0, nominal_nm)
     }
     fn extra_heat(&self, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
-        effects::thermal5_extra(&self.0, s, u)
+        let e = effects::thermal5_extra(&self.0, s, u);
+        match &self.1 {
+            Some(sp) => e.axpy(1.0, &sp.loss(s, u.theta_h_c)),
+            None => e,
+        }
     }
 }
 
@@ -310,7 +321,7 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
     let corrected = corrected_inputs(&model.terms, m);
     let mm = corrected.as_ref().unwrap_or(m);
     let disk =
-        want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks(model.set), mm));
+        want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks::of(model), mm));
     let mut pr = predict_inner(model, mm, s, chans, disk.as_ref());
     pr.disk = disk;
     pr
@@ -383,7 +394,7 @@ fn predict_inner(
     disk: Option<&[Vec<f64>; 2]>,
 ) -> Predictions {
     let p = &model.p;
-    let h = SetHooks(model.set);
+    let h = SetHooks::of(model);
     let t = &model.terms;
     let mut y = vec![Vec::new(); Channel::ALL.len()];
     let want = |c: Channel| chans.contains(&c) && !s.get(c).is_empty();

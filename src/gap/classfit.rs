@@ -105,6 +105,7 @@ pub fn shape_variable(class: ClassId) -> Option<Variable> {
         FrictionClampLoad => Some(Variable::ClampLoad),
         FrictionSlidingAcceleration => Some(Variable::SlidingAcceleration),
         FrictionEnergy | KissPointEnergy => Some(Variable::FrictionEnergy),
+        SupportConduction => Some(Variable::TemperatureDifference),
         _ => None,
     }
 }
@@ -113,6 +114,15 @@ pub fn shape_variable(class: ClassId) -> Option<Variable> {
 pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool) -> Option<String> {
     use ClassId::*;
     if let Some(v) = shape_variable(class) {
+        if class == SupportConduction {
+            if !has(Needs::Temperatures) {
+                return Some("no plate / central-disk temperatures".into());
+            }
+            if !knots.0.contains_key(&v) {
+                return Some("the records do not vary the temperature above the housing".into());
+            }
+            return None;
+        }
         if !has(Needs::Torque) {
             return Some("no slipping clutch torque in the records".into());
         }
@@ -191,6 +201,7 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
         FrictionStaticTemperature => m.terms.mu_static = None,
         SpringTemperature => m.terms.spring = None,
         KissPointTemperature | KissPointEnergy => m.terms.kiss = None,
+        SupportConduction => m.terms.support = None,
         ActuatorLag => m.p.actuator.tau_s = reference.p.actuator.tau_s,
         ActuatorTransfer => m.terms.transfer = None,
         SensorTorque => m.terms.torque_sensor = None,
@@ -218,6 +229,16 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
         | FrictionEnergy
         | SpringTemperature => shape_params(name, 0.4, 0.02),
         KissPointTemperature | KissPointEnergy => shape_params(name, 1.0, 0.05),
+        SupportConduction => {
+            // Heat loss rising with θ − θ_h (K/s per knot interval), weights of the plates and
+            // the central disk relative to the clutch disks.
+            let mut v: Vec<ParamSpec> = (1..KNOTS)
+                .map(|j| ParamSpec::new(format!("{name}.d{j}_k_per_s"), 0.0, 0.0, 2.0, 0.02))
+                .collect();
+            v.push(ParamSpec::new(format!("{name}.w_pp"), 0.3, 0.0, 3.0, 0.1));
+            v.push(ParamSpec::new(format!("{name}.w_cd"), 1.0, 0.0, 3.0, 0.1));
+            v
+        }
         ActuatorLag => {
             let tau = base.p.actuator.tau_s;
             vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
@@ -286,6 +307,14 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         KissPointTemperature | KissPointEnergy => {
             m.terms.kiss = shape_variable(class).and_then(shape)
         }
+        SupportConduction => {
+            m.terms.support =
+                shape(Variable::TemperatureDifference).map(|(_, s)| super::terms::Support {
+                    shape: s,
+                    w_pp: v.get(KNOTS - 1).copied().unwrap_or(0.0),
+                    w_cd: v.get(KNOTS).copied().unwrap_or(1.0),
+                })
+        }
         ActuatorLag => m.p.actuator.tau_s = v[0],
         ActuatorTransfer => m.terms.transfer = Some(go(v)),
         SensorTorque => m.terms.torque_sensor = Some(go(v)),
@@ -331,6 +360,10 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
         FrictionStaticTemperature => (t.mu_static.map_or(0.0, |s| s.span()), "relative"),
         SpringTemperature => (t.spring.map_or(0.0, |s| s.span()), "relative"),
         KissPointTemperature | KissPointEnergy => (t.kiss.map_or(0.0, |s| s.1.span()), "mm"),
+        SupportConduction => (
+            t.support.map_or(0.0, |s| s.shape.span()),
+            "K/s from a clutch disk at the top of θ − θ_h",
+        ),
         ActuatorLag => (m.p.actuator.tau_s, "s"),
         ActuatorTransfer => (t.transfer.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
         SensorTorque => (
@@ -357,6 +390,7 @@ pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
         FrictionStaticTemperature => t.mu_static,
         SpringTemperature => t.spring,
         KissPointTemperature | KissPointEnergy => t.kiss.map(|s| s.1),
+        SupportConduction => t.support.map(|s| s.shape),
         _ => {
             t.mu.iter()
                 .flatten()
@@ -395,6 +429,7 @@ pub fn member_from_shape(class: ClassId, m: &Model) -> Option<(EffectId, Vec<f64
         SpringTemperature => Some((EffectId::SpringStiffnessTemp, vec![slope(&pts)])),
         FrictionStaticTemperature => Some((EffectId::MuStaticTemp, vec![slope(&pts)])),
         KissPointEnergy => Some((EffectId::KissPointWear, vec![slope(&pts)])),
+        SupportConduction => Some((EffectId::SupportConduction, vec![slope(&pts)])),
         FrictionClampLoad => {
             let lp: Vec<(f64, f64)> = pts
                 .iter()

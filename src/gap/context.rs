@@ -49,18 +49,19 @@ pub struct File {
 }
 
 /// Prepares records: measured quantities, samples (fits thinned to at most `max_fit` samples
-/// per channel group), bootstrap units from `unit0`.
+/// per channel group), bootstrap units. With `carry_energy`, the friction energy accumulates
+/// over the records in order, starting at the given energies (J).
 pub fn prepare(
     ds: &[Dataset],
     p: &Params,
     seg: &SegmentOptions,
-    carry_energy: bool,
+    carry_energy: Option<[f64; 2]>,
     torque_stride: usize,
     temp_stride: usize,
     max_fit: usize,
 ) -> Vec<File> {
-    let ms = if carry_energy {
-        Measured::sequence(ds, p, seg)
+    let ms = if let Some(e0) = carry_energy {
+        Measured::sequence_from(ds, p, seg, e0)
     } else {
         ds.iter()
             .map(|d| Measured::new(d, p, [0.0; 2], seg))
@@ -332,7 +333,7 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
 /// Caches each record's disk temperature estimate under `model`.
 pub fn cache_disk(model: &Model, files: &mut [File]) {
     for f in files.iter_mut() {
-        let h = candidates::SetHooks(model.set);
+        let h = candidates::SetHooks::of(model);
         f.disk = Some(super::replay::disk_estimate(&model.p, &h, &f.m));
     }
 }

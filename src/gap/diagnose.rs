@@ -452,6 +452,13 @@ fn knots(model: &Model, train: &[File]) -> Knots {
             }
         }
     }
+    for f in train {
+        for &k in f.fit.get(Channel::Temp(2)) {
+            vals.entry(Variable::TemperatureDifference)
+                .or_default()
+                .push(f.m.cd[k] - f.m.th[k]);
+        }
+    }
     Knots(
         vals.into_iter()
             .filter_map(|(v, x)| Some((v, Shape::knots(x.into_iter())?)))
@@ -872,19 +879,24 @@ pub fn diagnose(
     if validate.is_empty() {
         return Err(DiagnoseError::NoValidation);
     }
-    let prep = |ds: &[Dataset]| {
+    let prep = |ds: &[Dataset], carry: Option<[f64; 2]>| {
         context::prepare(
             ds,
             nominal,
             &o.seg,
-            o.carry_energy,
+            carry,
             o.torque_stride,
             o.temp_stride,
             o.max_fit_samples,
         )
     };
-    let mut tr = prep(train);
-    let mut va = prep(validate);
+    let mut tr = prep(train, o.carry_energy.then_some([0.0; 2]));
+    // With carried energy the validation records continue where the training records ended
+    // (one clutch pack, the validation run on the worn pack).
+    let e_end = tr.last().map_or([0.0; 2], |f| {
+        [0, 1].map(|i| f.m.e_cum[i].last().copied().unwrap_or(0.0))
+    });
+    let mut va = prep(validate, o.carry_energy.then_some(e_end));
     let nunits_v = context::units(&va);
     let mut notes = Vec::new();
     let checkable = checkability(&[train, validate].concat());
@@ -1366,7 +1378,7 @@ fn replay_gaps(nominal: &Model, after: &Model, files: &[File]) -> Vec<ReplayGap>
     let mut n = [0usize; 5];
     for f in files {
         for (j, model) in [nominal, after].iter().enumerate() {
-            let h = candidates::SetHooks(model.set);
+            let h = candidates::SetHooks::of(model);
             let r = replay::full_replay(&model.p, &h, &f.m);
             for k in 0..f.m.n {
                 if !f.m.valid[k] {

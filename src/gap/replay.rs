@@ -138,7 +138,17 @@ impl Measured {
 
     /// Prepares files given in time order, carrying the friction energy across them.
     pub fn sequence(ds: &[Dataset], p: &Params, seg: &SegmentOptions) -> Vec<Measured> {
-        let mut e0 = [0.0; 2];
+        Measured::sequence_from(ds, p, seg, [0.0; 2])
+    }
+
+    /// [`Measured::sequence`] starting at friction energies `e0` (J) already dissipated.
+    pub fn sequence_from(
+        ds: &[Dataset],
+        p: &Params,
+        seg: &SegmentOptions,
+        e0: [f64; 2],
+    ) -> Vec<Measured> {
+        let mut e0 = e0;
         ds.iter()
             .map(|d| {
                 let m = Measured::new(d, p, e0, seg);

@@ -11,6 +11,7 @@ use super::shape::Shape;
 use crate::model::clutch;
 use crate::model::effects::{self, EffectSet, TorqueContext};
 use crate::model::params::ClutchParams;
+use crate::model::thermal::Thermal5State;
 
 /// Reference position of the position gain terms (mm): the middle of the engagement range, so
 /// that a gain and an offset are nearly independent.
@@ -38,6 +39,30 @@ impl GainOffset {
     }
 }
 
+/// Heat flow to supports at the housing temperature (K/s): s(θ − θ_h) from each clutch disk,
+/// weighted for the pressure plates and the central disk.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Support {
+    pub shape: Shape,
+    pub w_pp: f64,
+    pub w_cd: f64,
+}
+
+impl Support {
+    /// Temperature rates (K/s) the supports take from each body.
+    #[inline]
+    pub fn loss(&self, s: &Thermal5State, theta_h: f64) -> Thermal5State {
+        let q = |t: f64| self.shape.eval(t - theta_h).max(0.0);
+        Thermal5State {
+            pp1: -self.w_pp * q(s.pp1),
+            pp2: -self.w_pp * q(s.pp2),
+            c1: -q(s.c1),
+            c2: -q(s.c2),
+            cd: -self.w_cd * q(s.cd),
+        }
+    }
+}
+
 /// The class terms of a model (all off by default).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Terms {
@@ -62,6 +87,8 @@ pub struct Terms {
     pub temp_sensor: Option<GainOffset>,
     /// Measured position = pos_sensor(position).
     pub pos_sensor: Option<GainOffset>,
+    /// Conduction to supports.
+    pub support: Option<Support>,
 }
 
 /// Measured variables at one torque sample besides the clutch context.
