@@ -159,8 +159,10 @@ impl Measured {
     }
 
     /// Measured temperatures at sample k as a (16) state, the disks at the mean of their
-    /// neighbours (they are not measured). At the first sample the temperatures are averaged
-    /// over the open lead-in (up to 2 s before the first engagement) against sensor noise.
+    /// neighbours (they are not measured). At the first sample the temperatures are the
+    /// intercept at t = 0 of a straight line fitted over the open lead-in (up to 2 s before the
+    /// first engagement) against sensor noise: a preheated pack cools during the lead-in, and a
+    /// plain mean would start the replay late on that slope.
     pub fn thermal_at(&self, k: usize) -> Thermal5State {
         let avg = |v: &[f64]| -> f64 {
             if k != 0 {
@@ -175,7 +177,19 @@ impl Measured {
                 .min()
                 .unwrap_or(self.n);
             let m = first.min((2.0 / self.dt) as usize).max(1).min(self.n);
-            v[..m].iter().sum::<f64>() / m as f64
+            let mean = v[..m].iter().sum::<f64>() / m as f64;
+            if m < 3 {
+                return mean;
+            }
+            // Least-squares line over samples 0..m, evaluated at 0.
+            let kbar = (m - 1) as f64 / 2.0;
+            let (mut sxy, mut sxx) = (0.0, 0.0);
+            for (j, x) in v[..m].iter().enumerate() {
+                let dk = j as f64 - kbar;
+                sxy += dk * (x - mean);
+                sxx += dk * dk;
+            }
+            mean - sxy / sxx * kbar
         };
         let (p1, p2, cd) = (avg(&self.pp[0]), avg(&self.pp[1]), avg(&self.cd));
         Thermal5State {
