@@ -159,10 +159,11 @@ impl Measured {
     }
 
     /// Measured temperatures at sample k as a (16) state, the disks at the mean of their
-    /// neighbours (they are not measured). At the first sample the temperatures are the
-    /// intercept at t = 0 of a straight line fitted over the open lead-in (up to 2 s before the
-    /// first engagement) against sensor noise: a preheated pack cools during the lead-in, and a
-    /// plain mean would start the replay late on that slope.
+    /// neighbours (they are not measured). At the first sample the temperatures are taken over
+    /// the open lead-in (up to 2 s before the first engagement) against sensor noise: the mean,
+    /// or, when the lead-in drifts significantly (a preheated pack cooling), the intercept at
+    /// t = 0 of a straight line fitted over it (a plain mean would start the replay late on that
+    /// slope).
     pub fn thermal_at(&self, k: usize) -> Thermal5State {
         let avg = |v: &[f64]| -> f64 {
             if k != 0 {
@@ -181,7 +182,8 @@ impl Measured {
             if m < 3 {
                 return mean;
             }
-            // Least-squares line over samples 0..m, evaluated at 0.
+            // Least-squares line over samples 0..m, evaluated at 0 when its slope is significant
+            // (|t| > 3); otherwise the mean, which has a quarter of the intercept's variance.
             let kbar = (m - 1) as f64 / 2.0;
             let (mut sxy, mut sxx) = (0.0, 0.0);
             for (j, x) in v[..m].iter().enumerate() {
@@ -189,7 +191,18 @@ impl Measured {
                 sxy += dk * (x - mean);
                 sxx += dk * dk;
             }
-            mean - sxy / sxx * kbar
+            let slope = sxy / sxx;
+            let s2 = v[..m]
+                .iter()
+                .enumerate()
+                .map(|(j, x)| (x - mean - slope * (j as f64 - kbar)).powi(2))
+                .sum::<f64>()
+                / (m - 2) as f64;
+            if slope.abs() > 3.0 * (s2 / sxx).sqrt() {
+                mean - slope * kbar
+            } else {
+                mean
+            }
         };
         let (p1, p2, cd) = (avg(&self.pp[0]), avg(&self.pp[1]), avg(&self.cd));
         Thermal5State {
