@@ -216,6 +216,32 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
     }
 }
 
+/// A gain (1 ± `gain_span`) and an offset (± `offset_bound`, solver scale `offset_scale`).
+fn gain_offset(
+    class: &str,
+    gain_span: f64,
+    offset: &str,
+    offset_bound: f64,
+    offset_scale: f64,
+) -> Vec<ParamSpec> {
+    vec![
+        ParamSpec::new(
+            format!("{class}.gain"),
+            1.0,
+            1.0 - gain_span,
+            1.0 + gain_span,
+            gain_span / 15.0,
+        ),
+        ParamSpec::new(
+            format!("{class}.{offset}"),
+            0.0,
+            -offset_bound,
+            offset_bound,
+            offset_scale,
+        ),
+    ]
+}
+
 /// Free parameters of a class.
 pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
     use ClassId::*;
@@ -243,14 +269,8 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             let tau = base.p.actuator.tau_s;
             vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
         }
-        ActuatorTransfer => vec![
-            ParamSpec::new("actuator_transfer.gain", 1.0, 0.7, 1.3, 0.02),
-            ParamSpec::new("actuator_transfer.offset_mm", 0.0, -1.0, 1.0, 0.05),
-        ],
-        SensorTorque => vec![
-            ParamSpec::new("sensor_torque.gain", 1.0, 0.7, 1.3, 0.02),
-            ParamSpec::new("sensor_torque.offset_nm", 0.0, -10.0, 10.0, 0.5),
-        ],
+        ActuatorTransfer => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
+        SensorTorque => gain_offset(name, 0.3, "offset_nm", 10.0, 0.5),
         SensorTorqueSkew => vec![ParamSpec::new(
             "sensor_torque_skew.skew_s",
             0.0,
@@ -265,14 +285,8 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             60.0,
             1.0,
         )],
-        SensorTemperature => vec![
-            ParamSpec::new("sensor_temperature.gain", 1.0, 0.8, 1.2, 0.01),
-            ParamSpec::new("sensor_temperature.offset_c", 0.0, -10.0, 10.0, 0.5),
-        ],
-        SensorPosition => vec![
-            ParamSpec::new("sensor_position.gain", 1.0, 0.7, 1.3, 0.02),
-            ParamSpec::new("sensor_position.offset_mm", 0.0, -1.0, 1.0, 0.05),
-        ],
+        SensorTemperature => gain_offset(name, 0.2, "offset_c", 10.0, 0.5),
+        SensorPosition => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
         ConvectionSpeed | HeatPartition => vec![],
         c => c.member().map(member_params).unwrap_or_default(),
     }

@@ -209,12 +209,7 @@ pub struct Candidate {
 
 /// Training SSE per channel of a model on the fit samples.
 pub fn train_sse(model: &Model, files: &[File], chans: &[Channel], cached: bool) -> Vec<f64> {
-    let preds = context::predictions(model, files, chans, true, cached);
-    let mut sse = vec![0.0; Channel::ALL.len()];
-    context::for_each_residual(files, &preds, chans, true, |_, c, _, e| {
-        sse[c.index()] += e * e;
-    });
-    sse
+    train_residuals(model, files, chans, cached).0
 }
 
 /// Training SSE and effective sample size per channel of a model on the fit samples.
