@@ -457,6 +457,12 @@ def print_table(a: dict, run: Run):
     if run.tcu_report:
         r = run.tcu_report
         print(f"TCU daemon: {r['computations']} computations, overruns {r['overruns']}, deadline misses {r['deadline_misses']}, safe-state entries {r['safe_entries']}")
+        if "stalls" in r:
+            print(
+                f"TCU daemon stalls (not counted against senders): {r['stalls']}, total {r['stall_total_s']:.3f} s, "
+                f"longest {r['stall_longest_s']:.3f} s; timer lateness p99 {fmt(r['timer_lateness_p99_us'], 0)} us "
+                f"max {fmt(r['timer_lateness_max_us'], 0)} us; coalesced syncs {r['syncs_coalesced']}"
+            )
 
 
 def main(argv=None) -> int:

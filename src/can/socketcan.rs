@@ -1,16 +1,22 @@
 //! The SocketCAN bus: a raw CAN socket through the `socketcan` crate's tokio support, with kernel
-//! receive timestamps (`SO_TIMESTAMP`). Needs a tokio runtime with I/O enabled.
+//! receive timestamps (`SO_TIMESTAMPNS`) on every frame read, blocking or not. Needs a tokio
+//! runtime with I/O enabled.
 
 use super::bus::{Bus, BusError, Received};
 use super::frame::CanFrame;
-use socketcan::{EmbeddedFrame, Frame as _, SocketOptions};
+use socketcan::{EmbeddedFrame, Frame as _, Socket as _, SocketOptions};
 use std::future::Future;
 use std::io;
+use std::os::fd::{AsRawFd, BorrowedFd};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 /// A SocketCAN endpoint on one interface (e.g. `vcan0`).
 pub struct SocketCanBus {
     socket: socketcan::tokio::CanSocket,
+    /// The same socket (a duplicated descriptor, non-blocking like the original) for reads that
+    /// must not wait: the tokio socket's `try_read_frame` gives no timestamp, and a frame read
+    /// without its kernel timestamp would be placed at its reading time.
+    now: socketcan::CanSocket,
     iface: String,
 }
 
@@ -33,8 +39,13 @@ impl SocketCanBus {
         let socket = socketcan::tokio::CanSocket::open(iface).map_err(io_err)?;
         socket.set_recv_timestamp(true).map_err(io_err)?;
         socket.set_recv_own_msgs(own_echo).map_err(io_err)?;
+        // SAFETY: the descriptor is open for the lifetime of `socket`; it is only borrowed to
+        // duplicate it.
+        let fd = unsafe { BorrowedFd::borrow_raw(socket.as_raw_fd()) };
+        let now = socketcan::CanSocket::from(fd.try_clone_to_owned().map_err(io_err)?);
         Ok(Self {
             socket,
+            now,
             iface: iface.to_string(),
         })
     }
@@ -120,8 +131,8 @@ impl Bus for SocketCanBus {
     }
 
     fn try_recv(&mut self) -> Result<Option<Received>, BusError> {
-        match self.socket.try_read_frame() {
-            Ok(f) => self.convert(f, SystemTime::now()).map(Some),
+        match self.now.read_frame_with_timestamp() {
+            Ok((f, ts)) => self.convert(f, ts).map(Some),
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(None),
             Err(source) => Err(BusError::Io {
                 iface: self.iface.clone(),

@@ -3,6 +3,7 @@
 //! frame a daemon sends or receives (flushed on shutdown). This is the only place that reads the
 //! clock; the cores (`plant`, `tcu`) get `now` as an argument.
 
+pub mod clock;
 pub mod plant;
 pub mod tcu;
 

@@ -1,18 +1,27 @@
 //! The TCU daemon loop: the pure [`Tcu`] core on a [`Bus`], in real time.
 //!
-//! - Every received frame is stamped with its receive time on the TCU's time base (the bus
-//!   timestamp — the kernel's for SocketCAN — minus the wall-clock time of the start) and queued.
+//! - One time base ([`TimeBase`]): monotonic time since the start with the daemon's own stalls
+//!   taken out ("live" time). Every received frame — read blocking or not — carries its kernel
+//!   receive timestamp, mapped onto that base, and is queued; a wall-clock step changes nothing.
 //! - The arrival of a DCT_Sensors frame (the plant's 10 ms sensor message, the bench's sync)
 //!   triggers a computation at once: `Tcu::step` with the queued frames, then the five TCU
-//!   messages are sent.
+//!   messages are sent. Sync frames closer than half a cycle to the previous computed one (a
+//!   flood) trigger none; they are consumed by the next computation like any other frame, at
+//!   the latest on the next timer deadline.
 //! - Fallback: a periodic timer on absolute deadlines (`Periodic`, 10 ms, no drift) computes on
 //!   every deadline while no DCT_Sensors frame came for 1.2 cycles (missing or late), so the safe
-//!   state is commanded even when the sensors go silent.
+//!   state is commanded even when the sensors go silent. The timer is served before the bus, so a
+//!   flood cannot starve it, and its lateness tells a stall of the daemon (see `clock`).
+//! - Bounded work: each wake-up reads at most [`DRAIN_BUDGET`] further frames and computes at most
+//!   [`MAX_SYNCS_PER_WAKE`] times, so the loop returns to its timer and to signals every cycle
+//!   whatever arrives; frames left queued are read on the next wake-ups (the kernel drops what
+//!   its receive queue cannot hold).
 //! - A computation whose work (step + sends) takes longer than a cycle counts as an overrun; late
 //!   fallback wake-ups count as deadline misses (`LoopStats`).
 //! - Clean shutdown on the `shutdown` future (SIGINT/SIGTERM in the CLI) or after `duration`;
 //!   the candump tap (`log`) is flushed either way.
 
+use super::clock::TimeBase;
 use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
@@ -32,6 +41,12 @@ pub const CYCLE: Duration = Duration::from_millis(10);
 
 /// Frames received this soon after the sync frame belong to the same plant cycle.
 const BURST: Duration = Duration::from_millis(2);
+
+/// Frames read without waiting per wake-up (a cycle of all four inputs many times over).
+pub const DRAIN_BUDGET: usize = 64;
+
+/// Computations per wake-up at most (a burst of sync frames delayed by the scheduler).
+pub const MAX_SYNCS_PER_WAKE: usize = 4;
 
 /// The messages the TCU reads (a SocketCAN socket can filter on them).
 pub const INPUT_IDS: [u16; 4] = [
@@ -75,6 +90,15 @@ pub struct TcuReport {
     /// Fallback timer wake-ups later than half a cycle, plus skipped cycles.
     pub deadline_misses: u64,
     pub timer_lateness_p99_us: Option<f64>,
+    pub timer_lateness_max_us: Option<f64>,
+    /// Stalls of the daemon (timer more than `clock::STALL_TOLERANCE` late), not counted
+    /// against any sender's timeout: how many, their total and the longest (s).
+    pub stalls: u64,
+    pub stall_total_s: f64,
+    pub stall_longest_s: f64,
+    /// Sync frames that arrived within half a cycle of the previous computation (no computation
+    /// of their own).
+    pub syncs_coalesced: u64,
     /// Time from the receipt of a DCT_Sensors frame to the last TCU frame sent (µs).
     pub compute_p50_us: Option<f64>,
     pub compute_p99_us: Option<f64>,
@@ -97,7 +121,8 @@ impl TcuReport {
         let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.0}"));
         format!(
             "tcu on {}: stopped by {} after {:.3} s\n\
-             computations {} (sync {} fallback {}) overruns {} deadline_misses {} timer lateness p99 {} us\n\
+             computations {} (sync {} fallback {}, coalesced syncs {}) overruns {} deadline_misses {} timer lateness p99 {} us max {} us\n\
+             stalls {} (total {:.3} s, longest {:.3} s)\n\
              compute p50 {} us p99 {} us max {} us\n\
              frames sent {} (errors {}) received {} (errors {}); safe-state entries {}; final {:?} / {:?}\n",
             self.iface,
@@ -106,9 +131,14 @@ impl TcuReport {
             self.computations,
             self.sync_computations,
             self.fallback_computations,
+            self.syncs_coalesced,
             self.overruns,
             self.deadline_misses,
             f(self.timer_lateness_p99_us),
+            f(self.timer_lateness_max_us),
+            self.stalls,
+            self.stall_total_s,
+            self.stall_longest_s,
             f(self.compute_p50_us),
             f(self.compute_p99_us),
             f(self.compute_max_us),
@@ -127,36 +157,82 @@ struct Shell<B: Bus> {
     link: Link<B>,
     tcu: Tcu,
     start: Instant,
-    start_wall: Duration,
+    time: TimeBase,
     inbox: Vec<TimedFrame>,
+    coalesced: u64,
     computations: u64,
     sync: u64,
     fallback: u64,
     overruns: u64,
     compute_us: Vec<u32>,
     last_sync: Option<Instant>,
+    /// Time of the last frame received.
+    last_at: Duration,
+    /// The timer's pending deadline (since the start).
+    deadline: Duration,
+    /// Arrival of the last sync frame that had a computation of its own.
+    last_sync_at: Option<Duration>,
     last_now: Duration,
     last_state: (TcuState, FaultCode),
 }
 
 impl<B: Bus> Shell<B> {
-    /// Time since the start on the TCU's time base for a bus timestamp (wall clock), never
-    /// later than now.
-    fn to_tcu(&self, ts: Duration) -> Duration {
-        let mono = Instant::now().saturating_duration_since(self.start);
-        ts.saturating_sub(self.start_wall).min(mono)
+    /// Monotonic time since the start.
+    fn mono(&self) -> Duration {
+        Instant::now().saturating_duration_since(self.start)
     }
 
-    /// Queues a received frame; returns its time on the TCU's time base when it is a
-    /// DCT_Sensors frame (the sync).
-    fn on_receive(&mut self, rx: Received) -> Result<Option<Duration>, TcuDaemonError> {
+    /// Takes note of a stall (the timer's pending deadline long past) before any frame read now
+    /// is placed on the time base.
+    fn woke(&mut self) {
+        let now = self.mono();
+        self.time.woke(now, self.deadline);
+    }
+
+    /// Queues a received frame at its arrival on the TCU's time base.
+    fn on_receive(&mut self, rx: Received) -> Result<(), TcuDaemonError> {
         self.link.received(&rx)?;
-        let at = self.to_tcu(rx.timestamp);
+        let arrival = self.time.arrival(rx.timestamp, wall_clock(), self.mono());
+        // Frames are read in the order they arrived: never place one before an earlier one (a
+        // stall noted between two reads moves the live time base back).
+        let at = self.time.live(arrival).max(self.last_at);
+        self.last_at = at;
         self.inbox.push(TimedFrame {
             at,
             frame: rx.frame,
         });
-        Ok((rx.frame.standard_id() == Some(ids::DCT_SENSORS)).then_some(at))
+        Ok(())
+    }
+
+    /// Reads up to [`DRAIN_BUDGET`] frames that are already waiting.
+    fn drain(&mut self) -> Result<(), TcuDaemonError> {
+        self.woke();
+        for _ in 0..DRAIN_BUDGET {
+            match self.link.bus.try_recv() {
+                Ok(Some(rx)) => self.on_receive(rx)?,
+                Ok(None) => {
+                    let now = self.mono();
+                    self.time.queue_empty(now);
+                    break;
+                }
+                Err(e) => {
+                    self.recv_error(e)?;
+                    break;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The next queued sync frame that is due a computation of its own: half a cycle or more
+    /// after the previous sync frame that had one.
+    fn next_sync(&mut self) -> Option<Duration> {
+        let last = self.last_sync_at;
+        self.inbox
+            .iter()
+            .filter(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
+            .find(|f| last.is_none_or(|t| f.at >= t + CYCLE / 2))
+            .map(|f| f.at)
     }
 
     fn recv_error(&mut self, e: BusError) -> Result<(), TcuDaemonError> {
@@ -167,17 +243,19 @@ impl<B: Bus> Shell<B> {
         Ok(self.link.send(f, wall_clock()).await?)
     }
 
-    /// Computes for a DCT_Sensors frame received at `first`, then for every further one the
-    /// computation found already queued (a burst after a scheduling delay), in order.
-    async fn run_syncs(&mut self, first: Duration) -> Result<(), TcuDaemonError> {
-        let mut next = Some(first);
-        while let Some(at) = next {
+    /// A DCT_Sensors frame is queued (coalesced, not yet computed).
+    fn sync_queued(&self) -> bool {
+        self.inbox
+            .iter()
+            .any(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
+    }
+
+    /// Computes for each queued DCT_Sensors frame that is due one (a burst after a scheduling
+    /// delay is computed at its own spacing), in order, at most [`MAX_SYNCS_PER_WAKE`] times.
+    async fn run_syncs(&mut self) -> Result<(), TcuDaemonError> {
+        for _ in 0..MAX_SYNCS_PER_WAKE {
+            let Some(at) = self.next_sync() else { break };
             self.compute(Some(at)).await?;
-            next = self
-                .inbox
-                .iter()
-                .find(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
-                .map(|f| f.at);
         }
         Ok(())
     }
@@ -188,27 +266,23 @@ impl<B: Bus> Shell<B> {
     async fn compute(&mut self, sync: Option<Duration>) -> Result<(), TcuDaemonError> {
         let t0 = Instant::now();
         // Frames already waiting belong to this computation too.
-        loop {
-            match self.link.bus.try_recv() {
-                Ok(Some(rx)) => {
-                    self.on_receive(rx)?;
-                }
-                Ok(None) => break,
-                Err(e) => {
-                    self.recv_error(e)?;
-                    break;
-                }
-            }
-        }
+        self.drain()?;
         let now = sync
-            .unwrap_or_else(|| t0.saturating_duration_since(self.start))
+            .unwrap_or_else(|| self.time.live(t0.saturating_duration_since(self.start)))
             .max(self.last_now);
         self.last_now = now;
         // Frames up to the computation's time (with the rest of the sender's burst: the plant
         // sends DCT_Actuators just after DCT_Sensors); later ones, of a later cycle, wait.
         let horizon = now + BURST;
-        let n = self.inbox.iter().take_while(|f| f.at <= horizon).count();
-        let inbox: Vec<TimedFrame> = self.inbox.drain(..n).collect();
+        // Every frame up to the horizon, wherever it sits in the queue: no frame blocks another.
+        let (inbox, later): (Vec<TimedFrame>, Vec<TimedFrame>) =
+            self.inbox.drain(..).partition(|f| f.at <= horizon);
+        self.inbox = later;
+        let syncs_in = inbox
+            .iter()
+            .filter(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
+            .count() as u64;
+        self.coalesced += syncs_in.saturating_sub(u64::from(sync.is_some()));
         let t_recv = t0.elapsed();
         let out = self.tcu.step(now, &TcuInputs { frames: &inbox });
         self.last_state = (out.status.tcu_state, out.status.fault_code);
@@ -245,6 +319,7 @@ impl<B: Bus> Shell<B> {
         }
         if sync.is_some() {
             self.last_sync = Some(t0);
+            self.last_sync_at = sync;
         }
         if self.computations % 100 == 0 {
             self.link.flush()?;
@@ -284,14 +359,18 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         link,
         tcu: Tcu::new(config.tcu.clone(), Duration::ZERO),
         start,
-        start_wall: wall_clock(),
+        time: TimeBase::new(),
         inbox: Vec::new(),
+        coalesced: 0,
         computations: 0,
         sync: 0,
         fallback: 0,
         overruns: 0,
         compute_us: Vec::new(),
         last_sync: None,
+        last_at: Duration::ZERO,
+        deadline: Duration::ZERO,
+        last_sync_at: None,
         last_now: Duration::ZERO,
         last_state: (TcuState::Init, FaultCode::None),
     };
@@ -300,33 +379,38 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     let grace = CYCLE.mul_f64(1.2);
     tokio::pin!(shutdown);
     let stopped_by = loop {
+        shell.deadline = timer.next_deadline().saturating_duration_since(start);
         tokio::select! {
             biased;
             _ = shutdown.as_mut() => break "shutdown",
-            rx = shell.link.bus.recv() => {
-                match rx {
-                    Ok(rx) => {
-                        if let Some(at) = shell.on_receive(rx)? {
-                            shell.run_syncs(at).await?;
-                        }
-                    }
-                    Err(e) => shell.recv_error(e)?,
-                }
-            }
             _ = tokio::time::sleep_until(timer.next_deadline()) => {
                 let now = Instant::now();
                 let tick = timer.fire(now);
                 stats.record(&tick, CYCLE);
+                shell.woke();
+                shell.deadline = timer.next_deadline().saturating_duration_since(start);
                 if config.duration.is_some_and(|d| now.saturating_duration_since(start) >= d) {
                     break "duration";
                 }
-                // No DCT_Sensors for 1.2 cycles: compute on every deadline until it is back.
-                if shell.last_sync.is_none_or(|t| now.saturating_duration_since(t) >= grace) {
+                // No DCT_Sensors for 1.2 cycles: compute on every deadline until it is back; a
+                // coalesced one still queued is computed on this deadline.
+                let silent = shell.last_sync.is_none_or(|t| now.saturating_duration_since(t) >= grace);
+                if silent || shell.sync_queued() {
                     shell.compute(None).await?;
                 }
             }
+            rx = shell.link.bus.recv() => {
+                shell.woke();
+                match rx {
+                    Ok(rx) => shell.on_receive(rx)?,
+                    Err(e) => shell.recv_error(e)?,
+                }
+                shell.drain()?;
+                shell.run_syncs().await?;
+            }
         }
     };
+    let (stalls, stall_total, stall_longest) = shell.time.stalls();
     let log_frames = shell.link.finish()?;
     Ok(TcuReport {
         iface,
@@ -338,6 +422,11 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         overruns: shell.overruns,
         deadline_misses: stats.deadline_misses,
         timer_lateness_p99_us: stats.lateness_percentile_us(0.99),
+        timer_lateness_max_us: stats.lateness_percentile_us(1.0),
+        stalls,
+        stall_total_s: stall_total.as_secs_f64(),
+        stall_longest_s: stall_longest.as_secs_f64(),
+        syncs_coalesced: shell.coalesced,
         compute_p50_us: percentile(&shell.compute_us, 0.5),
         compute_p99_us: percentile(&shell.compute_us, 0.99),
         compute_max_us: percentile(&shell.compute_us, 1.0),

@@ -32,7 +32,9 @@ impl Shape {
         v.sort_by(f64::total_cmp);
         let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
         let (lo, hi) = (q(0.02), q(0.98));
-        if !(hi - lo > 1e-9 * (lo.abs() + hi.abs()).max(1e-12)) {
+        let tol = 1e-9 * (lo.abs() + hi.abs()).max(1e-12);
+        // Not wider than the tolerance, or not a number.
+        if (hi - lo).partial_cmp(&tol) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         let mut z = [q(0.02), q(0.25), q(0.5), q(0.75), q(0.98)];
