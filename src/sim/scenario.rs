@@ -23,6 +23,7 @@
 use crate::plant::config::{sent_ids, PlantConfig, DEFAULT_TOML};
 use crate::plant::faults::parse_faults;
 use crate::plant::{Mode, PlantError, Scenario};
+use crate::tcu::config::TcuConfigError;
 use crate::tcu::TcuConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -66,6 +67,20 @@ pub struct TcuOverrides {
 }
 
 impl TcuOverrides {
+    /// The overrides applied to the default calibration must validate (a NaN, an infinity or an
+    /// out-of-range temperature is refused here, not found later in a running TCU).
+    pub fn validate(&self, path: &Path) -> Result<(), ScenarioError> {
+        let mut cfg = TcuConfig::default();
+        self.apply(&mut cfg);
+        cfg.validate().map_err(|e| match &e {
+            TcuConfigError::OutOfRange { key, .. } | TcuConfigError::Inconsistent { key, .. } => {
+                let key = key.rsplit('.').next().unwrap_or(key);
+                key_err(path, format!("tcu.{key}"), e.to_string())
+            }
+            other => key_err(path, "tcu", other.to_string()),
+        })
+    }
+
     /// Applies the overrides to a calibration.
     pub fn apply(&self, cfg: &mut TcuConfig) {
         if let Some(v) = self.temperature_compensation {
@@ -228,6 +243,7 @@ impl SimScenario {
                 .try_into()
                 .map_err(|e: toml::de::Error| key_err(path, "tcu", e.message().to_string()))?,
         };
+        tcu.validate(path)?;
         let duration_s = match doc.get("duration_s") {
             None => plant.scenario.as_ref().map_or(0.0, |s| s.duration_s),
             Some(toml::Value::Float(f)) => *f,
@@ -279,6 +295,19 @@ speed_rpm = 0.0
 temperature_compensation = false
 initial_temp_c = 140.0
 "#;
+
+    #[test]
+    fn a_non_finite_or_out_of_range_tcu_override_names_the_file_and_key() {
+        for bad in ["nan", "inf", "-inf", "1e12", "-41.0"] {
+            let text = TEXT.replace("initial_temp_c = 140.0", &format!("initial_temp_c = {bad}"));
+            let e = SimScenario::from_toml_str(Path::new("x/sc.toml"), &text).unwrap_err();
+            let msg = e.to_string();
+            assert!(
+                msg.contains("x/sc.toml") && msg.contains("tcu.initial_temp_c"),
+                "{bad}: {msg}"
+            );
+        }
+    }
 
     #[test]
     fn merges_into_the_plant_configuration() {

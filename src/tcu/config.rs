@@ -33,6 +33,13 @@ pub enum TcuConfigError {
     Inconsistent { key: String, reason: String },
     #[error("TCU calibration: effects file {path}: {message}")]
     Effects { path: PathBuf, message: String },
+    #[error("TCU calibration {location}: {source}")]
+    InFile {
+        /// The file, and the line of the key when it is found.
+        location: String,
+        #[source]
+        source: Box<TcuConfigError>,
+    },
     #[error("TCU calibration: parameter file {path}: {source}")]
     Params {
         path: PathBuf,
@@ -180,6 +187,43 @@ impl Default for TcuConfig {
     }
 }
 
+/// A validation error placed in its file, at the line of its key when the key is found.
+fn in_file(e: TcuConfigError, path: &Path, text: &str) -> TcuConfigError {
+    let key = match &e {
+        TcuConfigError::OutOfRange { key, .. } | TcuConfigError::Inconsistent { key, .. } => {
+            Some(key.as_str())
+        }
+        _ => None,
+    };
+    let line = key.and_then(|k| key_line(text, k));
+    TcuConfigError::InFile {
+        location: match line {
+            Some(l) => format!("{} line {l}", path.display()),
+            None => path.display().to_string(),
+        },
+        source: Box::new(e),
+    }
+}
+
+/// The 1-based line of a dotted key (`table.key`) in TOML text: the `key =` line after the
+/// `[table]` header.
+fn key_line(text: &str, dotted: &str) -> Option<usize> {
+    let (table, key) = dotted.rsplit_once('.').unwrap_or(("", dotted));
+    let mut current = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if let Some(h) = t.strip_prefix('[').and_then(|h| h.split(']').next()) {
+            current = h.trim().to_string();
+        } else if current == table
+            && t.split('=').next().map(str::trim) == Some(key)
+            && t.contains('=')
+        {
+            return Some(i + 1);
+        }
+    }
+    None
+}
+
 fn range(key: &str, value: f64, min: f64, max: f64) -> Result<(), TcuConfigError> {
     if value.is_finite() && value >= min && value <= max {
         Ok(())
@@ -202,7 +246,7 @@ impl TcuConfig {
             message: e.to_string().trim().replace('\n', " "),
         })?;
         c.physics = Params::default();
-        c.validate()?;
+        c.validate().map_err(|e| in_file(e, path, text))?;
         Ok(c)
     }
 
@@ -472,7 +516,20 @@ mod tests {
     fn errors_name_the_key() {
         let bad = DEFAULT_TOML.replace("clamp_margin = 0.25", "clamp_margin = -1.0");
         let e = TcuConfig::from_toml_str(&bad, Path::new("x.toml")).unwrap_err();
-        assert!(e.to_string().contains("control.clamp_margin"), "{e}");
+        let msg = format!("{e}: {}", std::error::Error::source(&e).unwrap());
+        assert!(msg.contains("control.clamp_margin"), "{msg}");
+        // The file and the key's line.
+        let line = 1 + DEFAULT_TOML
+            .lines()
+            .position(|l| l.trim_start().starts_with("clamp_margin ="))
+            .unwrap();
+        assert!(msg.contains(&format!("x.toml line {line}")), "{msg}");
+        let nan = DEFAULT_TOML.replace("clamp_margin = 0.25", "clamp_margin = nan");
+        let e = TcuConfig::from_toml_str(&nan, Path::new("x.toml")).unwrap_err();
+        assert!(
+            e.to_string().contains(&format!("x.toml line {line}")),
+            "{e}"
+        );
         let bad = DEFAULT_TOML.replace("clamp_margin = 0.25", "clamp_margn = 0.25");
         let e = TcuConfig::from_toml_str(&bad, Path::new("x.toml")).unwrap_err();
         assert!(e.to_string().contains("clamp_margn"), "{e}");
