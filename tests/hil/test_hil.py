@@ -24,11 +24,33 @@ def show(name, a, run):
     hil.print_table(a, run)
 
 
-def test_launch_at_half_pedal_locks_up_and_drives(ddct, out_dir):
-    run = hil.run_bench(program="launch", pedal=50.0, seconds=6.0, out=out_dir, ddct=ddct, name="launch50")
+def disturbed(a, driving_s):
+    """A safe state while the driver still drives: the host stalled a sender (User-Mode Linux
+    shares one virtual CPU with the host's other work), so this run cannot time the launch."""
+    return any(e["state"] == "SafeState" and e["t"] < driving_s - 0.5 for e in a["events"])
+
+
+def launch_run(ddct, out_dir, attempt):
+    run = hil.run_bench(program="launch", pedal=50.0, seconds=6.0, out=out_dir, ddct=ddct, name=f"launch50_{attempt}")
     a = hil.analyse(run.records, hil.target_rpm(50.0))
-    show("launch 50 %", a, run)
+    show(f"launch 50 % (attempt {attempt})", a, run)
+    return a
+
+
+def test_launch_at_half_pedal_locks_up_and_drives(ddct, out_dir):
+    a = launch_run(ddct, out_dir, 1)
     la = a["launch"]
+    launch_ok = (
+        la is not None
+        and la["lockup_s"] is not None
+        and la["lockup_s"] < 4.0
+        and la["min_engine_rpm"] > 500.0
+        and "Drive" in {e["state"] for e in a["events"]}
+    )
+    if not launch_ok and disturbed(a, 6.0):
+        print("the host disturbed the run with a sender timeout: once more")
+        a = launch_run(ddct, out_dir, 2)
+        la = a["launch"]
     assert la is not None, "no launch seen on the bus"
     assert la["lockup_s"] is not None and la["lockup_s"] < 4.0, la
     assert la["min_engine_rpm"] > 500.0, la
@@ -43,17 +65,14 @@ def shifts_run(ddct, out_dir, attempt):
     show(f"launch and upshifts at 50 % (attempt {attempt})", a, run)
     ups = [(s["from"], s["to"]) for s in a["shifts"] if s["up"] and s["completed"]]
     gears = {r.get("TCU_Status.GearActive") for r in hil.rows_of(run.records)}
-    # Safe states while the driver still drives (it stops at 15 s): the host stalled a sender
-    # (User-Mode Linux shares one virtual CPU with the host's other work).
-    disturbed = any(e["state"] == "SafeState" and e["t"] < 14.5 for e in a["events"])
-    return a, ups, gears, disturbed
+    return a, ups, gears, disturbed(a, 15.0)
 
 
 def test_upshifts_at_half_pedal(ddct, out_dir):
-    a, ups, gears, disturbed = shifts_run(ddct, out_dir, 1)
-    if ((1, 2) not in ups or 3 not in gears) and disturbed:
+    a, ups, gears, was_disturbed = shifts_run(ddct, out_dir, 1)
+    if ((1, 2) not in ups or 3 not in gears) and was_disturbed:
         print("the host disturbed the run with a sender timeout: once more")
-        a, ups, gears, disturbed = shifts_run(ddct, out_dir, 2)
+        a, ups, gears, _ = shifts_run(ddct, out_dir, 2)
     assert (1, 2) in ups, a["shifts"]
     # Third gear is reached (a timing hiccup of the host may interrupt one shift with a safe
     # state; the TCU then re-engages the gear the schedule wants).
