@@ -153,6 +153,11 @@ impl TcuReport {
     }
 }
 
+/// A DCT_Sensors frame: the plant's sensor message, the TCU's sync.
+fn is_sync(f: &TimedFrame) -> bool {
+    f.frame.standard_id() == Some(ids::DCT_SENSORS)
+}
+
 struct Shell<B: Bus> {
     link: Link<B>,
     tcu: Tcu,
@@ -230,7 +235,7 @@ impl<B: Bus> Shell<B> {
         let last = self.last_sync_at;
         self.inbox
             .iter()
-            .filter(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
+            .filter(|f| is_sync(f))
             .find(|f| last.is_none_or(|t| f.at >= t + CYCLE / 2))
             .map(|f| f.at)
     }
@@ -245,9 +250,7 @@ impl<B: Bus> Shell<B> {
 
     /// A DCT_Sensors frame is queued (coalesced, not yet computed).
     fn sync_queued(&self) -> bool {
-        self.inbox
-            .iter()
-            .any(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
+        self.inbox.iter().any(is_sync)
     }
 
     /// Computes for each queued DCT_Sensors frame that is due one (a burst after a scheduling
@@ -278,10 +281,7 @@ impl<B: Bus> Shell<B> {
         let (inbox, later): (Vec<TimedFrame>, Vec<TimedFrame>) =
             self.inbox.drain(..).partition(|f| f.at <= horizon);
         self.inbox = later;
-        let syncs_in = inbox
-            .iter()
-            .filter(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
-            .count() as u64;
+        let syncs_in = inbox.iter().filter(|f| is_sync(f)).count() as u64;
         self.coalesced += syncs_in.saturating_sub(u64::from(sync.is_some()));
         let t_recv = t0.elapsed();
         let out = self.tcu.step(now, &TcuInputs { frames: &inbox });
