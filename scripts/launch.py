@@ -7,6 +7,17 @@ timing metrics from the log and prints them as a table.
     .venv/bin/python scripts/launch.py --program shifts --pedal 50 --seconds 14
     .venv/bin/python scripts/launch.py --faults faults.toml                 # plant fault injection
     .venv/bin/python scripts/launch.py --no-daemons ...                     # daemons already running
+    .venv/bin/python scripts/launch.py --lockstep ...                       # in bus time
+
+Real time (the default): the driver sends DRV_Pedal every 10 ms (absolute deadlines), the daemons
+run on their own clocks; what the host's scheduling does to the bench shows in the timing.
+
+Lockstep (`--lockstep`): the plant waits after each cycle for the TCU's last frame of the cycle
+(TCU_Estimates, sent after its other four) and the driver's DRV_Pedal (`ddct plant --lockstep
+TCU_Estimates,DRV_Pedal`), the TCU's time is the
+plant's simulated time (`ddct tcu --clock bus`) and the driver answers each DCT_Sensors frame. The
+run is then the same frames whatever the host's load, and its timing is analysed in bus time
+(`bus_time`): detection, safe state and recovery exact in cycles.
 
 The driver sends DRV_Pedal every 10 ms (absolute deadlines) with the E2E counter and CRC of the
 contract: lever N, then D at 0.5 s, brake held until the launch at 1.0 s, then the pedal; the
@@ -71,6 +82,27 @@ def driver_sample(program: str, pedal: float, seconds: float, t: float) -> dict:
     if program == "shifts" and t > seconds - 4.0:
         return {"AccelPedal": 0.0, "BrakeSwitch": 1, "GearLever": lever}
     return {"AccelPedal": pedal, "BrakeSwitch": 0, "GearLever": lever}
+
+
+def play_driver_lockstep(bus, plant, program: str, pedal: float, seconds: float) -> int:
+    """Answers each DCT_Sensors frame (cycle n, bus time n·10 ms) with DRV_Pedal until the plant
+    exits (the lockstep plant waits for the answer); returns the number of frames sent."""
+    import can
+
+    fid, sensors = frame_id("DRV_Pedal"), frame_id("DCT_Sensors")
+    n = 0
+    while True:
+        msg = bus.recv(timeout=0.5)
+        if msg is None:
+            if plant is None or plant.poll() is not None:
+                return n
+            continue
+        if msg.arbitration_id != sensors or msg.is_extended_id:
+            continue
+        t = min(n * CYCLE_S, seconds)
+        data = ddct_can.encode("DRV_Pedal", driver_sample(program, pedal, seconds, t), counter=n)
+        bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+        n += 1
 
 
 def play_driver(bus, program: str, pedal: float, seconds: float) -> int:
@@ -151,6 +183,22 @@ def latency_us(records, cause: str, effect: str) -> list[float]:
         elif fid == e_id and pending is not None:
             out.append((t - pending) * 1e6)
             pending = None
+    return out
+
+
+def bus_time(records) -> list:
+    """The records of a lockstep run on the bus's own time axis: plant cycle n at n·10 ms. Each
+    DCT_Sensors frame starts a cycle; the frames after it (the rest of the plant's cycle, the TCU's
+    and the driver's answers to it) carry its time; an ENG_Status frame, which the plant sends just
+    before its DCT_Sensors (src/plant/core.rs, `emit_cycle`), carries the time of the cycle it
+    opens."""
+    sensors, eng = frame_id("DCT_Sensors"), frame_id("ENG_Status")
+    out, k = [], -1
+    for _, iface, fid, ext, data in records:
+        if fid == sensors and not ext:
+            k += 1
+        cyc = k + 1 if (fid == eng and not ext) else k
+        out.append((max(cyc, 0) * CYCLE_S, iface, fid, ext, data))
     return out
 
 
@@ -304,8 +352,10 @@ def fault_timing(records, message: str, expected: str, fault_from_s: float, t_pl
     }
 
 
-def analyse(records, tcu_cfg_target=None) -> dict:
-    rows = rows_of(records)
+def analyse(records, tcu_cfg_target=None, lockstep: bool = False) -> dict:
+    """The metrics of a recorded run: behaviour on the run's time axis (bus time in lockstep),
+    latency and interval over vcan in wall time (the kernel timestamps)."""
+    rows = rows_of(bus_time(records) if lockstep else records)
     lat = latency_us(records, "DCT_Sensors", "TCU_ClutchCmd")
     iv = intervals_us(records, "TCU_ClutchCmd")
     jit = [abs(x - CYCLE_S * 1e6) for x in iv]
@@ -342,6 +392,8 @@ class Run:
     tcu_stderr: str
     driver_frames: int
     plant_start_wall: float
+    plant_report: dict | None = None
+    lockstep: bool = False
 
 
 def wait_for_file(p: Path, timeout: float = 10.0):
@@ -360,6 +412,7 @@ def run_bench(
     faults: Path | None = None,
     daemons: bool = True,
     name: str = "launch",
+    lockstep: bool = False,
 ) -> Run:
     import can
 
@@ -369,19 +422,35 @@ def run_bench(
         log.unlink()
     procs = []
     tcu_json = out / f"{name}_tcu.json"
+    plant_json = out / f"{name}_plant.json"
+    # In lockstep the run takes as long as the host lets it: the recorder stops with the rest.
+    rec_cmd = [str(ddct), "log", "record", "--iface", iface, "--out", str(log)]
+    if not lockstep:
+        rec_cmd += ["--duration", str(seconds + 3.0)]
     rec = subprocess.Popen(
-        [str(ddct), "log", "record", "--iface", iface, "--out", str(log), "--duration", str(seconds + 3.0)],
+        rec_cmd,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
     )
     procs.append(rec)
-    tcu = plant = None
+    tcu = plant = bus = None
     try:
         time.sleep(0.3)
+        if lockstep:
+            # The driver listens before the plant's first cycle (it answers every one).
+            bus = can.Bus(
+                interface="socketcan",
+                channel=iface,
+                receive_own_messages=False,
+                can_filters=[{"can_id": frame_id("DCT_Sensors"), "can_mask": 0x7FF, "extended": False}],
+            )
         if daemons:
+            tcu_cmd = [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json"]
+            if lockstep:
+                tcu_cmd += ["--clock", "bus"]
             tcu = subprocess.Popen(
-                [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json"],
+                tcu_cmd,
                 stdout=open(tcu_json, "w"),
                 stderr=subprocess.PIPE,
                 text=True,
@@ -389,20 +458,29 @@ def run_bench(
             )
             procs.append(tcu)
             time.sleep(0.3)
-            cmd = [str(ddct), "plant", "--iface", iface, "--duration", str(seconds + 0.5)]
+            cmd = [str(ddct), "plant", "--iface", iface, "--json"]
+            if lockstep:
+                # The TCU's last frame of a computation (TCU_Estimates) and the driver's answer.
+                cmd += ["--duration", str(seconds), "--lockstep", "TCU_Estimates,DRV_Pedal", "--lockstep-timeout", "20"]
+            else:
+                cmd += ["--duration", str(seconds + 0.5)]
             if faults is not None:
                 cmd += ["--faults", str(faults)]
-            plant = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, cwd=REPO)
+            plant = subprocess.Popen(cmd, stdout=open(plant_json, "w"), stderr=subprocess.PIPE, text=True, cwd=REPO)
             procs.append(plant)
         plant_start = time.time()
-        bus = can.Bus(interface="socketcan", channel=iface, receive_own_messages=False)
         try:
-            n = play_driver(bus, program, pedal, seconds)
+            if lockstep:
+                n = play_driver_lockstep(bus, plant, program, pedal, seconds)
+            else:
+                bus = can.Bus(interface="socketcan", channel=iface, receive_own_messages=False)
+                n = play_driver(bus, program, pedal, seconds)
         finally:
-            bus.shutdown()
+            if bus is not None:
+                bus.shutdown()
         plant_err = tcu_err = ""
         if plant is not None:
-            _, plant_err = plant.communicate(timeout=30)
+            _, plant_err = plant.communicate(timeout=600 if lockstep else 30)
         if tcu is not None:
             tcu.send_signal(signal.SIGTERM)
             _, tcu_err = tcu.communicate(timeout=30)
@@ -414,13 +492,17 @@ def run_bench(
                 p.kill()
                 p.wait()
     records = ddct_can.read_candump(log)
-    report = None
-    if daemons and tcu_json.exists() and tcu_json.stat().st_size:
-        try:
-            report = json.loads(tcu_json.read_text())
-        except json.JSONDecodeError:
-            report = None
-    return Run(log, records, report, plant_err, tcu_err, n, plant_start)
+    return Run(log, records, read_json(tcu_json), plant_err, tcu_err, n, plant_start, read_json(plant_json), lockstep)
+
+
+def read_json(p: Path):
+    """A daemon's --json exit report, or None when it wrote none."""
+    if not (p.exists() and p.stat().st_size):
+        return None
+    try:
+        return json.loads(p.read_text())
+    except json.JSONDecodeError:
+        return None
 
 
 def fmt(v, p=2):
@@ -432,7 +514,8 @@ def fmt(v, p=2):
 
 
 def print_table(a: dict, run: Run):
-    print(f"log: {run.log} ({len(run.records)} frames, {a['rows']} TCU cycles, {run.driver_frames} driver frames)")
+    axis = "bus time (lockstep)" if run.lockstep else "wall time"
+    print(f"log: {run.log} ({len(run.records)} frames, {a['rows']} TCU cycles, {run.driver_frames} driver frames; {axis})")
     la = a["launch"]
     print("\nlaunch:")
     if la is None:
@@ -463,6 +546,12 @@ def print_table(a: dict, run: Run):
                 f"longest {r['stall_longest_s']:.3f} s; timer lateness p99 {fmt(r['timer_lateness_p99_us'], 0)} us "
                 f"max {fmt(r['timer_lateness_max_us'], 0)} us; coalesced syncs {r['syncs_coalesced']}"
             )
+    if run.plant_report and run.plant_report.get("lockstep"):
+        p = run.plant_report
+        print(
+            f"plant lockstep on {p['lockstep']}: {p['cycles']} cycles ({p['sim_time_s']:.2f} s simulated in "
+            f"{p['wall_time_s']:.2f} s wall), {p['lockstep_timeouts']} without their answers in time"
+        )
 
 
 def main(argv=None) -> int:
@@ -475,14 +564,19 @@ def main(argv=None) -> int:
     ap.add_argument("--ddct", type=Path, default=REPO / "target" / "release" / "ddct")
     ap.add_argument("--faults", type=Path, default=None, help="plant fault-injection file ([[faults]])")
     ap.add_argument("--no-daemons", action="store_true", help="the plant and TCU daemons are already running")
+    ap.add_argument("--lockstep", action="store_true", help="run in bus time (plant lockstep, TCU --clock bus)")
     ap.add_argument("--json", action="store_true", help="print the metrics as JSON")
     a = ap.parse_args(argv)
     seconds = a.seconds or (6.0 if a.program == "launch" else 16.0)
-    run = run_bench(a.iface, a.program, a.pedal, seconds, a.out, a.ddct, a.faults, not a.no_daemons, a.program)
+    if a.lockstep and a.no_daemons:
+        ap.error("--lockstep starts the daemons itself (the plant must wait for this driver)")
+    run = run_bench(
+        a.iface, a.program, a.pedal, seconds, a.out, a.ddct, a.faults, not a.no_daemons, a.program, lockstep=a.lockstep
+    )
     if not run.records:
         print(f"nothing recorded on {a.iface}\n{run.plant_stderr}\n{run.tcu_stderr}", file=sys.stderr)
         return 1
-    result = analyse(run.records, target_rpm(a.pedal))
+    result = analyse(run.records, target_rpm(a.pedal), lockstep=a.lockstep)
     if a.json:
         print(json.dumps(result, indent=2, default=str))
     else:

@@ -1338,7 +1338,7 @@ async fn daemon_lockstep_matches_the_in_process_profile_run() {
         duration: Some(Duration::from_secs(3)),
         log: None,
         lockstep: Some(Lockstep {
-            message: ids::TCU_CLUTCH_CMD,
+            messages: vec![ids::TCU_CLUTCH_CMD],
             timeout: Duration::from_secs(5),
         }),
     };

@@ -403,6 +403,7 @@ async fn daemon_launches_with_the_plant_and_detects_its_silence() {
         tcu: tcu_config(),
         duration: Some(Duration::from_millis(3300)),
         log: None,
+        clock: Default::default(),
     };
     let (p, t) = tokio::join!(
         run_plant(plant_ep, std::future::pending::<()>(), plant_cfg),

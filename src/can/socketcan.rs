@@ -66,6 +66,51 @@ impl SocketCanBus {
             })
     }
 
+    /// Asks the kernel for a receive queue of `bytes` (`SO_RCVBUFFORCE` where permitted — root —
+    /// else `SO_RCVBUF`, which the kernel caps at `net.core.rmem_max`), so a reader the host
+    /// deschedules for a while (a recorder) loses no frame. Returns the size the kernel granted.
+    pub fn set_recv_buffer(&self, bytes: usize) -> Result<usize, BusError> {
+        let fd = self.socket.as_raw_fd();
+        let val = libc::c_int::try_from(bytes).unwrap_or(libc::c_int::MAX);
+        let set = |opt| {
+            // SAFETY: plain setsockopt on an open descriptor with a c_int value of its size.
+            unsafe {
+                libc::setsockopt(
+                    fd,
+                    libc::SOL_SOCKET,
+                    opt,
+                    (&val as *const libc::c_int).cast(),
+                    std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+                )
+            }
+        };
+        if set(libc::SO_RCVBUFFORCE) != 0 && set(libc::SO_RCVBUF) != 0 {
+            return Err(BusError::Io {
+                iface: self.iface.clone(),
+                source: io::Error::last_os_error(),
+            });
+        }
+        let mut got: libc::c_int = 0;
+        let mut len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
+        // SAFETY: getsockopt into a c_int of the length given.
+        let rc = unsafe {
+            libc::getsockopt(
+                fd,
+                libc::SOL_SOCKET,
+                libc::SO_RCVBUF,
+                (&mut got as *mut libc::c_int).cast(),
+                &mut len,
+            )
+        };
+        if rc != 0 {
+            return Err(BusError::Io {
+                iface: self.iface.clone(),
+                source: io::Error::last_os_error(),
+            });
+        }
+        Ok(usize::try_from(got).unwrap_or(0))
+    }
+
     fn convert(&self, frame: socketcan::CanFrame, ts: SystemTime) -> Result<Received, BusError> {
         if let socketcan::CanFrame::Error(e) = &frame {
             return Err(BusError::ErrorFrame {

@@ -283,6 +283,7 @@ fn bench_run(
                 tcu: tcu_cfg,
                 duration: None,
                 log: None,
+                clock: Default::default(),
             };
             Ok(run_tcu(bus, stopped(stop2), c).await?)
         })

@@ -303,6 +303,9 @@ fn json_line(d: &DecodedFrame) -> String {
     .to_string()
 }
 
+/// Receive queue asked for by `ddct log record` (bytes).
+const RECORD_RCVBUF: usize = 16 << 20;
+
 fn record(
     iface: &str,
     out: &PathBuf,
@@ -319,6 +322,11 @@ fn record(
     let rt = runtime()?;
     let n = rt.block_on(async {
         let mut bus = SocketCanBus::open(iface, false)?;
+        // A recorder the host deschedules for a while must not lose frames: 16 MiB of receive
+        // queue (minutes of a 10 ms bus) where the kernel grants it.
+        if let Err(e) = bus.set_recv_buffer(RECORD_RCVBUF) {
+            tracing::warn!("{e}: the default receive queue may drop frames under load");
+        }
         let deadline = duration.map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d));
         let stop = shutdown_signal();
         tokio::pin!(stop);

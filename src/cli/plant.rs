@@ -63,10 +63,11 @@ pub struct PlantArgs {
     /// only on `--iface sim`, the default there).
     #[arg(long)]
     speed: Option<String>,
-    /// Lockstep with a controller: after each cycle wait for its answer (a frame of MESSAGE,
-    /// default TCU_ClutchCmd) before simulating the next, never faster than --speed; makes a fast
-    /// bus experiment independent of the host's scheduling.
-    #[arg(long, value_name = "MESSAGE", num_args = 0..=1, default_missing_value = "TCU_ClutchCmd")]
+    /// Lockstep with a controller: after each cycle wait for its answers (a frame of each
+    /// MESSAGE, comma-separated; default TCU_ClutchCmd; e.g. TCU_ClutchCmd,DRV_Pedal with a
+    /// scripted driver) before simulating the next, never faster than --speed; makes a bus
+    /// experiment independent of the host's scheduling.
+    #[arg(long, value_name = "MESSAGE[,MESSAGE]", num_args = 0..=1, default_missing_value = "TCU_ClutchCmd")]
     lockstep: Option<String>,
     /// Lockstep: seconds of wall time to wait for an answer before simulating on without it.
     #[arg(long, default_value_t = 1.0)]
@@ -229,9 +230,14 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
     }
     let lockstep = match &a.lockstep {
         None => None,
-        Some(name) => {
-            let def = ddct::can::messages::message_by_name(name)
-                .with_context(|| format!("--lockstep {name}: not a message of the contract"))?;
+        Some(names) => {
+            let mut messages = Vec::new();
+            for name in names.split(',').map(str::trim) {
+                let def = ddct::can::messages::message_by_name(name).with_context(|| {
+                    format!("--lockstep {names}: {name:?} is not a message of the contract")
+                })?;
+                messages.push(def.id);
+            }
             if sim && speed.is_none() {
                 bail!("--lockstep needs real-time pacing (--speed K)");
             }
@@ -242,7 +248,7 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 );
             }
             Some(Lockstep {
-                message: def.id,
+                messages,
                 timeout: Duration::from_secs_f64(a.lockstep_timeout),
             })
         }

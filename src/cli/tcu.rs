@@ -2,12 +2,12 @@
 
 use super::{runtime, shutdown_signal};
 use anyhow::{bail, Context};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
 use ddct::daemon::tcu::{
-    run as run_tcu, set_realtime_priority, TcuDaemonConfig, TcuReport, INPUT_IDS,
+    run as run_tcu, set_realtime_priority, TcuClock, TcuDaemonConfig, TcuReport, INPUT_IDS,
 };
 use ddct::plant::{PlantConfig, Scenario};
 use ddct::tcu::TcuConfig;
@@ -39,9 +39,31 @@ pub struct TcuArgs {
     /// Run under the real-time FIFO scheduler at this priority (1..=99; needs root).
     #[arg(long)]
     rt_priority: Option<i32>,
+    /// The TCU's time: `monotonic` (a real-time bench; the daemon's own stalls are not counted
+    /// against the senders) or `bus` (a lockstep bench, the plant run with `--lockstep`: the
+    /// plant's simulated time, one cycle per DCT_Sensors frame, so every timeout is exact in
+    /// cycles whatever the host's load; not with `--iface sim`).
+    #[arg(long, value_enum, default_value_t = ClockArg::Monotonic)]
+    clock: ClockArg,
     /// Print the exit report as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+/// `--clock` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ClockArg {
+    Monotonic,
+    Bus,
+}
+
+impl From<ClockArg> for TcuClock {
+    fn from(c: ClockArg) -> Self {
+        match c {
+            ClockArg::Monotonic => TcuClock::Monotonic,
+            ClockArg::Bus => TcuClock::Bus,
+        }
+    }
 }
 
 pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
@@ -51,6 +73,9 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
         Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
         None => None,
     };
+    if a.clock == ClockArg::Bus && a.iface == "sim" {
+        bail!("--clock bus is for a lockstep bench on a CAN interface (`--iface sim` runs in real time)");
+    }
     if a.scenario.is_some() && a.iface != "sim" {
         bail!("--scenario is for --iface sim (on a real bus the driver is on the bus)");
     }
@@ -84,6 +109,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
                 tcu: cfg,
                 duration: Some(d),
                 log: a.log.clone(),
+                clock: Default::default(),
             };
             let plant_ep = bus.endpoint(EndpointConfig::default());
             let tcu_ep = bus.endpoint(EndpointConfig::default());
@@ -115,6 +141,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
                 tcu: cfg,
                 duration,
                 log: a.log.clone(),
+                clock: a.clock.into(),
             };
             anyhow::Ok(run_tcu(bus, shutdown_signal(), c).await?)
         }

@@ -16,6 +16,12 @@
 //!   stall is placed at the stall's start, and a message is missing only after `timeout_cycles`
 //!   of its cycles of live time. A sender that really stops is still detected, later by at most
 //!   the length of the reader's own stalls in between. The stalls are counted and reported.
+//! - **Bus time** ([`BusClock`], a lockstep bench): the plant's simulated time, counted in its
+//!   sync frames (one DCT_Sensors frame per 10 ms cycle). The plant waits for the controller's
+//!   (and a scripted driver's) answer before simulating the next cycle, so time stands still while
+//!   any of them is descheduled: every timeout, detection and recovery is then exact in cycles,
+//!   whatever the host does. A sync frame carries the next cycle's time; any other frame belongs
+//!   to the cycle coming (the plant's inputs before its sync, the answers to the last one).
 //!
 //! Pure: the current instants are arguments.
 
@@ -99,9 +105,63 @@ impl TimeBase {
     }
 }
 
+/// Bus time of a lockstep bench: cycles of the plant's sync frames (see the module doc).
+#[derive(Debug, Clone)]
+pub struct BusClock {
+    cycle: Duration,
+    /// The time the next sync frame carries.
+    next: Duration,
+}
+
+impl BusClock {
+    pub fn new(cycle: Duration) -> Self {
+        Self {
+            cycle,
+            next: Duration::ZERO,
+        }
+    }
+
+    /// A sync frame arrived: its cycle's time.
+    pub fn sync(&mut self) -> Duration {
+        let t = self.next;
+        self.next += self.cycle;
+        t
+    }
+
+    /// Any other frame: it belongs to the coming cycle.
+    pub fn stamp(&self) -> Duration {
+        self.next
+    }
+
+    /// A computation without a sync frame (the plant silent for long): time moves on a cycle,
+    /// so a dead plant is still detected as missing sensors.
+    pub fn idle(&mut self) -> Duration {
+        self.sync()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bus_time_counts_cycles_of_sync_frames_whatever_the_wall_clock() {
+        let mut bc = BusClock::new(ms(10));
+        // Cycle 0: the plant's inputs, its sync, then the frames that follow it.
+        assert_eq!(bc.stamp(), ms(0), "ENG_Status before the first sync");
+        assert_eq!(bc.sync(), ms(0));
+        assert_eq!(
+            bc.stamp(),
+            ms(10),
+            "DCT_Actuators after it: the next computation's"
+        );
+        assert_eq!(bc.sync(), ms(10));
+        // The plant silent: two idle computations move time on.
+        assert_eq!(bc.idle(), ms(20));
+        assert_eq!(bc.idle(), ms(30));
+        assert_eq!(bc.sync(), ms(40));
+        assert_eq!(bc.stamp(), ms(50));
+    }
 
     fn ms(v: u64) -> Duration {
         Duration::from_millis(v)

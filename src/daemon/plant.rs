@@ -7,7 +7,8 @@
 //!   frames are sent late rather than dropped. Received frames are applied at their (scaled)
 //!   receive time; frames a fault delays are sent at their due time.
 //! - Lockstep ([`PlantDaemonConfig::lockstep`], real-time pacing): after sending cycle n the
-//!   plant waits for the controller's answer (a frame of the lockstep message) before it
+//!   plant waits for the answers (a frame of each lockstep message: the TCU's TCU_ClutchCmd, and
+//!   on a bench with a scripted driver its DRV_Pedal) before it
 //!   simulates cycle n+1, and never runs faster than `speed`. The run is then deterministic
 //!   whatever the host's scheduling (a loaded CI machine, User-Mode Linux): the experiment gives
 //!   the same frames over a real bus as in process. No deadlines, so no misses are counted; the
@@ -62,10 +63,10 @@ pub struct PlantDaemonConfig {
 }
 
 /// Lockstep settings (see [`PlantDaemonConfig::lockstep`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Lockstep {
-    /// The message that answers a cycle (e.g. TCU_ClutchCmd).
-    pub message: u16,
+    /// The messages that answer a cycle (e.g. TCU_ClutchCmd): a frame of each is waited for.
+    pub messages: Vec<u16>,
     /// Wall time to wait for the answer before simulating on without it.
     pub timeout: Duration,
 }
@@ -101,7 +102,8 @@ pub struct PlantReport {
     pub send_errors: u64,
     pub frames_received: u64,
     pub receive_errors: u64,
-    /// Lockstep: the message waited for, and the cycles whose answer did not come in time.
+    /// Lockstep: the messages waited for (comma-separated), and the cycles whose answers did
+    /// not all come in time.
     pub lockstep: Option<String>,
     pub lockstep_timeouts: u64,
     pub log: Option<PathBuf>,
@@ -254,7 +256,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     let wall0 = std::time::Instant::now();
     let mut stats = LoopStats::default();
     tokio::pin!(shutdown);
-    let stopped_by = match (&config.pacing, config.lockstep) {
+    let stopped_by = match (&config.pacing, config.lockstep.clone()) {
         (Pacing::RealTime { .. }, Some(ls)) => {
             run_lockstep(&mut shell, &mut shutdown, config.duration, ls, &mut stats).await?
         }
@@ -297,8 +299,14 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         frames_received: shell.link.received,
         receive_errors: shell.link.receive_errors,
         lockstep: config.lockstep.map(|l| {
-            crate::can::messages::message_def(u32::from(l.message))
-                .map_or(format!("{:#x}", l.message), |d| d.name.to_string())
+            l.messages
+                .iter()
+                .map(|&m| {
+                    crate::can::messages::message_def(u32::from(m))
+                        .map_or(format!("{m:#x}"), |d| d.name.to_string())
+                })
+                .collect::<Vec<_>>()
+                .join(",")
         }),
         lockstep_timeouts: shell.lockstep_timeouts,
         log: config.log,
@@ -416,21 +424,21 @@ async fn run_lockstep<B: Bus, S: Future<Output = ()>>(
                 .send(&f, shell.start_wall + f.due.max(sim_now))
                 .await?;
         }
-        // Wait for the controller's answer to this cycle; frames received meanwhile act from the
-        // next cycle on (stamped mid-cycle in the log).
+        // Wait for the answers to this cycle; frames received meanwhile act from the next cycle
+        // on (stamped mid-cycle in the log).
         let stamp = sim_now + CYCLE / 2;
         let give_up = Instant::now() + ls.timeout;
-        loop {
+        let mut waiting = ls.messages.clone();
+        while !waiting.is_empty() {
             tokio::select! {
                 biased;
                 _ = shutdown.as_mut() => return Ok("shutdown"),
                 rx = shell.link.bus.recv() => match rx {
                     Ok(rx) => {
-                        let answer = rx.frame.standard_id() == Some(ls.message);
-                        shell.on_receive(rx, stamp, shell.start_wall + stamp)?;
-                        if answer {
-                            break;
+                        if let Some(id) = rx.frame.standard_id() {
+                            waiting.retain(|&m| m != id);
                         }
+                        shell.on_receive(rx, stamp, shell.start_wall + stamp)?;
                     }
                     Err(e) => shell.recv_error(e)?,
                 },

@@ -18,10 +18,15 @@
 //!   its receive queue cannot hold).
 //! - A computation whose work (step + sends) takes longer than a cycle counts as an overrun; late
 //!   fallback wake-ups count as deadline misses (`LoopStats`).
+//! - Bus time ([`TcuClock::Bus`], a lockstep bench: the plant run with `--lockstep`): the core's
+//!   time is the plant's simulated time, counted in DCT_Sensors frames ([`BusClock`]); a
+//!   computation runs on each of them, and the fallback timer computes (moving bus time on a
+//!   cycle each time) only after [`BUS_SILENCE`] of live time without one. Every timeout is then
+//!   exact in cycles on a host that starves the daemons.
 //! - Clean shutdown on the `shutdown` future (SIGINT/SIGTERM in the CLI) or after `duration`;
 //!   the candump tap (`log`) is flushed either way.
 
-use super::clock::TimeBase;
+use super::clock::{BusClock, TimeBase};
 use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
@@ -48,6 +53,21 @@ pub const DRAIN_BUDGET: usize = 64;
 /// Computations per wake-up at most (a burst of sync frames delayed by the scheduler).
 pub const MAX_SYNCS_PER_WAKE: usize = 4;
 
+/// Bus time: live time without a DCT_Sensors frame after which the fallback timer computes
+/// (and moves bus time on), so a dead plant still ends in the safe state.
+pub const BUS_SILENCE: Duration = Duration::from_secs(2);
+
+/// The TCU's time source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TcuClock {
+    /// Monotonic time with the daemon's stalls taken out (a real-time bench).
+    #[default]
+    Monotonic,
+    /// The plant's simulated time in its sync frames (a lockstep bench).
+    Bus,
+}
+
 /// The messages the TCU reads (a SocketCAN socket can filter on them).
 pub const INPUT_IDS: [u16; 4] = [
     ids::ENG_STATUS,
@@ -64,6 +84,8 @@ pub struct TcuDaemonConfig {
     pub duration: Option<Duration>,
     /// candump -l tap of every frame sent and received.
     pub log: Option<PathBuf>,
+    /// The core's time source.
+    pub clock: TcuClock,
 }
 
 /// Errors that stop the daemon.
@@ -79,7 +101,10 @@ pub struct TcuReport {
     pub iface: String,
     /// "duration" or "shutdown".
     pub stopped_by: &'static str,
+    pub clock: TcuClock,
     pub wall_time_s: f64,
+    /// The core's time at the last computation (bus time: simulated seconds computed).
+    pub core_time_s: f64,
     pub computations: u64,
     /// Computations triggered by a DCT_Sensors frame.
     pub sync_computations: u64,
@@ -120,14 +145,16 @@ impl TcuReport {
     pub fn summary(&self) -> String {
         let f = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.0}"));
         format!(
-            "tcu on {}: stopped by {} after {:.3} s\n\
+            "tcu on {} ({:?} clock): stopped by {} after {:.3} s (core time {:.3} s)\n\
              computations {} (sync {} fallback {}, coalesced syncs {}) overruns {} deadline_misses {} timer lateness p99 {} us max {} us\n\
              stalls {} (total {:.3} s, longest {:.3} s)\n\
              compute p50 {} us p99 {} us max {} us\n\
              frames sent {} (errors {}) received {} (errors {}); safe-state entries {}; final {:?} / {:?}\n",
             self.iface,
+            self.clock,
             self.stopped_by,
             self.wall_time_s,
+            self.core_time_s,
             self.computations,
             self.sync_computations,
             self.fallback_computations,
@@ -163,6 +190,10 @@ struct Shell<B: Bus> {
     tcu: Tcu,
     start: Instant,
     time: TimeBase,
+    /// Bus time, on a lockstep bench.
+    bus_clock: Option<BusClock>,
+    /// Monotonic time of the last sync frame computed.
+    last_sync_mono: Option<Duration>,
     inbox: Vec<TimedFrame>,
     coalesced: u64,
     computations: u64,
@@ -197,10 +228,19 @@ impl<B: Bus> Shell<B> {
     /// Queues a received frame at its arrival on the TCU's time base.
     fn on_receive(&mut self, rx: Received) -> Result<(), TcuDaemonError> {
         self.link.received(&rx)?;
-        let arrival = self.time.arrival(rx.timestamp, wall_clock(), self.mono());
+        let at = if let Some(bc) = &mut self.bus_clock {
+            if rx.frame.standard_id() == Some(ids::DCT_SENSORS) {
+                bc.sync()
+            } else {
+                bc.stamp()
+            }
+        } else {
+            self.time
+                .live(self.time.arrival(rx.timestamp, wall_clock(), self.mono()))
+        };
         // Frames are read in the order they arrived: never place one before an earlier one (a
         // stall noted between two reads moves the live time base back).
-        let at = self.time.live(arrival).max(self.last_at);
+        let at = at.max(self.last_at);
         self.last_at = at;
         self.inbox.push(TimedFrame {
             at,
@@ -248,6 +288,15 @@ impl<B: Bus> Shell<B> {
         Ok(self.link.send(f, wall_clock()).await?)
     }
 
+    /// Bus time: no sync frame computed for [`BUS_SILENCE`] of live time (`mono`: now) since
+    /// the last one. Before the plant's first cycle the TCU waits (bus time has not begun).
+    fn bus_silent(&self, mono: Duration) -> bool {
+        let Some(since) = self.last_sync_mono else {
+            return false;
+        };
+        self.time.live(mono).saturating_sub(self.time.live(since)) >= BUS_SILENCE
+    }
+
     /// A DCT_Sensors frame is queued (coalesced, not yet computed).
     fn sync_queued(&self) -> bool {
         self.inbox.iter().any(is_sync)
@@ -270,9 +319,12 @@ impl<B: Bus> Shell<B> {
         let t0 = Instant::now();
         // Frames already waiting belong to this computation too.
         self.drain()?;
-        let now = sync
-            .unwrap_or_else(|| self.time.live(t0.saturating_duration_since(self.start)))
-            .max(self.last_now);
+        let now = match (sync, &mut self.bus_clock) {
+            (Some(at), _) => at,
+            (None, Some(bc)) => bc.idle(),
+            (None, None) => self.time.live(t0.saturating_duration_since(self.start)),
+        }
+        .max(self.last_now);
         self.last_now = now;
         // Frames up to the computation's time (with the rest of the sender's burst: the plant
         // sends DCT_Actuators just after DCT_Sensors); later ones, of a later cycle, wait.
@@ -319,6 +371,7 @@ impl<B: Bus> Shell<B> {
         }
         if sync.is_some() {
             self.last_sync = Some(t0);
+            self.last_sync_mono = Some(t0.saturating_duration_since(self.start));
             self.last_sync_at = sync;
         }
         if self.computations % 100 == 0 {
@@ -360,6 +413,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         tcu: Tcu::new(config.tcu.clone(), Duration::ZERO),
         start,
         time: TimeBase::new(),
+        bus_clock: (config.clock == TcuClock::Bus).then(|| BusClock::new(CYCLE)),
+        last_sync_mono: None,
         inbox: Vec::new(),
         coalesced: 0,
         computations: 0,
@@ -392,11 +447,21 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
                 if config.duration.is_some_and(|d| now.saturating_duration_since(start) >= d) {
                     break "duration";
                 }
-                // No DCT_Sensors for 1.2 cycles: compute on every deadline until it is back; a
-                // coalesced one still queued is computed on this deadline.
-                let silent = shell.last_sync.is_none_or(|t| now.saturating_duration_since(t) >= grace);
-                if silent || shell.sync_queued() {
-                    shell.compute(None).await?;
+                if shell.bus_clock.is_some() {
+                    // Bus time: queued sync frames are computed at their own time; a fallback
+                    // computation only after BUS_SILENCE of live time without one.
+                    if shell.sync_queued() {
+                        shell.run_syncs().await?;
+                    } else if shell.bus_silent(now.saturating_duration_since(start)) {
+                        shell.compute(None).await?;
+                    }
+                } else {
+                    // No DCT_Sensors for 1.2 cycles: compute on every deadline until it is back;
+                    // a coalesced one still queued is computed on this deadline.
+                    let silent = shell.last_sync.is_none_or(|t| now.saturating_duration_since(t) >= grace);
+                    if silent || shell.sync_queued() {
+                        shell.compute(None).await?;
+                    }
                 }
             }
             rx = shell.link.bus.recv() => {
@@ -415,7 +480,9 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     Ok(TcuReport {
         iface,
         stopped_by,
+        clock: config.clock,
         wall_time_s: start.elapsed().as_secs_f64(),
+        core_time_s: shell.last_now.as_secs_f64(),
         computations: shell.computations,
         sync_computations: shell.sync,
         fallback_computations: shell.fallback,

@@ -1,10 +1,20 @@
 """The plant and TCU daemons over vcan0 (kernel SocketCAN, host or User-Mode Linux), the driver
 played from python, everything recorded by `ddct log record` with kernel timestamps.
 
-Timing over vcan is measured and printed, and asserted only with generous bounds: under
-User-Mode Linux the whole guest shares one virtual CPU with the host's other work, and its timing
-tail is noisy (DESIGN.md §7). The exact timing properties (detection within 3 cycles, safe state
-in the next cycle, recovery within 100 ms) are asserted in simulated time by tests/tcu.rs.
+Two kinds of run (scripts/launch.py):
+
+- **Lockstep, in bus time** (the functional and timing contract): the plant waits after each
+  cycle for the TCU's last frame and the driver's DRV_Pedal (`ddct plant --lockstep
+  TCU_Estimates,DRV_Pedal`), the TCU's time is the plant's simulated time (`ddct tcu --clock
+  bus`), the driver answers each DCT_Sensors frame. The frames are then the same whatever the
+  host does to the User-Mode Linux guest, so the contract is asserted exactly, in cycles: no
+  spurious safe state, a fault detected within 3 cycles of the last valid frame, the safe state
+  in the same cycle, recovery within 100 ms. The log must hold every cycle (a frame lost by the
+  recorder fails the test rather than shifting the time axis).
+- **Real time** (measured): the daemons on their own clocks, the driver on a 10 ms timer. Its
+  latency and jitter are printed. Its behaviour is asserted only when the guest actually ran
+  (the TCU's exit report: stalls under 10 % of the run); a run the host starved is reported as
+  not judged, with its figures, and only what must hold under any load is asserted.
 """
 
 from __future__ import annotations
@@ -12,11 +22,15 @@ from __future__ import annotations
 import json
 
 import launch as hil
+
 import pytest
 
-# Generous bounds for a noisy bus (the in-process bus asserts 30 ms / 10 ms / 100 ms exactly).
-DETECT_MAX_MS = 250.0
-RECOVER_MAX_MS = 1500.0
+# The TCU contract (config/tcu.toml: input timeouts of 3 cycles; DESIGN.md §5).
+CYCLE_MS = 10.0
+DETECT_MS = 3 * CYCLE_MS
+RECOVER_MS = 100.0
+# A real-time run is judged only when the TCU daemon was stalled for less than this share of it.
+MAX_STALL_SHARE = 0.10
 
 
 def show(name, a, run):
@@ -24,59 +38,43 @@ def show(name, a, run):
     hil.print_table(a, run)
 
 
-def disturbed(a, driving_s):
-    """A safe state while the driver still drives: the host stalled a sender (User-Mode Linux
-    shares one virtual CPU with the host's other work), so this run cannot time the launch."""
-    return any(e["state"] == "SafeState" and e["t"] < driving_s - 0.5 for e in a["events"])
+def lockstep_run(ddct, out_dir, name, program, pedal, seconds, faults=None):
+    run = hil.run_bench(
+        program=program, pedal=pedal, seconds=seconds, out=out_dir, ddct=ddct, faults=faults, name=name, lockstep=True
+    )
+    a = hil.analyse(run.records, hil.target_rpm(pedal), lockstep=True)
+    show(f"{name} (lockstep, bus time)", a, run)
+    assert run.plant_report is not None, run.plant_stderr
+    assert run.tcu_report is not None, run.tcu_stderr
+    p = run.plant_report
+    assert p["lockstep_timeouts"] == 0, f"cycles without the TCU's or the driver's answer: {p}"
+    cycles = p["cycles"]
+    counted = {m: sum(1 for r in run.records if r[2] == hil.frame_id(m)) for m in ("DCT_Sensors", "TCU_Estimates")}
+    assert counted == {"DCT_Sensors": cycles, "TCU_Estimates": cycles}, f"the log lost frames: {counted} of {cycles} cycles"
+    assert run.driver_frames == cycles
+    assert run.tcu_report["computations"] == cycles, run.tcu_report
+    return a, run
 
 
-def launch_run(ddct, out_dir, attempt):
-    run = hil.run_bench(program="launch", pedal=50.0, seconds=6.0, out=out_dir, ddct=ddct, name=f"launch50_{attempt}")
-    a = hil.analyse(run.records, hil.target_rpm(50.0))
-    show(f"launch 50 % (attempt {attempt})", a, run)
-    return a
+def safe_states(a):
+    return [e for e in a["events"] if e["state"] == "SafeState"]
 
 
 def test_launch_at_half_pedal_locks_up_and_drives(ddct, out_dir):
-    a = launch_run(ddct, out_dir, 1)
+    a, _ = lockstep_run(ddct, out_dir, "launch50", "launch", 50.0, 6.0)
     la = a["launch"]
-    launch_ok = (
-        la is not None
-        and la["lockup_s"] is not None
-        and la["lockup_s"] < 4.0
-        and la["min_engine_rpm"] > 500.0
-        and "Drive" in {e["state"] for e in a["events"]}
-    )
-    if not launch_ok and disturbed(a, 6.0):
-        print("the host disturbed the run with a sender timeout: once more")
-        a = launch_run(ddct, out_dir, 2)
-        la = a["launch"]
     assert la is not None, "no launch seen on the bus"
     assert la["lockup_s"] is not None and la["lockup_s"] < 4.0, la
     assert la["min_engine_rpm"] > 500.0, la
-    states = {e["state"] for e in a["events"]}
-    assert "Drive" in states, a["events"]
-    assert a["latency_us"]["n"] > 100
-
-
-def shifts_run(ddct, out_dir, attempt):
-    run = hil.run_bench(program="shifts", pedal=50.0, seconds=15.0, out=out_dir, ddct=ddct, name=f"shifts50_{attempt}")
-    a = hil.analyse(run.records, hil.target_rpm(50.0))
-    show(f"launch and upshifts at 50 % (attempt {attempt})", a, run)
-    ups = [(s["from"], s["to"]) for s in a["shifts"] if s["up"] and s["completed"]]
-    gears = {r.get("TCU_Status.GearActive") for r in hil.rows_of(run.records)}
-    return a, ups, gears, disturbed(a, 15.0)
+    assert "Drive" in {e["state"] for e in a["events"]}, a["events"]
+    assert safe_states(a) == [], a["events"]
 
 
 def test_upshifts_at_half_pedal(ddct, out_dir):
-    a, ups, gears, was_disturbed = shifts_run(ddct, out_dir, 1)
-    if ((1, 2) not in ups or 3 not in gears) and was_disturbed:
-        print("the host disturbed the run with a sender timeout: once more")
-        a, ups, gears, _ = shifts_run(ddct, out_dir, 2)
-    assert (1, 2) in ups, a["shifts"]
-    # Third gear is reached (a timing hiccup of the host may interrupt one shift with a safe
-    # state; the TCU then re-engages the gear the schedule wants).
-    assert 3 in gears, a["shifts"]
+    a, run = lockstep_run(ddct, out_dir, "shifts50", "shifts", 50.0, 15.0)
+    ups = [(s["from"], s["to"]) for s in a["shifts"] if s["up"] and s["completed"]]
+    assert (1, 2) in ups and (2, 3) in ups, a["shifts"]
+    assert safe_states(a) == [], a["events"]
 
 
 FAULTS = [
@@ -86,35 +84,51 @@ FAULTS = [
 ]
 
 
-def fault_case(ddct, out_dir, message, kind, expected, attempt):
-    f_from, f_to = 3.5, 4.0
-    faults = out_dir / f"faults_{attempt}.toml"
-    faults.write_text(f'[[faults]]\nmessage = "{message}"\nkind = "{kind}"\nfrom_s = {f_from}\nto_s = {f_to}\n')
-    run = hil.run_bench(
-        program="launch", pedal=40.0, seconds=6.0, out=out_dir, ddct=ddct, faults=faults, name=f"fault_{kind}_{attempt}"
-    )
-    sensors = hil.frame_id("DCT_Sensors")
-    t_plant0 = next(t for t, _, i, _, _ in run.records if i == sensors)
-    ft = hil.fault_timing(run.records, message, expected, f_from, t_plant0)
-    a = hil.analyse(run.records, hil.target_rpm(40.0))
-    show(f"{kind} on {message} in [{f_from}, {f_to}) s (attempt {attempt})", a, run)
-    print("fault timing over vcan:", json.dumps(ft))
-    # A fault code before the injection started: the host stalled the bus (a timing hiccup of
-    # User-Mode Linux), so this run cannot time the injected fault.
-    t_inj = f_from + (t_plant0 - run.records[0][0])
-    disturbed = any(e["fault"] != "None" and e["state"] != "Init" and e["t"] < t_inj for e in a["events"])
-    return a, ft, disturbed
-
-
 @pytest.mark.parametrize("message,kind,expected", FAULTS)
 def test_faults_are_detected_and_recovered(ddct, out_dir, message, kind, expected):
-    a, ft, disturbed = fault_case(ddct, out_dir, message, kind, expected, 1)
-    ok = ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MAX_MS
-    if not ok and disturbed:
-        print("the host disturbed the run before the injection: once more")
-        a, ft, disturbed = fault_case(ddct, out_dir, message, kind, expected, 2)
-    codes = {e["fault"] for e in a["events"]}
-    assert expected in codes, a["events"]
-    assert ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MAX_MS, ft
-    assert ft["safe_state_after_detection_ms"] is not None and ft["safe_state_after_detection_ms"] <= DETECT_MAX_MS, ft
-    assert ft["recovery_ms"] is not None and 0.0 < ft["recovery_ms"] <= RECOVER_MAX_MS, ft
+    f_from, f_to = 3.5, 4.0
+    faults = out_dir / "faults.toml"
+    faults.write_text(f'[[faults]]\nmessage = "{message}"\nkind = "{kind}"\nfrom_s = {f_from}\nto_s = {f_to}\n')
+    a, run = lockstep_run(ddct, out_dir, f"fault_{kind}", "launch", 40.0, 6.0, faults)
+    # Bus time starts at the plant's first cycle.
+    ft = hil.fault_timing(hil.bus_time(run.records), message, expected, f_from, 0.0)
+    print("fault timing in bus time:", json.dumps(ft))
+    before = [e for e in a["events"] if e["fault"] != "None" and e["t"] < f_from]
+    assert before == [], f"a fault code before the injection: {before}"
+    assert expected in {e["fault"] for e in a["events"]}, a["events"]
+    # Within 3 cycles of the last valid frame, the safe state in the same cycle, recovery within
+    # 100 ms of the first valid frame (0.5 ms: the float of the cycle arithmetic).
+    assert ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MS + 0.5, ft
+    assert ft["safe_state_after_detection_ms"] is not None and ft["safe_state_after_detection_ms"] <= 0.5, ft
+    assert ft["recovery_ms"] is not None and 0.0 < ft["recovery_ms"] <= RECOVER_MS + 0.5, ft
+
+
+def test_real_time_launch_over_vcan(ddct, out_dir):
+    """One launch on the daemons' own clocks: timing measured; behaviour judged when the guest ran."""
+    for attempt in (1, 2):
+        run = hil.run_bench(program="launch", pedal=50.0, seconds=6.0, out=out_dir, ddct=ddct, name=f"realtime_{attempt}")
+        a = hil.analyse(run.records, hil.target_rpm(50.0))
+        show(f"launch 50 % in real time (attempt {attempt})", a, run)
+        r = run.tcu_report
+        assert r is not None, run.tcu_stderr
+        # Under any load: the TCU ran to the end, answered, and never entered the safe state
+        # without a fault code saying why.
+        assert r["stopped_by"] == "shutdown" and r["computations"] > 0, r
+        silent = [e for e in safe_states(a) if e["fault"] == "None"]
+        assert silent == [], a["events"]
+        share = r["stall_total_s"] / max(r["wall_time_s"], 1e-9)
+        if share <= MAX_STALL_SHARE:
+            break
+        print(
+            f"NOT JUDGED (attempt {attempt}): the host stalled the TCU daemon for {r['stall_total_s']:.2f} s "
+            f"of {r['wall_time_s']:.2f} s ({share:.0%} > {MAX_STALL_SHARE:.0%}; longest {r['stall_longest_s']:.2f} s)"
+        )
+    else:
+        print("real-time behaviour not judged on this host: the guest did not get the CPU (see above); "
+              "the contract is judged in bus time by the lockstep tests")
+        return
+    la = a["launch"]
+    assert la is not None, "no launch seen on the bus"
+    assert la["lockup_s"] is not None and la["lockup_s"] < 4.0, la
+    assert "Drive" in {e["state"] for e in a["events"]}, a["events"]
+    assert a["latency_us"]["n"] > 100
