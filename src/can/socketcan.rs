@@ -70,44 +70,22 @@ impl SocketCanBus {
     /// else `SO_RCVBUF`, which the kernel caps at `net.core.rmem_max`), so a reader the host
     /// deschedules for a while (a recorder) loses no frame. Returns the size the kernel granted.
     pub fn set_recv_buffer(&self, bytes: usize) -> Result<usize, BusError> {
-        let fd = self.socket.as_raw_fd();
+        let io_err = |source| BusError::Io {
+            iface: self.iface.clone(),
+            source,
+        };
         let val = libc::c_int::try_from(bytes).unwrap_or(libc::c_int::MAX);
-        let set = |opt| {
-            // SAFETY: plain setsockopt on an open descriptor with a c_int value of its size.
-            unsafe {
-                libc::setsockopt(
-                    fd,
-                    libc::SOL_SOCKET,
-                    opt,
-                    (&val as *const libc::c_int).cast(),
-                    std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-                )
-            }
-        };
-        if set(libc::SO_RCVBUFFORCE) != 0 && set(libc::SO_RCVBUF) != 0 {
-            return Err(BusError::Io {
-                iface: self.iface.clone(),
-                source: io::Error::last_os_error(),
-            });
-        }
-        let mut got: libc::c_int = 0;
-        let mut len = std::mem::size_of::<libc::c_int>() as libc::socklen_t;
-        // SAFETY: getsockopt into a c_int of the length given.
-        let rc = unsafe {
-            libc::getsockopt(
-                fd,
-                libc::SOL_SOCKET,
-                libc::SO_RCVBUF,
-                (&mut got as *mut libc::c_int).cast(),
-                &mut len,
-            )
-        };
-        if rc != 0 {
-            return Err(BusError::Io {
-                iface: self.iface.clone(),
-                source: io::Error::last_os_error(),
-            });
-        }
+        self.socket
+            .set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUFFORCE, val)
+            .or_else(|_| {
+                self.socket
+                    .set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUF, val)
+            })
+            .map_err(io_err)?;
+        let got = self
+            .socket
+            .get_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUF)
+            .map_err(io_err)?;
         Ok(usize::try_from(got).unwrap_or(0))
     }
 

@@ -181,8 +181,12 @@ impl TcuReport {
 }
 
 /// A DCT_Sensors frame: the plant's sensor message, the TCU's sync.
+fn is_sync_frame(f: &CanFrame) -> bool {
+    f.standard_id() == Some(ids::DCT_SENSORS)
+}
+
 fn is_sync(f: &TimedFrame) -> bool {
-    f.frame.standard_id() == Some(ids::DCT_SENSORS)
+    is_sync_frame(&f.frame)
 }
 
 struct Shell<B: Bus> {
@@ -192,8 +196,6 @@ struct Shell<B: Bus> {
     time: TimeBase,
     /// Bus time, on a lockstep bench.
     bus_clock: Option<BusClock>,
-    /// Monotonic time of the last sync frame computed.
-    last_sync_mono: Option<Duration>,
     inbox: Vec<TimedFrame>,
     coalesced: u64,
     computations: u64,
@@ -229,7 +231,7 @@ impl<B: Bus> Shell<B> {
     fn on_receive(&mut self, rx: Received) -> Result<(), TcuDaemonError> {
         self.link.received(&rx)?;
         let at = if let Some(bc) = &mut self.bus_clock {
-            if rx.frame.standard_id() == Some(ids::DCT_SENSORS) {
+            if is_sync_frame(&rx.frame) {
                 bc.sync()
             } else {
                 bc.stamp()
@@ -291,7 +293,10 @@ impl<B: Bus> Shell<B> {
     /// Bus time: no sync frame computed for [`BUS_SILENCE`] of live time (`mono`: now) since
     /// the last one. Before the plant's first cycle the TCU waits (bus time has not begun).
     fn bus_silent(&self, mono: Duration) -> bool {
-        let Some(since) = self.last_sync_mono else {
+        let Some(since) = self
+            .last_sync
+            .map(|t| t.saturating_duration_since(self.start))
+        else {
             return false;
         };
         self.time.live(mono).saturating_sub(self.time.live(since)) >= BUS_SILENCE
@@ -371,7 +376,6 @@ impl<B: Bus> Shell<B> {
         }
         if sync.is_some() {
             self.last_sync = Some(t0);
-            self.last_sync_mono = Some(t0.saturating_duration_since(self.start));
             self.last_sync_at = sync;
         }
         if self.computations % 100 == 0 {
@@ -414,7 +418,6 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         start,
         time: TimeBase::new(),
         bus_clock: (config.clock == TcuClock::Bus).then(|| BusClock::new(CYCLE)),
-        last_sync_mono: None,
         inbox: Vec::new(),
         coalesced: 0,
         computations: 0,

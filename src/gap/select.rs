@@ -264,14 +264,14 @@ fn candidate(
     }
     // A torque reading error also changes the friction power the disk temperature is estimated
     // from: that class needs the disk replayed, not the base model's cached estimate.
-    let torque_only = group == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque;
+    let cached_disk = group == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque;
     let job = Job {
         classes: vec![class],
         form: classfit::Form::Flexible,
         recal,
         chans: fit_chans.clone(),
         wide: false,
-        cached_disk: torque_only,
+        cached_disk,
         max_iter: 25,
     };
     let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots);
@@ -304,7 +304,7 @@ fn candidate(
     // the autocorrelation of the candidate's residual (what is left once the term is fitted; the
     // base's residual carries the gap itself and would count a large structured error as a few
     // samples).
-    let (t, n_eff) = train_residuals(&model, s.train, &aff, torque_only);
+    let (t, n_eff) = train_residuals(&model, s.train, &aff, cached_disk);
     let (mut ll, mut neff) = (0.0, 0.0);
     for c in &aff {
         let i = c.index();
