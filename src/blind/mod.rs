@@ -353,6 +353,10 @@ pub struct Summary {
     /// Pairs: both named (%), at least one named (%).
     pub pairs_both_pct: f64,
     pub pairs_one_pct: f64,
+    /// Pairs whose weaker effect alone is at least 1× the noise: how many, and both named (%).
+    /// The criterion counts every pair; this tells a miss of the undetectable apart.
+    pub pairs_detectable: usize,
+    pub pairs_detectable_both_pct: f64,
     /// Class and sensor trials whose class led a set of more than two (count).
     pub in_large_set: usize,
     /// confusion[truth][first named finding] = count.
@@ -444,6 +448,10 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
     let nominal_rate = Rate::of(&nominal);
     let attributed = outside.iter().filter(|r| !r.correct).count();
     let both = pairs.iter().filter(|r| r.correct).count();
+    let detectable: Vec<&&TrialResult> = pairs
+        .iter()
+        .filter(|r| r.truth.effect_sizes.iter().all(|e| *e >= 1.0))
+        .collect();
     let correct_all: Vec<f64> = results
         .iter()
         .filter(|r| r.correct && !matches!(r.truth.kind, TruthKind::Nominal | TruthKind::Outside))
@@ -524,6 +532,11 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
         pairs_one_pct: pct(
             pairs.iter().filter(|r| r.pair_named >= 1).count(),
             pairs.len(),
+        ),
+        pairs_detectable: detectable.len(),
+        pairs_detectable_both_pct: pct(
+            detectable.iter().filter(|r| r.correct).count(),
+            detectable.len(),
         ),
         in_large_set: class_trials.iter().filter(|r| r.in_large_set).count(),
         confusion,
@@ -689,6 +702,12 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
         f1(s.pairs_both_pct),
         f1(s.pairs_one_pct),
         s.in_large_set
+    );
+    let _ = writeln!(
+        o,
+        "pairs whose weaker effect is at least 1x the noise: {}, both named {} %",
+        s.pairs_detectable,
+        f1(s.pairs_detectable_both_pct)
     );
     let _ = writeln!(o, "\nacceptance (issue 17):");
     for c in &s.acceptance {

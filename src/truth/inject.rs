@@ -168,15 +168,15 @@ pub fn range(t: Target) -> MagnitudeRange {
             C::ActuatorDeadTime => (0.01, 0.1, "s", false, SCALAR, "dead time before the lag"),
             C::ActuatorLag => (1.02, 6.0, "×", false, SCALAR, "factor on the lag τ (or 1/factor)"),
             C::ActuatorBacklash => (0.01, 0.5, "mm", false, SCALAR, "play width"),
-            C::ActuatorTransfer => (0.002, 0.3, "mm", true, SCALAR, "bearing minus measured position: gain part share·m at 6 mm, offset part ±(1 − share)·m"),
+            C::ActuatorTransfer => (0.002, 0.3, "mm", true, SHAPES, "bearing minus measured position: characteristic part share·m·f(x/6 mm), offset part ±(1 − share)·m"),
             C::SupportConduction => (8e-6, 1.5e-3, "1/s", false, SHAPES, "conduction rate to the supports at θ − θ_h = 280 K"),
             C::ConvectionSpeed => (0.01, 2.0, "1", false, SHAPES, "relative rise of convection from standstill to 240 rad/s"),
             C::HeatPartition => (0.003, 0.5, "1", false, SHAPES, "share of the plate's friction heat moved to the clutch disk at 30 kW"),
-            C::SensorTorque => (0.15, 20.0, "N·m", true, SCALAR, "torque reading error: gain part share·m at 100 N·m, offset part ±(1 − share)·m"),
-            C::SensorTorqueSkew => (0.0005, 0.1, "s", true, SCALAR, "torque channel delay"),
-            C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple time constant"),
-            C::SensorTemperature => (0.15, 20.0, "K", true, SCALAR, "thermocouple reading error: gain part share·m at 200 °C, offset part ±(1 − share)·m"),
-            C::SensorPosition => (0.004, 0.3, "mm", true, SCALAR, "position reading error: gain part share·m at 6 mm, offset part ±(1 − share)·m"),
+            C::SensorTorque => (0.15, 20.0, "N·m", true, SHAPES, "torque reading error: characteristic part share·m·f(T/100 N·m), offset part ±(1 − share)·m"),
+            C::SensorTorqueSkew => (0.0005, 0.1, "s", true, SCALAR, "torque channel delay (when positive, part of it a first-order filter's)"),
+            C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple response time: two first-order lags in series"),
+            C::SensorTemperature => (0.15, 20.0, "K", true, SHAPES, "thermocouple reading error: characteristic part share·m·f((θ − 25 °C)/175 K), offset part ±(1 − share)·m"),
+            C::SensorPosition => (0.004, 0.3, "mm", true, SHAPES, "position reading error: characteristic part share·m·f(x/6 mm), offset part ±(1 − share)·m"),
             _ => (0.0, 0.0, "", false, SCALAR, "not injected"),
         },
         Target::Outside(o) => match o {
@@ -262,6 +262,14 @@ impl Effect {
                 aux.push(("gain_share", rng.uniform()));
                 aux.push(("offset_sign", rng.sign()));
             }
+            Target::Class(C::SensorTemperatureLag) => {
+                // Sheath and junction: the first lag's share of the response time.
+                aux.push(("first_share", rng.range(0.5, 1.0)));
+            }
+            Target::Class(C::SensorTorqueSkew) => {
+                // Share of a positive delay made by an anti-aliasing filter's group delay.
+                aux.push(("filter_share", rng.range(0.0, 0.6)));
+            }
             Target::Class(C::SupportConduction) => {
                 aux.push(("w_cd", rng.range(0.3, 1.0)));
                 aux.push(("w_pp", rng.range(0.0, 1.0)));
@@ -309,13 +317,19 @@ impl Effect {
         self.magnitude * if self.anchor_top { f - 1.0 } else { f }
     }
 
-    /// Gain and offset of a linear error g·v + o: the gain makes `gain_share`·magnitude at
-    /// `v_ref`, the offset (1 − `gain_share`)·magnitude with the sign `offset_sign`.
-    pub fn gain_offset(&self, v_ref: f64) -> (f64, f64) {
-        let share = self.aux("gain_share");
-        let g = share * self.magnitude / v_ref;
-        let o = (1.0 - share) * self.magnitude * self.aux("offset_sign");
-        (g, o)
+    /// The reading error of a channel whose characteristic this effect bends: see
+    /// [`ReadingError`]; `v0` is where the characteristic part is zero, `v_ref` where it reaches
+    /// `gain_share`·magnitude.
+    pub fn reading_error(&self, v0: f64, v_ref: f64) -> ReadingError<'_> {
+        let f = |z: f64| self.form.eval(z);
+        let d = 0.05;
+        ReadingError {
+            effect: Some(self),
+            v0,
+            span: v_ref - v0,
+            slope0: (f(d) / d).clamp(0.0, 4.0),
+            slope1: ((1.0 - f(1.0 - d)) / d).clamp(0.0, 4.0),
+        }
     }
 
     /// One line for reports.
@@ -344,6 +358,42 @@ impl Effect {
             if aux.is_empty() { "" } else { "; " },
             aux
         )
+    }
+}
+
+/// A channel's reading error e(v) = share·m·g(z) + (1 − share)·m·sign, z = (v − v0)/(v_ref − v0):
+/// g is the effect's drawn monotone form on [0, 1] (a bent characteristic, not a straight gain),
+/// continued linearly with its end slopes outside it. No error when there is no effect.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ReadingError<'a> {
+    effect: Option<&'a Effect>,
+    v0: f64,
+    span: f64,
+    slope0: f64,
+    slope1: f64,
+}
+
+impl ReadingError<'_> {
+    /// The reading of a true value `v`.
+    #[inline]
+    pub fn read(&self, v: f64) -> f64 {
+        let Some(e) = self.effect else {
+            return v;
+        };
+        let z = (v - self.v0) / self.span;
+        let g = if z < 0.0 {
+            self.slope0 * z
+        } else if z > 1.0 {
+            1.0 + self.slope1 * (z - 1.0)
+        } else {
+            e.form.eval(z)
+        };
+        let share = e.aux("gain_share");
+        v + e.magnitude * (share * g + (1.0 - share) * e.aux("offset_sign"))
+    }
+
+    pub fn is_active(&self) -> bool {
+        self.effect.is_some()
     }
 }
 
@@ -376,4 +426,52 @@ pub fn z_speed(w: f64) -> f64 {
 #[inline]
 pub fn z_power(p: f64) -> f64 {
     p / 30e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sensor(form: Form, magnitude: f64, share: f64, sign: f64) -> Effect {
+        Effect {
+            target: Target::Class(ClassId::SensorTorque),
+            form,
+            magnitude,
+            unit: "N·m",
+            anchor_top: false,
+            aux: vec![("gain_share", share), ("offset_sign", sign)],
+        }
+    }
+
+    /// With the straight form z¹ the reading error is the linear gain and offset: share·m at the
+    /// reference, (1 − share)·m everywhere; continued linearly beyond the reference.
+    #[test]
+    fn a_straight_characteristic_is_a_gain_and_an_offset() {
+        let e = sensor(Form::Power { p: 1.0 }, 4.0, 0.75, -1.0);
+        let r = e.reading_error(0.0, 100.0);
+        for v in [-20.0, 0.0, 37.0, 100.0, 150.0] {
+            let expected = v + 0.03 * v - 1.0;
+            assert!((r.read(v) - expected).abs() < 1e-12, "v={v}: {}", r.read(v));
+        }
+    }
+
+    /// A bent characteristic (z³) makes the same error at the ends but not between them: at
+    /// half scale it is an eighth of the characteristic part, not a half.
+    #[test]
+    fn a_bent_characteristic_is_not_a_gain() {
+        let e = sensor(Form::Power { p: 3.0 }, 8.0, 1.0, 1.0);
+        let r = e.reading_error(25.0, 200.0);
+        assert!((r.read(200.0) - 208.0).abs() < 1e-12);
+        assert!((r.read(25.0) - 25.0).abs() < 1e-12);
+        assert!((r.read(112.5) - (112.5 + 1.0)).abs() < 1e-12);
+        // Beyond the reference: the end slope (3 per unit z, clamped at 4), not a flat error.
+        let beyond = r.read(200.0 + 17.5) - (200.0 + 17.5);
+        let slope = (1.0 - 0.95f64.powi(3)) / 0.05;
+        assert!(
+            (beyond - 8.0 * (1.0 + slope * 0.1)).abs() < 1e-9,
+            "{beyond}"
+        );
+        assert!(!ReadingError::default().is_active());
+        assert_eq!(ReadingError::default().read(3.5), 3.5);
+    }
 }

@@ -4,7 +4,7 @@
 //! then noise and quantisation in a separate pass ([`measure`]).
 
 use super::experiments::{RecordDef, SAMPLE_S};
-use super::inject::{self, Effect, OutsideKind, Target};
+use super::inject::{self, Effect, OutsideKind, ReadingError, Target};
 use super::physics::Physics;
 use super::rng::{derive, Xoshiro};
 use crate::gap::class::ClassId;
@@ -127,7 +127,7 @@ struct Discrete {
     /// Time since each clutch closed (s).
     t_eng: [f64; 2],
     /// Thermocouples of pp1, pp2, cd.
-    tc: [f64; 3],
+    tc: [[f64; 2]; 3],
     /// Friction drift (relative).
     drift: f64,
 }
@@ -154,15 +154,18 @@ struct Fx<'a> {
     dead_time: f64,
     lag_factor: f64,
     backlash: f64,
-    transfer: (f64, f64),
+    transfer: ReadingError<'a>,
     support: Option<&'a Effect>,
     conv: Option<&'a Effect>,
     partition: Option<&'a Effect>,
-    s_torque: (f64, f64),
+    s_torque: ReadingError<'a>,
+    /// Torque channel: pure delay and first-order filter time constant.
     skew: f64,
-    tc_lag: f64,
-    s_temp: (f64, f64),
-    s_pos: (f64, f64),
+    torque_filter: f64,
+    /// Thermocouples: two first-order lags in series.
+    tc_lag: [f64; 2],
+    s_temp: ReadingError<'a>,
+    s_pos: ReadingError<'a>,
     judder: Option<&'a Effect>,
     drift: Option<&'a Effect>,
     cross: Option<&'a Effect>,
@@ -196,18 +199,27 @@ impl<'a> Fx<'a> {
                         f.lag_factor = if e.aux("faster") > 0.5 { 1.0 / k } else { k };
                     }
                     C::ActuatorBacklash => f.backlash = e.magnitude.max(0.0),
-                    C::ActuatorTransfer => f.transfer = e.gain_offset(6.0),
+                    C::ActuatorTransfer => f.transfer = e.reading_error(0.0, 6.0),
                     C::SupportConduction => f.support = Some(e),
                     C::ConvectionSpeed => f.conv = Some(e),
                     C::HeatPartition => f.partition = Some(e),
-                    C::SensorTorque => f.s_torque = e.gain_offset(100.0),
-                    C::SensorTorqueSkew => f.skew = e.magnitude,
-                    C::SensorTemperatureLag => f.tc_lag = e.magnitude.max(0.0),
-                    C::SensorTemperature => {
-                        let (g, o) = e.gain_offset(200.0 - 25.0);
-                        f.s_temp = (g, o);
+                    C::SensorTorque => f.s_torque = e.reading_error(0.0, 100.0),
+                    C::SensorTorqueSkew => {
+                        let q = if e.magnitude > 0.0 {
+                            e.aux("filter_share")
+                        } else {
+                            0.0
+                        };
+                        f.torque_filter = q * e.magnitude;
+                        f.skew = e.magnitude - f.torque_filter;
                     }
-                    C::SensorPosition => f.s_pos = e.gain_offset(6.0),
+                    C::SensorTemperatureLag => {
+                        let m = e.magnitude.max(0.0);
+                        let s = e.aux("first_share");
+                        f.tc_lag = [s * m, (1.0 - s) * m];
+                    }
+                    C::SensorTemperature => f.s_temp = e.reading_error(25.0, 200.0),
+                    C::SensorPosition => f.s_pos = e.reading_error(0.0, 6.0),
                     _ => {}
                 },
                 Target::Outside(o) => match o {
@@ -264,8 +276,7 @@ impl Rig<'_> {
         } else {
             xa
         };
-        let (g, o) = self.fx.transfer;
-        x + g * x + o
+        self.fx.transfer.read(x)
     }
 
     /// Derivative of the state at time `t` with the actuator requests `r`.
@@ -420,7 +431,7 @@ pub fn simulate(
         ..State::default()
     };
     let mut d = Discrete {
-        tc: [rec.theta0_c; 3],
+        tc: [[rec.theta0_c; 2]; 3],
         ..Discrete::default()
     };
     let mut drift_rng = rig
@@ -455,14 +466,13 @@ pub fn simulate(
         if j % SUB == 0 {
             let tk = (j / SUB) as f64 * SAMPLE_S;
             sig.time.push(tk);
-            let (g, o) = rig.fx.s_pos;
             for i in 0..2 {
-                sig.x[i].push(s.xa[i] + g * s.xa[i] + o);
+                sig.x[i].push(rig.fx.s_pos.read(s.xa[i]));
                 sig.wc[i].push(0.0);
                 sig.xreq[i].push(rec.request(i, tk));
-                sig.pp[i].push(d.tc[i]);
+                sig.pp[i].push(d.tc[i][1]);
             }
-            sig.cd.push(d.tc[2]);
+            sig.cd.push(d.tc[2][1]);
             sig.wf.push(w);
             sig.wout.push(0.0);
             sig.th.push(rec.housing_c(tk));
@@ -483,7 +493,8 @@ pub fn simulate(
             d.t_eng[i] = if out.beta[i] { d.t_eng[i] + h } else { 0.0 };
         }
         for (k, j5) in [0usize, 1, 4].into_iter().enumerate() {
-            d.tc[k] = lag_step(d.tc[k], s.th[j5], h, tc_lag);
+            d.tc[k][0] = lag_step(d.tc[k][0], s.th[j5], h, tc_lag[0]);
+            d.tc[k][1] = lag_step(d.tc[k][1], d.tc[k][0], h, tc_lag[1]);
         }
         if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
             if (j + 1) % SUB == 0 {
@@ -492,9 +503,19 @@ pub fn simulate(
             }
         }
     }
-    // Torque channel: skew, then gain and offset.
-    let (g, o) = rig.fx.s_torque;
+    // Torque channel: filter, skew, then the reading error.
+    let s_torque = rig.fx.s_torque;
     let skew_steps = rig.fx.skew / h;
+    let tau_f = rig.fx.torque_filter;
+    if tau_f > 0.0 {
+        for v in t_ms.iter_mut() {
+            let mut y = v[0];
+            for x in v.iter_mut() {
+                y = lag_step(y, *x, h, tau_f);
+                *x = y;
+            }
+        }
+    }
     for (i, v) in t_ms.iter().enumerate() {
         sig.torque[i] = (0..n)
             .map(|k| {
@@ -506,16 +527,16 @@ pub fn simulate(
                 } else {
                     v[a]
                 };
-                tq + g * tq + o
+                s_torque.read(tq)
             })
             .collect();
     }
-    // Thermocouples: gain and offset (about 25 °C).
-    let (g, o) = rig.fx.s_temp;
-    if g != 0.0 || o != 0.0 {
+    // Thermocouples: the reading error.
+    let s_temp = rig.fx.s_temp;
+    if s_temp.is_active() {
         let f = |v: &mut Vec<f64>| {
             for x in v.iter_mut() {
-                *x += g * (*x - 25.0) + o;
+                *x = s_temp.read(*x);
             }
         };
         f(&mut sig.pp[0]);
