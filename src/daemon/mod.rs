@@ -83,6 +83,10 @@ impl Periodic {
     }
 }
 
+/// Frames a daemon reads without waiting per wake-up (a cycle of every input many times over):
+/// under a flood the rest waits for the next wake-up, and the cycle's work goes on.
+pub const DRAIN_BUDGET: usize = 64;
+
 /// Margin before a deadline below which [`sleep_until_precise`] blocks instead of using tokio's
 /// timer (whose granularity is 1 ms).
 pub const PRECISE_MARGIN: Duration = Duration::from_micros(1500);

@@ -16,7 +16,9 @@
 //! - [`Pacing::Virtual`]: as fast as possible in simulated time (the in-process bus's
 //!   `ManualClock`, if given, follows the simulated time), yielding to other tasks every cycle.
 //!
-//! Time mapping: simulated time = (wall time − start) · speed. The candump tap (`log`) records
+//! Time mapping: simulated time = (monotonic time − start) · speed; a received frame's kernel
+//! timestamp (wall clock) is placed on that base by its age at reading ([`TimeBase`]), so a step
+//! of the system clock neither holds the TCU's commands back nor replays them early. The candump tap (`log`) records
 //! every frame sent and received: at speed 1 with the real wall-clock time of sending (received
 //! frames with their kernel timestamps); at any other speed on the simulated time axis (start +
 //! simulated time: sent frames at their due time, received ones at their scaled arrival time), so
@@ -24,7 +26,8 @@
 //! resolves (SIGINT/SIGTERM in the CLI) or after `duration` of simulated time; the log is flushed
 //! either way.
 
-use super::{sleep_until_precise, wall_clock, Link, LinkError, LoopStats, Periodic};
+use super::clock::TimeBase;
+use super::{sleep_until_precise, wall_clock, Link, LinkError, LoopStats, Periodic, DRAIN_BUDGET};
 use crate::can::{Bus, BusError, ManualClock, Received};
 use crate::model::effects::EffectSet;
 use crate::plant::core::CYCLE;
@@ -171,21 +174,50 @@ fn fmt_opt(v: Option<f64>) -> String {
 struct Shell<B: Bus> {
     link: Link<B>,
     plant: Plant,
+    /// Wall clock at the start: the origin of the log's time axis only.
     start_wall: Duration,
+    /// Monotonic clock at the start: the origin of the simulated time in real-time pacing.
+    start: Instant,
+    time: TimeBase,
     speed: f64,
     lockstep_timeouts: u64,
     pending: Vec<Received>,
 }
 
 impl<B: Bus> Shell<B> {
-    /// Simulated time of a wall timestamp (since the Unix epoch).
-    fn to_sim(&self, wall: Duration) -> Duration {
-        wall.saturating_sub(self.start_wall).mul_f64(self.speed)
+    /// Monotonic time since the start.
+    fn mono(&self) -> Duration {
+        Instant::now().saturating_duration_since(self.start)
     }
 
-    /// Log timestamp (start + simulated time) of a wall timestamp.
-    fn log_time(&self, wall: Duration) -> Duration {
-        self.start_wall + self.to_sim(wall)
+    /// Restarts both clocks (the pacing loop begins now).
+    fn start_clocks(&mut self) {
+        self.start = Instant::now();
+        self.start_wall = wall_clock();
+        self.time = TimeBase::new();
+    }
+
+    /// Simulated arrival time of a frame with kernel (wall-clock) timestamp `stamp`, read now.
+    fn to_sim(&self, stamp: Duration) -> Duration {
+        self.time
+            .arrival(stamp, wall_clock(), self.mono())
+            .mul_f64(self.speed)
+    }
+
+    /// The receive queue was found empty now.
+    fn queue_empty(&mut self) {
+        let now = self.mono();
+        self.time.queue_empty(now);
+    }
+
+    /// Log timestamp of a frame received with kernel timestamp `stamp` at simulated time `sim`:
+    /// the kernel timestamp at speed 1 (as candump shows it), start + `sim` otherwise.
+    fn log_time(&self, stamp: Duration, sim: Duration) -> Duration {
+        if self.speed == 1.0 {
+            stamp
+        } else {
+            self.start_wall + sim
+        }
     }
 
     /// Log timestamp of a frame sent now with simulated due time `due`: the wall clock at speed 1,
@@ -249,6 +281,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         link,
         plant: Plant::new(config.plant),
         start_wall: wall_clock(),
+        start: Instant::now(),
+        time: TimeBase::new(),
         speed,
         lockstep_timeouts: 0,
         pending: Vec::new(),
@@ -324,8 +358,8 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
     stats: &mut LoopStats,
 ) -> Result<&'static str, PlantDaemonError> {
     let period = CYCLE.div_f64(shell.speed);
-    let start = Instant::now();
-    shell.start_wall = wall_clock();
+    shell.start_clocks();
+    let start = shell.start;
     let mut timer = Periodic::new(start, period);
     // Frames a fault delays past their cycle, sorted by due time.
     let mut later: Vec<OutFrame> = Vec::new();
@@ -343,14 +377,19 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                 if duration.is_some_and(|d| sim_now > d) {
                     return Ok("duration");
                 }
-                // Frames that are already waiting (received before this deadline).
-                loop {
+                // Frames that are already waiting (received before this deadline), at most a
+                // budget: under a flood the rest is read between deadlines.
+                for _ in 0..DRAIN_BUDGET {
                     match shell.link.bus.try_recv() {
                         Ok(Some(rx)) => {
-                            let (st, lt) = (shell.to_sim(rx.timestamp), shell.log_time(rx.timestamp));
+                            let st = shell.to_sim(rx.timestamp);
+                            let lt = shell.log_time(rx.timestamp, st);
                             shell.on_receive(rx, st, lt)?;
                         }
-                        Ok(None) => break,
+                        Ok(None) => {
+                            shell.queue_empty();
+                            break;
+                        }
                         Err(e) => { shell.recv_error(e)?; break; }
                     }
                 }
@@ -383,7 +422,8 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
             rx = shell.link.bus.recv() => {
                 match rx {
                     Ok(rx) => {
-                        let (st, lt) = (shell.to_sim(rx.timestamp), shell.log_time(rx.timestamp));
+                        let st = shell.to_sim(rx.timestamp);
+                        let lt = shell.log_time(rx.timestamp, st);
                         shell.on_receive(rx, st, lt)?;
                     }
                     Err(e) => shell.recv_error(e)?,
@@ -401,8 +441,8 @@ async fn run_lockstep<B: Bus, S: Future<Output = ()>>(
     stats: &mut LoopStats,
 ) -> Result<&'static str, PlantDaemonError> {
     let speed = shell.speed;
-    let start = Instant::now();
-    shell.start_wall = wall_clock();
+    shell.start_clocks();
+    let start = shell.start;
     let mut cycle: u64 = 0;
     loop {
         let sim_now = CYCLE * u32::try_from(cycle).unwrap_or(u32::MAX);

@@ -27,7 +27,7 @@
 //!   the candump tap (`log`) is flushed either way.
 
 use super::clock::{BusClock, TimeBase};
-use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic};
+use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic, DRAIN_BUDGET};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
 use crate::tcu::inputs::InputCounters;
@@ -46,9 +46,6 @@ pub const CYCLE: Duration = Duration::from_millis(10);
 
 /// Frames received this soon after the sync frame belong to the same plant cycle.
 const BURST: Duration = Duration::from_millis(2);
-
-/// Frames read without waiting per wake-up (a cycle of all four inputs many times over).
-pub const DRAIN_BUDGET: usize = 64;
 
 /// Computations per wake-up at most (a burst of sync frames delayed by the scheduler).
 pub const MAX_SYNCS_PER_WAKE: usize = 4;

@@ -20,6 +20,8 @@ Two kinds of run (scripts/launch.py):
 from __future__ import annotations
 
 import json
+import threading
+import time
 
 import launch as hil
 
@@ -101,6 +103,82 @@ def test_faults_are_detected_and_recovered(ddct, out_dir, message, kind, expecte
     assert ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MS + 0.5, ft
     assert ft["safe_state_after_detection_ms"] is not None and ft["safe_state_after_detection_ms"] <= 0.5, ft
     assert ft["recovery_ms"] is not None and 0.0 < ft["recovery_ms"] <= RECOVER_MS + 0.5, ft
+
+
+def step_clock(seconds: float, errors: list):
+    """Steps the system clock (CLOCK_REALTIME) by `seconds`; the guest of scripts/vcan-run may."""
+    try:
+        time.clock_settime(time.CLOCK_REALTIME, time.clock_gettime(time.CLOCK_REALTIME) + seconds)
+    except OSError as e:
+        errors.append(f"stepping the clock needs CAP_SYS_TIME (run the suite through scripts/vcan-run): {e}")
+
+
+@pytest.mark.parametrize("step_s", [-3.0, 3.0])
+def test_a_clock_step_during_a_timeout_changes_nothing(ddct, out_dir, step_s):
+    """Real time, the daemons on their own clocks: ENG_Status stops for 2 s and the system clock is
+    stepped by ±3 s in the middle of it. Both daemons keep time on CLOCK_MONOTONIC (kernel receive
+    timestamps placed by their age), so the TCU detects the stop, recovers once ENG_Status is back
+    (a wall-clock time base stayed in the safe state for good after a step back), and the plant
+    goes on applying its commands. Read in log order: the log's kernel timestamps jump with the
+    clock."""
+    f_from, f_to = 3.0, 5.0
+    faults = out_dir / "faults.toml"
+    faults.write_text(f'[[faults]]\nmessage = "ENG_Status"\nkind = "stop"\nfrom_s = {f_from}\nto_s = {f_to}\n')
+    # The plant starts about 0.6 s after run_bench: the step lands about 1 s into the stop.
+    errors: list = []
+    stepper = threading.Timer(4.6, step_clock, args=(step_s, errors))
+    stepper.start()
+    try:
+        run = hil.run_bench(program="launch", pedal=40.0, seconds=8.0, out=out_dir, ddct=ddct, faults=faults,
+                            name=f"clock_step_{step_s:+.0f}")
+    finally:
+        stepper.join()
+    assert not errors, errors[0]
+    rows = hil.rows_of(run.records)
+    a = {"events": hil.fault_events(rows)}
+    print(f"\n== clock stepped {step_s:+.0f} s during an ENG_Status stop: events {json.dumps(a['events'])}")
+    r, p = run.tcu_report, run.plant_report
+    assert r is not None, run.tcu_stderr
+    assert p is not None, run.plant_stderr
+    print("TCU:", {k: r.get(k) for k in ("computations", "stall_total_s", "wall_time_s", "stopped_by")})
+    print("plant:", {k: p.get(k) for k in ("cycles", "frames_received", "deadline_misses", "stopped_by")})
+    # The step is in the log: consecutive frames' kernel timestamps jump by the step.
+    ts = [rec[0] for rec in run.records]
+    jumps = [b - a for a, b in zip(ts, ts[1:]) if abs(b - a) > 2.0]
+    assert len(jumps) == 1 and abs(jumps[0] - step_s) < 1.0, f"the clock step is not in the log: {jumps}"
+    k_step = next(k for k in range(1, len(ts)) if abs(ts[k] - ts[k - 1]) > 2.0)
+    # Under any load: both daemons ran on, the plant to its duration with every send accepted,
+    # the TCU computing and commanding after the step, and the TCU not stuck: after the step (in
+    # log order) it is again out of the safe state with no fault code.
+    assert p["stopped_by"] == "duration" and p["send_errors"] == 0, p
+    assert r["stopped_by"] == "shutdown", r
+    cmd = hil.frame_id("TCU_ClutchCmd")
+    after = sum(1 for rec in run.records[k_step:] if rec[2] == cmd)
+    assert after > 50, f"{after} TCU_ClutchCmd frames after the step"
+    status = hil.frame_id("TCU_Status")
+    msg = next(m for m in hil.ddct_can.load_dbc().messages if m.frame_id == status)
+    safe = hil.choice("TCU_Status", "TcuState", "SafeState")
+    none = hil.choice("TCU_Status", "FaultCode", "None")
+    states = [
+        (k, v["TcuState"], v["FaultCode"])
+        for k, rec in enumerate(run.records)
+        if rec[2] == status
+        for v in [msg.decode(bytes(rec[4]), decode_choices=False)]
+    ]
+    normal_after = [k for k, st, fc in states if k > k_step and st != safe and fc == none]
+    assert normal_after, f"the TCU never left the safe state after the clock step: {a['events'][-5:]}"
+    # Judged only when the guest ran (as the real-time launch): the stop detected and the step
+    # inside the safe state it caused.
+    share = r["stall_total_s"] / max(r["wall_time_s"], 1e-9)
+    if share > MAX_STALL_SHARE:
+        print(f"timing NOT JUDGED: the host stalled the TCU for {share:.0%} of the run")
+        return
+    assert "EngStatusTimeout" in {e["fault"] for e in a["events"]}, a["events"]
+    in_safe = [k for k, st, _ in states if st == safe]
+    assert in_safe and in_safe[0] < k_step <= in_safe[-1], "the step did not fall inside the stop"
+    # The plant applied the TCU's commands throughout (a wall-clock plant held them back for the
+    # 3 s of a forward step: an input timeout).
+    assert p["plant"]["input_timeouts"].get("TCU_ClutchCmd", 0) == 0, p["plant"]["input_timeouts"]
 
 
 def test_real_time_launch_over_vcan(ddct, out_dir):
