@@ -76,9 +76,18 @@ pub struct InputsCfg {
     pub max_engine_rate_rpm_per_s: f64,
     pub max_out_rate_rpm_per_s: f64,
     pub max_shaft_mismatch_radps: f64,
+    /// Output-shaft speed above which a lever move into D or R is refused (FaultCode
+    /// ImplausibleLever; the previous lever stays in force).
+    #[serde(default = "default_max_lever_engage_out_rpm")]
+    pub max_lever_engage_out_rpm: f64,
     pub housing_temp_min_c: f64,
     pub housing_temp_max_c: f64,
     pub max_position_mm: f64,
+}
+
+/// About 6 km/h (walking pace) with the default wheel radius (0.31 m) and final drive (3.6).
+fn default_max_lever_engage_out_rpm() -> f64 {
+    185.0
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -338,6 +347,12 @@ impl TcuConfig {
             i.max_shaft_mismatch_radps,
             1.0,
             1e4,
+        )?;
+        range(
+            "inputs.max_lever_engage_out_rpm",
+            i.max_lever_engage_out_rpm,
+            0.0,
+            2000.0,
         )?;
         range(
             "inputs.housing_temp_min_c",

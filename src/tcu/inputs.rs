@@ -18,6 +18,7 @@
 //! Pure: the arrival time of each frame is an argument.
 
 use super::config::InputsCfg;
+use super::sender::SenderMonitor;
 use crate::can::codec::CodecError;
 use crate::can::e2e::{E2eChecker, E2eConfig, E2eError};
 use crate::can::messages::{
@@ -201,6 +202,10 @@ pub struct InputMonitor {
     start: Duration,
     meas: Measurements,
     seen: [bool; 4],
+    /// CRC-valid frames per input, for a second sender on its id.
+    senders: [SenderMonitor; 4],
+    /// A lever move into D or R refused at speed (the previous lever stays in force).
+    lever_refused: bool,
 }
 
 impl InputMonitor {
@@ -220,7 +225,19 @@ impl InputMonitor {
             start,
             meas: Measurements::default(),
             seen: [false; 4],
+            senders: Default::default(),
+            lever_refused: false,
         }
+    }
+
+    /// A lever move into D or R is being refused (the vehicle is moving).
+    pub fn lever_refused(&self) -> bool {
+        self.lever_refused
+    }
+
+    /// Whether a second sender is evident on an input's id at `now`.
+    pub fn second_sender(&self, input: Input, now: Duration) -> bool {
+        self.senders[input.index()].evident(now, input.cycle())
     }
 
     pub fn measurements(&self) -> &Measurements {
@@ -282,7 +299,15 @@ impl InputMonitor {
     fn check(&mut self, input: Input, f: &TimedFrame) -> Result<(), FaultCode> {
         let (_, crc_code, counter_code) = input.codes();
         let data = f.frame.bytes();
-        match self.checker.check(f.at, f.frame.raw_id(), data) {
+        let e2e = self.checker.check(f.at, f.frame.raw_id(), data);
+        if !matches!(e2e, Err(E2eError::BadCrc { .. })) {
+            let counter_error = matches!(
+                e2e,
+                Err(E2eError::CounterSkipped { .. } | E2eError::CounterRepeated { .. })
+            );
+            self.senders[input.index()].frame(f.at, counter_error, input.cycle());
+        }
+        match e2e {
             Ok(()) => {}
             Err(E2eError::CounterSkipped { skipped, .. })
                 if skipped <= self.cfg.max_counter_skip => {}
@@ -317,7 +342,16 @@ impl InputMonitor {
                 let m = DrvPedal::decode(data).map_err(|e| decode_code(&e, input))?;
                 self.meas.pedal = (m.accel_pedal / 100.0).clamp(0.0, 1.0);
                 self.meas.brake = m.brake_switch;
-                self.meas.lever = m.gear_lever;
+                // Into D or R only below walking pace: a moving vehicle keeps its lever (a
+                // spoofed or mistaken R at speed is refused and reported, not obeyed).
+                let engages = matches!(m.gear_lever, GearLever::D | GearLever::R)
+                    && m.gear_lever != self.meas.lever;
+                let moving = self.seen[Input::Sensors.index()]
+                    && self.meas.w_out.abs() > cfg.max_lever_engage_out_rpm * RPM;
+                self.lever_refused = engages && moving;
+                if !self.lever_refused {
+                    self.meas.lever = m.gear_lever;
+                }
             }
             Input::Sensors => {
                 let m = DctSensors::decode(data).map_err(|e| decode_code(&e, input))?;
@@ -366,11 +400,17 @@ impl InputMonitor {
         let mut missing = None;
         let mut all_fresh = true;
         let mut recovered = true;
+        let mut spoofed = None;
         for input in INPUTS {
             let c = &self.ch[input.index()];
             let reference = c.last_valid.unwrap_or(self.start);
             let limit = input.cycle() * self.cfg.timeout_cycles;
-            let stale = now.saturating_sub(reference) >= limit;
+            // A second sender makes the input's values untrustworthy: as good as missing.
+            let second = self.second_sender(input, now);
+            if second && spoofed.is_none() {
+                spoofed = Some(input);
+            }
+            let stale = now.saturating_sub(reference) >= limit || second;
             if stale {
                 all_fresh = false;
                 if missing.is_none() {
@@ -383,7 +423,11 @@ impl InputMonitor {
         }
         let fault = missing.map(|(input, _)| {
             let c = &self.ch[input.index()];
-            c.cause.unwrap_or(input.codes().0)
+            if spoofed == Some(input) {
+                FaultCode::SecondSender
+            } else {
+                c.cause.unwrap_or(input.codes().0)
+            }
         });
         Health {
             all_fresh,
@@ -507,5 +551,122 @@ mod tests {
         assert_eq!(h.missing.map(|x| x.0), Some(Input::EngStatus));
         assert_eq!(h.fault, Some(FaultCode::EngStatusCounter));
         assert!(!h.all_fresh && !h.recovered);
+    }
+
+    fn frame(tx: &mut E2eSender, id: u16, mut d: [u8; 8]) -> CanFrame {
+        tx.protect(id, &mut d);
+        CanFrame::standard(id, &d).unwrap()
+    }
+
+    fn pedal(tx: &mut E2eSender, lever: GearLever) -> CanFrame {
+        let d = DrvPedal {
+            accel_pedal: 100.0,
+            gear_lever: lever,
+            ..Default::default()
+        }
+        .encode()
+        .unwrap();
+        frame(tx, ids::DRV_PEDAL, d)
+    }
+
+    fn sensors(tx: &mut E2eSender, out_rpm: f64) -> CanFrame {
+        let d = DctSensors {
+            out_shaft_speed: out_rpm,
+            housing_temp: 40.0,
+            ..Default::default()
+        }
+        .encode()
+        .unwrap();
+        frame(tx, ids::DCT_SENSORS, d)
+    }
+
+    fn actuators(tx: &mut E2eSender) -> CanFrame {
+        let d = DctActuators::default().encode().unwrap();
+        frame(tx, ids::DCT_ACTUATORS, d)
+    }
+
+    fn at(m: &mut InputMonitor, t: u64, f: CanFrame) -> Verdict {
+        m.accept(&TimedFrame {
+            at: ms(t),
+            frame: f,
+        })
+    }
+
+    /// Moving at 600 rpm of output shaft (about 20 km/h): a lever move N → R is refused (the
+    /// frame itself is accepted, the lever stays N); below walking pace it is obeyed.
+    #[test]
+    fn a_lever_move_into_r_at_speed_is_refused() {
+        let mut m = monitor();
+        let (mut ts, mut tp) = (E2eSender::new(), E2eSender::new());
+        assert_eq!(at(&mut m, 10, sensors(&mut ts, 600.0)), Verdict::Accepted);
+        assert_eq!(
+            at(&mut m, 10, pedal(&mut tp, GearLever::N)),
+            Verdict::Accepted
+        );
+        assert_eq!(
+            at(&mut m, 20, pedal(&mut tp, GearLever::R)),
+            Verdict::Accepted
+        );
+        assert_eq!(m.measurements().lever, GearLever::N);
+        assert!(m.lever_refused());
+        // Back to N: nothing refused any more.
+        at(&mut m, 30, pedal(&mut tp, GearLever::N));
+        assert!(!m.lever_refused());
+        // Slowing down to 100 rpm (2 500 rpm/s), then R again: obeyed.
+        let mut rpm = 600.0;
+        let mut t = 20;
+        while rpm > 100.0 {
+            rpm -= 25.0;
+            t += 10;
+            assert_eq!(
+                at(&mut m, t, sensors(&mut ts, rpm)),
+                Verdict::Accepted,
+                "{rpm}"
+            );
+        }
+        at(&mut m, t + 5, pedal(&mut tp, GearLever::R));
+        assert_eq!(m.measurements().lever, GearLever::R);
+        assert!(!m.lever_refused());
+    }
+
+    /// A second node sending DRV_Pedal with valid CRCs and its own counter, 3 ms after the real
+    /// driver: the input is taken as missing with FaultCode SecondSender within a window of ten
+    /// cycles, and is healthy again a window after the second node stops.
+    #[test]
+    fn a_second_pedal_sender_is_named() {
+        let mut m = monitor();
+        let (mut te, mut ts, mut ta, mut tp, mut spoof) = (
+            E2eSender::new(),
+            E2eSender::new(),
+            E2eSender::new(),
+            E2eSender::new(),
+            E2eSender::new(),
+        );
+        // The spoofer's counter runs 8 ahead of the driver's.
+        for _ in 0..8 {
+            pedal(&mut spoof, GearLever::R);
+        }
+        let mut first = None;
+        for k in 1..=60u64 {
+            let t = 10 * k;
+            at(&mut m, t, eng(&mut te, 800.0));
+            at(&mut m, t, sensors(&mut ts, 0.0));
+            at(&mut m, t, actuators(&mut ta));
+            at(&mut m, t, pedal(&mut tp, GearLever::N));
+            if k <= 30 {
+                at(&mut m, t + 3, pedal(&mut spoof, GearLever::R));
+            }
+            let h = m.health(ms(t + 4));
+            if k < 30 && h.fault == Some(FaultCode::SecondSender) && first.is_none() {
+                first = Some(t + 3);
+                assert_eq!(h.missing.map(|x| x.0), Some(Input::Pedal));
+                assert!(!h.all_fresh);
+            }
+            if k == 50 {
+                assert_eq!(h.fault, None, "the second sender stopped at 303 ms");
+                assert!(h.all_fresh);
+            }
+        }
+        assert!(first.is_some_and(|t| t <= 100), "found at {first:?}");
     }
 }

@@ -28,6 +28,7 @@ pub mod config;
 pub mod control;
 pub mod estimator;
 pub mod inputs;
+pub mod sender;
 pub mod strategy;
 
 pub use config::{TcuConfig, TcuConfigError};
@@ -315,6 +316,8 @@ impl Tcu {
             }
         } else if self.nonfinite {
             FaultCode::InternalNonFinite
+        } else if self.inputs.lever_refused() {
+            FaultCode::ImplausibleLever
         } else if self.limit {
             FaultCode::ClutchOverTempLimit
         } else if self.warn {

@@ -1,0 +1,108 @@
+//! A second sender on an input id (issue 12: spoofing). E2E (DESIGN.md §3) catches a corrupted
+//! or frozen sender, not a second node that sends the same message with a valid CRC: if it keeps
+//! its own counter, the frames of the two arrive interleaved, twice as often as the message's
+//! cycle, and their counters break the sequence (repeats and jumps) — and a node that follows the
+//! real counter makes the real sender's frames repeat its counters. Either way the id shows
+//! **more CRC-valid frames than its cycle allows together with counter errors**.
+//!
+//! Rule: within the last [`WINDOW_CYCLES`] cycles of the message, at least
+//! [`MIN_FRAMES_PER_WINDOW`] CRC-valid frames (1.5 per cycle; one sender gives one, and a
+//! scheduling burst of a late sender does not raise the average over the window) of which at
+//! least [`MIN_COUNTER_ERRORS`] broke the counter sequence. The condition ends when the window no
+//! longer holds it. Pure: times are arguments.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+/// Cycles of the sliding window.
+pub const WINDOW_CYCLES: u32 = 10;
+/// CRC-valid frames in the window that a single sender cannot produce.
+pub const MIN_FRAMES_PER_WINDOW: usize = 15;
+/// Counter errors in the window that a double rate must come with.
+pub const MIN_COUNTER_ERRORS: usize = 3;
+
+/// The CRC-valid frames of one id over the last window.
+#[derive(Debug, Clone, Default)]
+pub struct SenderMonitor {
+    /// Arrival and whether the frame broke the counter sequence.
+    frames: VecDeque<(Duration, bool)>,
+}
+
+impl SenderMonitor {
+    /// A CRC-valid frame arrived at `at`; `counter_error`: it repeated or jumped the counter.
+    /// `cycle` is the message's cycle time. Returns whether a second sender is evident.
+    pub fn frame(&mut self, at: Duration, counter_error: bool, cycle: Duration) -> bool {
+        let window = cycle * WINDOW_CYCLES;
+        while self
+            .frames
+            .front()
+            .is_some_and(|(t, _)| at.saturating_sub(*t) >= window)
+        {
+            self.frames.pop_front();
+        }
+        self.frames.push_back((at, counter_error));
+        self.evident(at, cycle)
+    }
+
+    /// Whether a second sender is evident at `now`.
+    pub fn evident(&self, now: Duration, cycle: Duration) -> bool {
+        let window = cycle * WINDOW_CYCLES;
+        let recent = self
+            .frames
+            .iter()
+            .filter(|(t, _)| now.saturating_sub(*t) < window);
+        let (n, errors) = recent.fold((0, 0), |(n, e), (_, err)| (n + 1, e + usize::from(*err)));
+        n >= MIN_FRAMES_PER_WINDOW && errors >= MIN_COUNTER_ERRORS
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CYCLE: Duration = Duration::from_millis(10);
+
+    fn ms(v: u64) -> Duration {
+        Duration::from_millis(v)
+    }
+
+    /// One sender on its cycle, with jitter and a burst after a stall: never a second sender,
+    /// even with the odd counter error (a frame lost on the bus).
+    #[test]
+    fn one_sender_is_never_two() {
+        let mut m = SenderMonitor::default();
+        let mut t = 0;
+        for k in 0..500u64 {
+            // 40 ms stall every 100 frames, then the four frames at once.
+            t += if k % 100 < 4 && k > 4 { 0 } else { 10 };
+            let err = k % 37 == 0;
+            assert!(!m.frame(ms(t), err, CYCLE), "frame {k} at {t} ms");
+        }
+    }
+
+    /// A second node with its own counter, in step with the real one: evident within a window,
+    /// and over once it stops.
+    #[test]
+    fn two_interleaved_senders_are_found_and_forgotten() {
+        let mut m = SenderMonitor::default();
+        let mut found_at = None;
+        for k in 0..30u64 {
+            let t = k * 10;
+            m.frame(ms(t), false, CYCLE);
+            // The spoofer, 3 ms later: its counter jumps against the real one's every time.
+            if m.frame(ms(t + 3), true, CYCLE) && found_at.is_none() {
+                found_at = Some(t + 3);
+            }
+        }
+        let at = found_at.expect("not found");
+        assert!(at <= 100, "found at {at} ms");
+        // The spoofer stops: the real sender alone clears the condition within a window.
+        let mut cleared = None;
+        for k in 30..60u64 {
+            if !m.frame(ms(k * 10), false, CYCLE) && cleared.is_none() {
+                cleared = Some(k * 10);
+            }
+        }
+        assert!(cleared.is_some_and(|c| c <= 300 + 100), "{cleared:?}");
+    }
+}
