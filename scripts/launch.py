@@ -84,9 +84,15 @@ def driver_sample(program: str, pedal: float, seconds: float, t: float) -> dict:
     return {"AccelPedal": pedal, "BrakeSwitch": 0, "GearLever": lever}
 
 
-def play_driver_lockstep(bus, plant, program: str, pedal: float, seconds: float) -> int:
+# A second DRV_Pedal node (spoofing, issue 12): lever R, full pedal, its own alive counter.
+SPOOF = {"AccelPedal": 100.0, "BrakeSwitch": 0, "GearLever": "R"}
+SPOOF_COUNTER_AHEAD = 8
+
+
+def play_driver_lockstep(bus, plant, program: str, pedal: float, seconds: float, spoof=None) -> int:
     """Answers each DCT_Sensors frame (cycle n, bus time n·10 ms) with DRV_Pedal until the plant
-    exits (the lockstep plant waits for the answer); returns the number of frames sent."""
+    exits (the lockstep plant waits for the answer); returns the number of frames sent. `spoof`
+    (from_s, to_s): a second node also answers in that window with SPOOF (not counted)."""
     import can
 
     fid, sensors = frame_id("DRV_Pedal"), frame_id("DCT_Sensors")
@@ -102,6 +108,9 @@ def play_driver_lockstep(bus, plant, program: str, pedal: float, seconds: float)
         t = min(n * CYCLE_S, seconds)
         data = ddct_can.encode("DRV_Pedal", driver_sample(program, pedal, seconds, t), counter=n)
         bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+        if spoof is not None and spoof[0] <= t < spoof[1]:
+            data = ddct_can.encode("DRV_Pedal", SPOOF, counter=n + SPOOF_COUNTER_AHEAD)
+            bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
         n += 1
 
 
@@ -413,6 +422,7 @@ def run_bench(
     daemons: bool = True,
     name: str = "launch",
     lockstep: bool = False,
+    spoof: tuple[float, float] | None = None,
 ) -> Run:
     import can
 
@@ -471,7 +481,7 @@ def run_bench(
         plant_start = time.time()
         try:
             if lockstep:
-                n = play_driver_lockstep(bus, plant, program, pedal, seconds)
+                n = play_driver_lockstep(bus, plant, program, pedal, seconds, spoof)
             else:
                 bus = can.Bus(interface="socketcan", channel=iface, receive_own_messages=False)
                 n = play_driver(bus, program, pedal, seconds)

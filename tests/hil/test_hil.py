@@ -40,9 +40,10 @@ def show(name, a, run):
     hil.print_table(a, run)
 
 
-def lockstep_run(ddct, out_dir, name, program, pedal, seconds, faults=None):
+def lockstep_run(ddct, out_dir, name, program, pedal, seconds, faults=None, spoof=None):
     run = hil.run_bench(
-        program=program, pedal=pedal, seconds=seconds, out=out_dir, ddct=ddct, faults=faults, name=name, lockstep=True
+        program=program, pedal=pedal, seconds=seconds, out=out_dir, ddct=ddct, faults=faults, name=name,
+        lockstep=True, spoof=spoof,
     )
     a = hil.analyse(run.records, hil.target_rpm(pedal), lockstep=True)
     show(f"{name} (lockstep, bus time)", a, run)
@@ -103,6 +104,34 @@ def test_faults_are_detected_and_recovered(ddct, out_dir, message, kind, expecte
     assert ft["detection_ms"] is not None and 0.0 < ft["detection_ms"] <= DETECT_MS + 0.5, ft
     assert ft["safe_state_after_detection_ms"] is not None and ft["safe_state_after_detection_ms"] <= 0.5, ft
     assert ft["recovery_ms"] is not None and 0.0 < ft["recovery_ms"] <= RECOVER_MS + 0.5, ft
+
+
+def test_a_second_pedal_sender_is_caught_before_it_moves_the_car(ddct, out_dir):
+    """Lockstep: from 0.2 s to 2.0 s a second node also answers every cycle with DRV_Pedal lever R,
+    full pedal, valid CRC and its own counter, while the real lever says N (then D). Without the
+    check the TCU launched in reverse; now: FaultCode SecondSender within the 10-cycle window, the
+    safe state, never a reverse gear, and normal driving again after the second node stops."""
+    spoof = (0.2, 2.0)
+    a, run = lockstep_run(ddct, out_dir, "spoof", "launch", 40.0, 5.0, spoof=spoof)
+    status = hil.frame_id("TCU_Status")
+    msg = next(m for m in hil.ddct_can.load_dbc().messages if m.frame_id == status)
+    second = hil.choice("TCU_Status", "FaultCode", "SecondSender")
+    reverse = hil.choice("TCU_Status", "GearActive", "R")
+    safe = hil.choice("TCU_Status", "TcuState", "SafeState")
+    rows = [
+        (t, msg.decode(bytes(data), decode_choices=False))
+        for t, _, fid, _, data in hil.bus_time(run.records)
+        if fid == status
+    ]
+    flagged = [t for t, v in rows if v["FaultCode"] == second]
+    print(f"SecondSender from {flagged[0] if flagged else None} s to {flagged[-1] if flagged else None} s")
+    assert flagged, a["events"]
+    assert flagged[0] <= spoof[0] + 0.11, f"detected at {flagged[0]:.3f} s (second node from {spoof[0]} s)"
+    assert all(v["TcuState"] == safe for t, v in rows if v["FaultCode"] == second)
+    assert not any(v["GearActive"] == reverse for _, v in rows), "the TCU engaged reverse"
+    back = [t for t, v in rows if t > spoof[1] and v["TcuState"] != safe and v["FaultCode"] == 0]
+    print(f"normal again at {back[0] if back else None} s; plant's view of DRV_Pedal: {run.plant_report['plant']['rx_errors']}")
+    assert back and back[0] <= spoof[1] + 0.2, f"normal again at {back[:1]} (second node stopped at {spoof[1]} s)"
 
 
 def step_clock(seconds: float, errors: list):
