@@ -14,4 +14,5 @@ pub mod plant;
 pub mod plot;
 pub mod sim;
 pub mod tcu;
+pub mod toml_key;
 pub mod truth;

@@ -452,3 +452,125 @@ fn rig_csv_files_load_or_are_refused_naming_the_file() {
         .unwrap_or_else(|e| panic!("{e}"));
     report(3, "files");
 }
+
+/// Every numeric key of every shipped configuration (TCU calibration, plant and rig, physical
+/// parameters, the `ddct sim` scenarios, the fault file), set to NaN, ±infinity, 1e300 or a
+/// string: each is refused, and the error names the file and the key. Copies of `config/` in a
+/// temporary directory, so that the files' references to each other still resolve.
+#[test]
+fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_and_key() {
+    let tmp = std::env::temp_dir().join(format!("ddct-config-fuzz-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    copy_dir(&root().join("config"), &tmp.join("config"));
+    let plant = PlantConfig::load(&root().join("config/plant.toml")).unwrap();
+    type Loader = Box<dyn Fn(&std::path::Path) -> Result<(), String>>;
+    let loaders: Vec<(&str, Loader)> = vec![
+        (
+            "tcu.toml",
+            Box::new(|p| TcuConfig::load(p).map(drop).map_err(|e| e.to_string())),
+        ),
+        (
+            "plant.toml",
+            Box::new(|p| PlantConfig::load(p).map(drop).map_err(|e| e.to_string())),
+        ),
+        (
+            "plant_rig.toml",
+            Box::new(|p| PlantConfig::load(p).map(drop).map_err(|e| e.to_string())),
+        ),
+        // A parameter error names the key; every caller (plant, TCU, CLI) adds the file.
+        (
+            "params.toml",
+            Box::new(|p| {
+                ddct::model::params::Params::load(p)
+                    .map(drop)
+                    .map_err(|e| format!("{}: {e}", p.display()))
+            }),
+        ),
+        (
+            "plant_faults.toml",
+            Box::new(move |p| plant.load_faults(p).map(drop).map_err(|e| e.to_string())),
+        ),
+    ];
+    let mut files: Vec<(PathBuf, usize)> = loaders
+        .iter()
+        .enumerate()
+        .map(|(k, (name, _))| (tmp.join("config").join(name), k))
+        .collect();
+    let scenarios = tmp.join("config/scenarios");
+    let mut tried = 0;
+    let mut failures = Vec::new();
+    let scenario_loader: Loader =
+        Box::new(|p| SimScenario::load(p).map(drop).map_err(|e| e.to_string()));
+    for e in std::fs::read_dir(&scenarios).unwrap() {
+        let p = e.unwrap().path();
+        if SimScenario::load(&p).is_ok() {
+            files.push((p, usize::MAX));
+        }
+    }
+    let number = |v: &str| v.trim().parse::<f64>().is_ok();
+    for (path, k) in &files {
+        let load = if *k == usize::MAX {
+            &scenario_loader
+        } else {
+            &loaders[*k].1
+        };
+        let original = std::fs::read_to_string(path).unwrap();
+        assert!(
+            load(path).is_ok(),
+            "{} does not load as shipped",
+            path.display()
+        );
+        let lines: Vec<&str> = original.lines().collect();
+        for (n, line) in lines.iter().enumerate() {
+            let code = line.split('#').next().unwrap_or("");
+            let Some((key, value)) = code.split_once('=') else {
+                continue;
+            };
+            let key = key.trim();
+            if key.is_empty() || key.starts_with('[') || !number(value) {
+                continue;
+            }
+            for bad in ["nan", "inf", "-inf", "1e300", "\"x\""] {
+                let mut text = lines.clone();
+                let changed = format!("{key} = {bad}");
+                text[n] = &changed;
+                std::fs::write(path, text.join("\n")).unwrap();
+                tried += 1;
+                let file = path.file_name().unwrap().to_string_lossy().to_string();
+                match load(path) {
+                    Ok(()) => failures.push(format!("{file}:{} `{key} = {bad}` accepted", n + 1)),
+                    Err(e) if !(e.contains(&file) && e.contains(key)) => {
+                        failures.push(format!("{file}:{} `{key} = {bad}`: {e}", n + 1))
+                    }
+                    Err(_) => {}
+                }
+            }
+            std::fs::write(path, &original).unwrap();
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    println!(
+        "{tried} bad values in {} files, {} not refused by name",
+        files.len(),
+        failures.len()
+    );
+    assert!(
+        failures.is_empty(),
+        "{} of {tried}:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let dest = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &dest);
+        } else {
+            std::fs::copy(&p, &dest).unwrap();
+        }
+    }
+}

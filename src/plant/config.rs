@@ -229,10 +229,10 @@ fn table<T: for<'de> Deserialize<'de> + Default>(
 ) -> Result<T, PlantError> {
     match doc.get(name) {
         None => Ok(T::default()),
-        Some(v @ toml::Value::Table(_)) => v
-            .clone()
-            .try_into()
-            .map_err(|e: toml::de::Error| PlantError::key(path, name, e.message().to_string())),
+        Some(v @ toml::Value::Table(t)) => v.clone().try_into().map_err(|e: toml::de::Error| {
+            let key = crate::toml_key::refused_path::<T>(name, t);
+            PlantError::key(path, key, e.message().to_string())
+        }),
         Some(_) => Err(PlantError::key(path, name, "must be a table")),
     }
 }
@@ -501,13 +501,13 @@ mod tests {
         );
         let e = PlantConfig::from_toml_str(p, "[initial]\nrpm = 900\n", None).unwrap_err();
         assert!(
-            matches!(&e, PlantError::Key { key, .. } if key == "initial"),
+            matches!(&e, PlantError::Key { key, .. } if key == "initial.rpm"),
             "{e}"
         );
         assert!(e.to_string().contains("rpm"), "{e}");
         let e = PlantConfig::from_toml_str(p, "[plant]\nmode = \"boat\"\n", None).unwrap_err();
         assert!(
-            matches!(&e, PlantError::Key { key, .. } if key == "plant"),
+            matches!(&e, PlantError::Key { key, .. } if key == "plant.mode"),
             "{e}"
         );
         let e = PlantConfig::from_toml_str(p, "[effects.actuator_backlash]\nwidth_mm = 5\n", None)

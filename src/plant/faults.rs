@@ -20,6 +20,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Duration;
 
+/// Latest time a fault may start or end (s): about 30 years of simulated time.
+const MAX_TIME_S: f64 = 1e9;
+
 /// Fault kinds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -145,12 +148,18 @@ impl FaultSpec {
                 ),
             )
         })?;
-        if !(self.from_s.is_finite() && self.from_s >= 0.0) {
-            return Err(err("from_s", "must be a time ≥ 0 s".into()));
+        if !(self.from_s.is_finite() && (0.0..=MAX_TIME_S).contains(&self.from_s)) {
+            return Err(err(
+                "from_s",
+                format!("must be a time in 0 ..= {MAX_TIME_S:e} s"),
+            ));
         }
         if let Some(to) = self.to_s {
-            if !(to.is_finite() && to > self.from_s) {
-                return Err(err("to_s", "must be later than from_s".into()));
+            if !(to.is_finite() && to > self.from_s && to <= MAX_TIME_S) {
+                return Err(err(
+                    "to_s",
+                    format!("must be later than from_s and at most {MAX_TIME_S:e} s"),
+                ));
             }
         }
         if matches!(kind, FaultKind::FreezeCounter | FaultKind::CorruptCrc) && !def.e2e {
@@ -230,6 +239,20 @@ impl FaultSpec {
                     .value
                     .filter(|v| v.is_finite())
                     .ok_or_else(|| err("value", "missing or not finite (physical value)".into()))?;
+                // Anything the signal's bits can carry, inside or outside the DBC range.
+                let s = &def.signals[si];
+                let (lo, hi) = s.raw_limits();
+                let (a, b) = (
+                    lo as f64 * s.factor + s.offset,
+                    hi as f64 * s.factor + s.offset,
+                );
+                let (lo, hi) = (a.min(b), a.max(b));
+                if !(lo..=hi).contains(&v) {
+                    return Err(err(
+                        "value",
+                        format!("{v} cannot be sent in {} ({lo} ..= {hi})", s.name),
+                    ));
+                }
                 fault.signal = Some(si);
                 fault.value = v;
             }
@@ -258,7 +281,12 @@ pub fn parse_faults(
         .enumerate()
         .map(|(i, item)| {
             let spec: FaultSpec = item.clone().try_into().map_err(|e: toml::de::Error| {
-                PlantError::key(path, format!("faults[{i}]"), e.message().to_string())
+                let name = format!("faults[{i}]");
+                let key = match item {
+                    toml::Value::Table(t) => crate::toml_key::refused_path::<FaultSpec>(&name, t),
+                    _ => name,
+                };
+                PlantError::key(path, key, e.message().to_string())
             })?;
             spec.validate(path, i, sent)
         })
@@ -281,13 +309,13 @@ mod tests {
     fn valid_faults() {
         let f = parse(
             "[[faults]]\nmessage = \"DCT_Sensors\"\nkind = \"implausible\"\nfrom_s = 1\nto_s = 2\n\
-             signal = \"HousingTemp\"\nvalue = 500\n\
+             signal = \"HousingTemp\"\nvalue = 215\n\
              [[faults]]\nmessage = \"0x100\"\nkind = \"delay\"\nfrom_s = 0.5\ndelay_ms = 25\n",
         )
         .unwrap();
         assert_eq!(f.len(), 2);
         assert_eq!(f[0].kind, FaultKind::Implausible);
-        // 500 °C does not fit 8 bits of 1 °C from −40: saturated to the top raw value 255.
+        // 215 °C, the top of 8 bits of 1 °C from −40 (raw 255), beyond the DBC's range.
         assert_eq!(f[0].implausible_raw(), Some((3, 255)));
         assert!(f[0].active(Duration::from_millis(1000)));
         assert!(!f[0].active(Duration::from_millis(2000)));
@@ -308,6 +336,10 @@ mod tests {
                 "faults[0].signal",
             ),
             ("message = \"ENG_Status\"\nkind = \"stop\"\nfrom_s = 0\nvalue = 1", "faults[0].value"),
+            (
+                "message = \"DCT_Sensors\"\nkind = \"implausible\"\nfrom_s = 0\nsignal = \"HousingTemp\"\nvalue = 500",
+                "faults[0].value",
+            ),
             ("message = \"ENG_Status\"\nkind = \"stop\"\nfrom = 0", "faults[0]"),
         ];
         for (body, key) in cases {

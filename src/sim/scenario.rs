@@ -238,10 +238,15 @@ impl SimScenario {
         }
         let tcu: TcuOverrides = match doc.get("tcu") {
             None => TcuOverrides::default(),
-            Some(v) => v
-                .clone()
-                .try_into()
-                .map_err(|e: toml::de::Error| key_err(path, "tcu", e.message().to_string()))?,
+            Some(v) => v.clone().try_into().map_err(|e: toml::de::Error| {
+                let key = match v {
+                    toml::Value::Table(t) => {
+                        crate::toml_key::refused_path::<TcuOverrides>("tcu", t)
+                    }
+                    _ => "tcu".to_string(),
+                };
+                key_err(path, key, e.message().to_string())
+            })?,
         };
         tcu.validate(path)?;
         let duration_s = match doc.get("duration_s") {
