@@ -443,9 +443,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
                 let tick = timer.fire(now);
                 stats.record(&tick, CYCLE);
                 // Frames waiting in the socket are read on every tick too, not only when the
-                // receive future is woken: a wake-up that never comes (seen once in a loaded
-                // User-Mode Linux guest: a lockstep cycle's four frames left unread for 20 s)
-                // costs at most a cycle.
+                // receive future is woken, so no queued frame waits longer than a cycle.
                 shell.drain()?;
                 shell.deadline = timer.next_deadline().saturating_duration_since(start);
                 if config.duration.is_some_and(|d| now.saturating_duration_since(start) >= d) {

@@ -242,10 +242,7 @@ impl FaultSpec {
                 // Anything the signal's bits can carry, inside or outside the DBC range.
                 let s = &def.signals[si];
                 let (lo, hi) = s.raw_limits();
-                let (a, b) = (
-                    lo as f64 * s.factor + s.offset,
-                    hi as f64 * s.factor + s.offset,
-                );
+                let (a, b) = (s.physical(lo), s.physical(hi));
                 let (lo, hi) = (a.min(b), a.max(b));
                 if !(lo..=hi).contains(&v) {
                     return Err(err(
