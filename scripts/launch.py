@@ -405,10 +405,19 @@ class Run:
     lockstep: bool = False
 
 
-def wait_for_file(p: Path, timeout: float = 10.0):
-    t = time.monotonic() + timeout
-    while not p.exists() and time.monotonic() < t:
-        time.sleep(0.02)
+def wait_ready(proc, ready: Path, what: str, timeout: float = 60.0) -> None:
+    """Waits until a daemon started with `--ready-file ready` listens (it writes the file once its
+    socket is open and its signal handlers installed); fails naming the daemon if it exits first
+    or takes longer than `timeout` s. A fixed sleep is not enough: under load a daemon's start
+    took longer than 0.3 s, so the lockstep plant's first cycle went out before the TCU listened."""
+    end = time.monotonic() + timeout
+    while not ready.exists():
+        if proc.poll() is not None:
+            err = proc.stderr.read() if proc.stderr else ""
+            raise RuntimeError(f"{what} exited with {proc.returncode} before it listened: {err}")
+        if time.monotonic() > end:
+            raise RuntimeError(f"{what} did not listen within {timeout} s")
+        time.sleep(0.01)
 
 
 def run_bench(
@@ -434,7 +443,10 @@ def run_bench(
     tcu_json = out / f"{name}_tcu.json"
     plant_json = out / f"{name}_plant.json"
     # In lockstep the run takes as long as the host lets it: the recorder stops with the rest.
-    rec_cmd = [str(ddct), "log", "record", "--iface", iface, "--out", str(log)]
+    rec_ready, tcu_ready = out / f"{name}_record.ready", out / f"{name}_tcu.ready"
+    for r in (rec_ready, tcu_ready):
+        r.unlink(missing_ok=True)
+    rec_cmd = [str(ddct), "log", "record", "--iface", iface, "--out", str(log), "--ready-file", str(rec_ready)]
     if not lockstep:
         rec_cmd += ["--duration", str(seconds + 3.0)]
     rec = subprocess.Popen(
@@ -446,7 +458,7 @@ def run_bench(
     procs.append(rec)
     tcu = plant = bus = None
     try:
-        time.sleep(0.3)
+        wait_ready(rec, rec_ready, "the recorder")
         if lockstep:
             # The driver listens before the plant's first cycle (it answers every one).
             bus = can.Bus(
@@ -456,7 +468,8 @@ def run_bench(
                 can_filters=[{"can_id": frame_id("DCT_Sensors"), "can_mask": 0x7FF, "extended": False}],
             )
         if daemons:
-            tcu_cmd = [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json"]
+            tcu_cmd = [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json",
+                       "--ready-file", str(tcu_ready)]
             if lockstep:
                 tcu_cmd += ["--clock", "bus"]
             tcu = subprocess.Popen(
@@ -467,7 +480,7 @@ def run_bench(
                 cwd=REPO,
             )
             procs.append(tcu)
-            time.sleep(0.3)
+            wait_ready(tcu, tcu_ready, "the TCU")
             cmd = [str(ddct), "plant", "--iface", iface, "--json"]
             if lockstep:
                 # The TCU's last frame of a computation (TCU_Estimates) and the driver's answer.
@@ -561,6 +574,8 @@ def print_table(a: dict, run: Run):
         print(
             f"plant lockstep on {p['lockstep']}: {p['cycles']} cycles ({p['sim_time_s']:.2f} s simulated in "
             f"{p['wall_time_s']:.2f} s wall), {p['lockstep_timeouts']} without their answers in time"
+            + (f" (first at {p['lockstep_first_timeout_s']:.2f} s, missing {','.join(p['lockstep_first_missing'])})"
+               if p.get("lockstep_first_timeout_s") is not None else "")
         )
 
 

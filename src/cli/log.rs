@@ -1,6 +1,6 @@
 //! `ddct log`: decode, record and replay candump logs.
 
-use super::{runtime, shutdown_signal};
+use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
 use ddct::can::candump::{LogError, LogReader, LogWriter};
@@ -50,6 +50,10 @@ pub enum LogCmd {
         /// Stop after this many seconds.
         #[arg(long)]
         duration: Option<f64>,
+        /// Once the socket is open and the signal handlers installed, write the pid to this file
+        /// (a bench script waits for it before the traffic starts).
+        #[arg(long)]
+        ready_file: Option<PathBuf>,
     },
     /// Send the frames of a candump -l log on a SocketCAN interface.
     Replay {
@@ -90,7 +94,8 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             out,
             count,
             duration,
-        } => record(&iface, &out, count, duration),
+            ready_file,
+        } => record(&iface, &out, count, duration, ready_file.as_deref()),
         LogCmd::Replay {
             file,
             iface,
@@ -311,6 +316,7 @@ fn record(
     out: &PathBuf,
     count: Option<u64>,
     duration: Option<f64>,
+    ready_file: Option<&std::path::Path>,
 ) -> anyhow::Result<ExitCode> {
     if let Some(d) = duration {
         if !(d.is_finite() && d > 0.0) {
@@ -329,6 +335,7 @@ fn record(
         }
         let deadline = duration.map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d));
         let stop = shutdown_signal();
+        announce_ready(ready_file)?;
         tokio::pin!(stop);
         let mut n = 0u64;
         let mut last_flush = Instant::now();

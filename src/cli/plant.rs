@@ -1,6 +1,6 @@
 //! `ddct plant`: the plant daemon (issue 5) — the simulated dual-clutch transmission on a bus.
 
-use super::{runtime, shutdown_signal};
+use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use ddct::can::socketcan::SocketCanBus;
@@ -75,6 +75,10 @@ pub struct PlantArgs {
     /// Sensor-noise seed (default: the config's).
     #[arg(long)]
     seed: Option<u64>,
+    /// Once the daemon's socket is open and its signal handlers installed, write its pid to this
+    /// file (a CAN interface only; a bench script may wait for it).
+    #[arg(long)]
+    ready_file: Option<PathBuf>,
     /// Print the exit report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -285,7 +289,9 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 log: a.log.clone(),
                 lockstep,
             };
-            anyhow::Ok(run_plant(bus, shutdown_signal(), c).await?)
+            let stop = shutdown_signal();
+            announce_ready(a.ready_file.as_deref())?;
+            anyhow::Ok(run_plant(bus, stop, c).await?)
         }
     })?;
     if a.json {

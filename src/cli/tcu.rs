@@ -1,6 +1,6 @@
 //! `ddct tcu`: the TCU daemon (issue 6).
 
-use super::{runtime, shutdown_signal};
+use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use ddct::can::socketcan::SocketCanBus;
@@ -45,6 +45,11 @@ pub struct TcuArgs {
     /// cycles whatever the host's load; not with `--iface sim`).
     #[arg(long, value_enum, default_value_t = ClockArg::Monotonic)]
     clock: ClockArg,
+    /// Once the daemon listens (socket open with its filters, signal handlers installed), write
+    /// its pid to this file: a bench script waits for it before starting the plant, so no cycle
+    /// goes out before the TCU can hear it.
+    #[arg(long)]
+    ready_file: Option<PathBuf>,
     /// Print the exit report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -113,9 +118,11 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
             };
             let plant_ep = bus.endpoint(EndpointConfig::default());
             let tcu_ep = bus.endpoint(EndpointConfig::default());
+            let (plant_stop, tcu_stop) = (shutdown_signal(), shutdown_signal());
+            announce_ready(a.ready_file.as_deref())?;
             let (p, t) = tokio::join!(
                 async {
-                    let r = run_plant(plant_ep, shutdown_signal(), plant_cfg).await;
+                    let r = run_plant(plant_ep, plant_stop, plant_cfg).await;
                     stop2.notify_one();
                     r
                 },
@@ -123,7 +130,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
                     tcu_ep,
                     async {
                         tokio::select! {
-                            _ = shutdown_signal() => {}
+                            _ = tcu_stop => {}
                             _ = stop.notified() => {}
                         }
                     },
@@ -143,7 +150,9 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
                 log: a.log.clone(),
                 clock: a.clock.into(),
             };
-            anyhow::Ok(run_tcu(bus, shutdown_signal(), c).await?)
+            let stop = shutdown_signal();
+            announce_ready(a.ready_file.as_deref())?;
+            anyhow::Ok(run_tcu(bus, stop, c).await?)
         }
     })?;
     if a.json {

@@ -74,6 +74,12 @@ pub struct Lockstep {
     pub timeout: Duration,
 }
 
+/// A message's DBC name (its id in hex if the DBC has none).
+fn message_name(id: u16) -> String {
+    crate::can::messages::message_def(u32::from(id))
+        .map_or(format!("{id:#x}"), |d| d.name.to_string())
+}
+
 /// Errors that stop the daemon.
 #[derive(Debug, thiserror::Error)]
 pub enum PlantDaemonError {
@@ -109,6 +115,10 @@ pub struct PlantReport {
     /// not all come in time.
     pub lockstep: Option<String>,
     pub lockstep_timeouts: u64,
+    /// Lockstep: the simulated time (s) of the first cycle whose answers did not all come, and
+    /// the messages missing then (a TCU that started late misses cycle 0).
+    pub lockstep_first_timeout_s: Option<f64>,
+    pub lockstep_first_missing: Vec<String>,
     pub log: Option<PathBuf>,
     pub log_frames: Option<u64>,
     pub effects: EffectSet,
@@ -156,8 +166,13 @@ impl PlantReport {
         }
         if let Some(m) = &self.lockstep {
             s.push_str(&format!(
-                "lockstep on {m}: {} cycle(s) without an answer in time\n",
-                self.lockstep_timeouts
+                "lockstep on {m}: {} cycle(s) without an answer in time{}\n",
+                self.lockstep_timeouts,
+                self.lockstep_first_timeout_s
+                    .map_or(String::new(), |t| format!(
+                        " (first at {t:.2} s, missing {})",
+                        self.lockstep_first_missing.join(",")
+                    ))
             ));
         }
         if let (Some(p), Some(n)) = (&self.log, self.log_frames) {
@@ -181,6 +196,8 @@ struct Shell<B: Bus> {
     time: TimeBase,
     speed: f64,
     lockstep_timeouts: u64,
+    /// The first lockstep cycle without all its answers: its time and the ids missing.
+    lockstep_first_timeout: Option<(Duration, Vec<u16>)>,
     pending: Vec<Received>,
 }
 
@@ -285,6 +302,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         time: TimeBase::new(),
         speed,
         lockstep_timeouts: 0,
+        lockstep_first_timeout: None,
         pending: Vec::new(),
     };
     let wall0 = std::time::Instant::now();
@@ -335,14 +353,20 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         lockstep: config.lockstep.map(|l| {
             l.messages
                 .iter()
-                .map(|&m| {
-                    crate::can::messages::message_def(u32::from(m))
-                        .map_or(format!("{m:#x}"), |d| d.name.to_string())
-                })
+                .map(|&m| message_name(m))
                 .collect::<Vec<_>>()
                 .join(",")
         }),
         lockstep_timeouts: shell.lockstep_timeouts,
+        lockstep_first_timeout_s: shell
+            .lockstep_first_timeout
+            .as_ref()
+            .map(|(t, _)| t.as_secs_f64()),
+        lockstep_first_missing: shell
+            .lockstep_first_timeout
+            .as_ref()
+            .map(|(_, ids)| ids.iter().map(|&id| message_name(id)).collect())
+            .unwrap_or_default(),
         log: config.log,
         log_frames,
         effects,
@@ -484,6 +508,9 @@ async fn run_lockstep<B: Bus, S: Future<Output = ()>>(
                 },
                 _ = tokio::time::sleep_until(give_up) => {
                     shell.lockstep_timeouts += 1;
+                    shell
+                        .lockstep_first_timeout
+                        .get_or_insert_with(|| (sim_now, waiting.clone()));
                     break;
                 }
             }

@@ -199,3 +199,42 @@ def test_candump_log_decoded_by_ddct(ddct, candump, db, tmp_path):
             problems.append(f"{msg.name} ({fr['case']}): e2e {r['e2e']!r}, expected {want!r}")
         problems += lib.signal_mismatches(msg, ddct_can.decode(fr["id"], fr["data"]), r["signals"], f" ({fr['case']})")
     assert not problems, "\n".join(problems)
+
+
+@pytest.mark.parametrize("daemon", ["tcu", "record"])
+def test_ready_file_means_listening(ddct, daemon, tmp_path):
+    """`--ready-file`: once the file exists (holding the daemon's pid) a frame sent at once is
+    heard, and a SIGTERM sent at once ends the daemon cleanly with its report — the socket and the
+    signal handlers are in place before the file is written (a bench script waits for it instead
+    of sleeping; a fixed 0.3 s once let a lockstep plant's first cycle go out before the TCU
+    listened)."""
+    import signal as sig
+
+    ready = tmp_path / "ready"
+    if daemon == "tcu":
+        args = [ddct, "tcu", "--iface", IFACE, "--config", lib.REPO / "config" / "tcu.toml", "--json",
+                "--clock", "bus", "--ready-file", ready]
+    else:
+        args = [ddct, "log", "record", "--iface", IFACE, "--out", tmp_path / "rec.log", "--ready-file", ready]
+    out, err = open(tmp_path / "out", "w"), open(tmp_path / "err", "w")
+    with background(args, stdout=out, stderr=err) as p:
+        deadline = time.monotonic() + 60
+        while not ready.exists():
+            assert p.poll() is None, f"{daemon} exited {p.returncode}: {(tmp_path / 'err').read_text()}"
+            assert time.monotonic() < deadline, f"{daemon} never wrote {ready}"
+            time.sleep(0.005)
+        assert ready.read_text().strip() == str(p.pid)
+        fid = ddct_can.load_dbc().get_message_by_name("DCT_Sensors").frame_id
+        with can.Bus(interface="socketcan", channel=IFACE, receive_own_messages=False) as bus:
+            bus.send(can.Message(arbitration_id=fid, data=bytes(8), is_extended_id=False))
+        time.sleep(0.2)
+        p.send_signal(sig.SIGTERM)
+        rc = p.wait(30)
+    out.close(), err.close()
+    assert rc == 0, (tmp_path / "err").read_text()
+    if daemon == "tcu":
+        import json
+        report = json.loads((tmp_path / "out").read_text())
+        assert report["stopped_by"] == "shutdown" and report["frames_received"] == 1, report
+    else:
+        assert [f for (_, _, f, _, _) in ddct_can.read_candump(tmp_path / "rec.log")] == [fid]
