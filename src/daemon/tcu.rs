@@ -8,9 +8,10 @@
 //!   messages are sent. Sync frames closer than half a cycle to the previous computed one (a
 //!   flood) trigger none; they are consumed by the next computation like any other frame, at
 //!   the latest on the next timer deadline.
-//! - Fallback: a periodic timer on absolute deadlines (`Periodic`, 10 ms, no drift) computes on
-//!   every deadline while no DCT_Sensors frame came for 1.2 cycles (missing or late), so the safe
-//!   state is commanded even when the sensors go silent. The timer is served before the bus, so a
+//! - Fallback: a periodic timer on absolute deadlines (`Periodic`, one cycle, no drift) computes
+//!   on a deadline when the core asks for it ([`Tcu::poll_timeout`] on the live time base: the
+//!   sensors silent for two cycles, then every cycle — the policy the lockstep sim uses too), so
+//!   the safe state is commanded even when the sensors go silent. The timer is served before the bus, so a
 //!   flood cannot starve it, and its lateness tells a stall of the daemon (see `clock`).
 //! - Bounded work: each wake-up reads at most [`DRAIN_BUDGET`] further frames and computes at most
 //!   [`MAX_SYNCS_PER_WAKE`] times, so the loop returns to its timer and to signals every cycle
@@ -41,8 +42,7 @@ use tokio::time::Instant;
 /// Refused sends in a row that stop the daemon (20 cycles of TCU frames).
 const MAX_SEND_FAILURES: u64 = 100;
 
-/// The TCU's computation cycle (the contract's 10 ms).
-pub const CYCLE: Duration = Duration::from_millis(10);
+pub use crate::tcu::CYCLE;
 
 /// Frames received this soon after the sync frame belong to the same plant cycle.
 const BURST: Duration = Duration::from_millis(2);
@@ -431,7 +431,6 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     };
     let mut timer = Periodic::new(start, CYCLE);
     let mut stats = LoopStats::default();
-    let grace = CYCLE.mul_f64(1.2);
     tokio::pin!(shutdown);
     let stopped_by = loop {
         shell.deadline = timer.next_deadline().saturating_duration_since(start);
@@ -458,10 +457,10 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
                         shell.compute(None).await?;
                     }
                 } else {
-                    // No DCT_Sensors for 1.2 cycles: compute on every deadline until it is back;
-                    // a coalesced one still queued is computed on this deadline.
-                    let silent = shell.last_sync.is_none_or(|t| now.saturating_duration_since(t) >= grace);
-                    if silent || shell.sync_queued() {
+                    // The core's own deadline (the sensors silent), or a coalesced sync frame
+                    // still queued: computed on this deadline.
+                    let live = shell.time.live(now.saturating_duration_since(start));
+                    if live >= shell.tcu.poll_timeout() || shell.sync_queued() {
                         shell.compute(None).await?;
                     }
                 }

@@ -21,6 +21,7 @@ use crate::can::messages::{
 use crate::can::{CanFrame, Received};
 use crate::model::effects::{EffectId, EffectSet};
 use crate::model::params::Params;
+use crate::plant::core::CYCLE;
 use crate::plant::{Mode, Plant, PlantConfig};
 use std::time::Duration;
 
@@ -43,7 +44,7 @@ fn record(t: Duration, frame: CanFrame) -> LogRecord {
     }
 }
 
-/// Runs a plant for `duration_s`, calling `commands(t)` at every 10 ms cycle for the frames a
+/// Runs a plant for `duration_s`, calling `commands(t)` at every plant cycle ([`CYCLE`]) for the frames a
 /// test script would send at that instant (E2E applied here). Returns every frame on the "bus".
 pub fn run_plant(
     cfg: PlantConfig,
@@ -52,10 +53,10 @@ pub fn run_plant(
 ) -> Vec<LogRecord> {
     let mut plant = Plant::new(cfg);
     let mut e2e = E2eSender::new();
-    let cycles = (duration_s / 0.01).round() as u64;
+    let cycles = (duration_s / CYCLE.as_secs_f64()).round() as u64;
     let mut out = Vec::with_capacity(cycles as usize * 9);
     for k in 0..=cycles {
-        let t = Duration::from_millis(10 * k);
+        let t = CYCLE * u32::try_from(k).unwrap_or(u32::MAX);
         let mut rx = Vec::new();
         for (id, mut data) in commands(t.as_secs_f64()) {
             e2e.protect(id, &mut data);

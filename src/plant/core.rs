@@ -44,8 +44,8 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-/// The contract's cycle of every plant message.
-pub const CYCLE: Duration = Duration::from_millis(10);
+/// The plant's cycle: DCT_Sensors' cycle time in the DBC (every plant message has it).
+pub const CYCLE: Duration = Duration::from_millis(DctSensors::CYCLE_MS as u64);
 
 /// A frame to send at `due` (time since the start).
 #[derive(Debug, Clone, Copy, PartialEq)]

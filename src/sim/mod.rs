@@ -280,7 +280,6 @@ pub fn run_with(
     let mut rows = Vec::with_capacity((duration.as_millis() / 10 + 2) as usize);
     let mut log = Vec::new();
     let mut frozen = vec![None; opts.injections.len()];
-    let mut last_step: Option<Duration> = None;
     let mut steps = 0;
     let n = duration.as_millis() as u64;
     for k in 0..=n {
@@ -302,12 +301,11 @@ pub fn run_with(
             }
             inbox.push(TimedFrame { at: d, frame: f });
         }
-        let fallback = last_step.is_none_or(|p| t.saturating_sub(p) >= Duration::from_millis(10));
+        let fallback = t >= tcu.poll_timeout();
         if sync || fallback {
             let o = tcu.step(t, &TcuInputs { frames: &inbox });
             inbox.clear();
             steps += 1;
-            last_step = Some(t);
             for f in &o.frames {
                 view.take(f);
                 log.push((t, *f));

@@ -23,6 +23,13 @@
 //!
 //! No clock, no socket: `now` is the time since the TCU started, and frames carry their arrival
 //! time on the same time base.
+//!
+//! Timing policy, written once here for the daemon and the lockstep sim (quinn-proto's
+//! `poll_timeout`): a DCT_Sensors frame (the plant's sensor message) is the cycle's trigger — the
+//! shell steps the core when one arrives; without one, [`Tcu::poll_timeout`] says when the core
+//! must run by itself: [`SENSOR_SILENCE`] after the last sensor frame, then every [`CYCLE`], so the
+//! safe state is commanded when the sensors go silent. The cycle is TCU_ClutchCmd's cycle time in
+//! the DBC (`GenMsgCycleTime`).
 
 pub mod config;
 pub mod control;
@@ -32,6 +39,14 @@ pub mod sender;
 pub mod strategy;
 
 pub use config::{TcuConfig, TcuConfigError};
+
+/// The TCU's computation cycle: TCU_ClutchCmd's cycle time in the DBC.
+pub const CYCLE: Duration = Duration::from_millis(TcuClutchCmd::CYCLE_MS as u64);
+
+/// Without a DCT_Sensors frame for this long the core runs by itself (a sensor frame later than
+/// its cycle is waited for until the next cycle's slot): two cycles after the last one.
+pub const SENSOR_SILENCE: Duration = Duration::from_millis(2 * TcuClutchCmd::CYCLE_MS as u64);
+
 pub use inputs::{Input, Measurements, TimedFrame, Verdict};
 
 use crate::can::codec::MessageDef;
@@ -103,6 +118,8 @@ pub struct Tcu {
     tx: E2eSender,
     top: Top,
     last_now: Option<Duration>,
+    /// Time of the last step that had a DCT_Sensors frame.
+    last_sync: Option<Duration>,
     start: Duration,
     safe_fault: FaultCode,
     safe_x: [f64; 2],
@@ -131,6 +148,7 @@ impl Tcu {
             tx: E2eSender::new(),
             top: Top::Init,
             last_now: None,
+            last_sync: None,
             start,
             safe_fault: FaultCode::None,
             safe_x: [0.0; 2],
@@ -181,6 +199,17 @@ impl Tcu {
         self.est.clutch_temps(f64::NAN)
     }
 
+    /// When the core must next run without a new DCT_Sensors frame: at once before its first
+    /// step; [`SENSOR_SILENCE`] after the last step that had one; every [`CYCLE`] after its
+    /// previous step while the sensors are silent (or were never seen).
+    pub fn poll_timeout(&self) -> Duration {
+        match (self.last_now, self.last_sync) {
+            (None, _) => self.start,
+            (Some(step), Some(sync)) if step < sync + SENSOR_SILENCE => sync + SENSOR_SILENCE,
+            (Some(step), _) => step + CYCLE,
+        }
+    }
+
     /// Feeds frames without computing (the daemon calls this between computations so frame
     /// arrival times are checked as they come).
     pub fn receive(&mut self, frames: &[TimedFrame]) {
@@ -192,6 +221,13 @@ impl Tcu {
     /// One TCU cycle at `now`.
     pub fn step(&mut self, now: Duration, inputs: &TcuInputs) -> TcuOutputs {
         self.steps += 1;
+        if inputs
+            .frames
+            .iter()
+            .any(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
+        {
+            self.last_sync = Some(now);
+        }
         self.receive(inputs.frames);
         let dt = match self.last_now {
             Some(prev) => now.saturating_sub(prev).as_secs_f64().min(0.1),
@@ -232,8 +268,7 @@ impl Tcu {
         self.warn = tmax > s.over_temp_warn_c || (self.warn && tmax > s.over_temp_warn_c - hys);
         self.limit = tmax > s.over_temp_limit_c || (self.limit && tmax > s.over_temp_limit_c - hys);
         // Top-level state.
-        let grace = now.saturating_sub(self.start)
-            >= Duration::from_millis(10) * self.cfg.inputs.timeout_cycles;
+        let grace = now.saturating_sub(self.start) >= CYCLE * self.cfg.inputs.timeout_cycles;
         let restart = match self.top {
             Top::Init => self.inputs.all_seen() && health.all_fresh,
             Top::Run => {
@@ -422,4 +457,55 @@ fn fit(def: &MessageDef, si: usize, v: f64) -> f64 {
     let s = &def.signals[si];
     let v = if v.is_finite() { v } else { 0.0 };
     v.clamp(s.min, s.max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ms(v: u64) -> Duration {
+        Duration::from_millis(v)
+    }
+
+    fn sensors(at: Duration) -> TimedFrame {
+        TimedFrame {
+            at,
+            frame: CanFrame::standard(ids::DCT_SENSORS, &[0; 8]).unwrap(),
+        }
+    }
+
+    /// The timing policy: at once before the first step; two cycles after the last sensor frame;
+    /// then every cycle while the sensors are silent; a sensor frame puts the deadline back.
+    #[test]
+    fn poll_timeout_follows_the_sensor_frames_and_falls_back_every_cycle() {
+        assert_eq!(CYCLE, ms(10), "the DBC's TCU_ClutchCmd cycle");
+        let mut tcu = Tcu::new(TcuConfig::default(), ms(5));
+        assert_eq!(tcu.poll_timeout(), ms(5));
+        // Never a sensor frame: every cycle after the previous step.
+        tcu.step(ms(5), &TcuInputs { frames: &[] });
+        assert_eq!(tcu.poll_timeout(), ms(15));
+        // A sensor frame at 17 ms: the next own run 20 ms later, not 10.
+        tcu.step(
+            ms(17),
+            &TcuInputs {
+                frames: &[sensors(ms(17))],
+            },
+        );
+        assert_eq!(tcu.poll_timeout(), ms(37));
+        // A step without one (another node's frame) before then does not move it.
+        tcu.step(ms(30), &TcuInputs { frames: &[] });
+        assert_eq!(tcu.poll_timeout(), ms(37));
+        // Silent: every cycle from there.
+        tcu.step(ms(37), &TcuInputs { frames: &[] });
+        assert_eq!(tcu.poll_timeout(), ms(47));
+        tcu.step(ms(47), &TcuInputs { frames: &[] });
+        assert_eq!(tcu.poll_timeout(), ms(57));
+        tcu.step(
+            ms(52),
+            &TcuInputs {
+                frames: &[sensors(ms(52))],
+            },
+        );
+        assert_eq!(tcu.poll_timeout(), ms(72));
+    }
 }

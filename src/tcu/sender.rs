@@ -60,7 +60,7 @@ impl SenderMonitor {
 mod tests {
     use super::*;
 
-    const CYCLE: Duration = Duration::from_millis(10);
+    const CYCLE: Duration = Duration::from_millis(crate::can::messages::DrvPedal::CYCLE_MS as u64);
 
     fn ms(v: u64) -> Duration {
         Duration::from_millis(v)
