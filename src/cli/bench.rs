@@ -274,11 +274,13 @@ fn bench_run(
     sc.tcu.apply(&mut tcu_cfg);
     let n2 = net.clone();
     let stop2 = stop_rx.clone();
+    let tcu_ready = ready_tx.clone();
     let tcu = std::thread::spawn(move || -> anyhow::Result<TcuReport> {
         realtime(prio);
         let rt = runtime()?;
         rt.block_on(async move {
             let bus = n2.open_filtered(&INPUT_IDS)?;
+            let _ = tcu_ready.send(());
             let c = TcuDaemonConfig {
                 tcu: tcu_cfg,
                 duration: None,
@@ -288,8 +290,9 @@ fn bench_run(
             Ok(run_tcu(bus, stopped(stop2), c).await?)
         })
     });
-    // Give the TCU a moment to open its socket before the plant starts talking.
-    std::thread::sleep(Duration::from_millis(50));
+    // The plant starts talking once the TCU's socket listens (or the TCU thread has ended: its
+    // error is reported when it is joined).
+    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
     let plant_cfg = PlantDaemonConfig {
         plant: sc.plant.clone(),
         pacing: Pacing::RealTime { speed: 1.0 },

@@ -131,7 +131,11 @@ pub fn compute(rows: &[Row], cfg: &TcuConfig) -> Metrics {
     let mut mx = [0.0f64; 2];
     let mut mt = [f64::MIN; 2];
     for r in rows {
-        if r.theta_true_c[0] == 0.0 && r.theta_true_c[1] == 0.0 {
+        // Rows before the first SIM_Truth or the first TCU_Estimates frame (both decode to
+        // exactly 0 °C until seen): nothing to compare. On a bus the plant's first cycle can
+        // precede the TCU's first estimate now that it starts as soon as the TCU listens.
+        let unseen = |t: [f64; 2]| t[0] == 0.0 && t[1] == 0.0;
+        if unseen(r.theta_true_c) || unseen(r.theta_est_c) {
             continue;
         }
         n += 1;
