@@ -32,7 +32,7 @@ use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic, DRAIN_
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
 use crate::tcu::inputs::InputCounters;
-use crate::tcu::{Tcu, TcuConfig, TcuInputs, TimedFrame};
+use crate::tcu::{is_sync_frame, Tcu, TcuConfig, TcuInputs, TimedFrame};
 use serde::Serialize;
 use std::future::Future;
 use std::path::PathBuf;
@@ -175,11 +175,6 @@ impl TcuReport {
             self.final_fault,
         )
     }
-}
-
-/// A DCT_Sensors frame: the plant's sensor message, the TCU's sync.
-fn is_sync_frame(f: &CanFrame) -> bool {
-    f.standard_id() == Some(ids::DCT_SENSORS)
 }
 
 fn is_sync(f: &TimedFrame) -> bool {

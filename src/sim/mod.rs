@@ -296,7 +296,7 @@ pub fn run_with(
             };
             view.take(&f);
             log.push((d, f));
-            if f.standard_id() == Some(ids::DCT_SENSORS) {
+            if crate::tcu::is_sync_frame(&f) {
                 sync = true;
             }
             inbox.push(TimedFrame { at: d, frame: f });

@@ -40,6 +40,11 @@ pub mod strategy;
 
 pub use config::{TcuConfig, TcuConfigError};
 
+/// A DCT_Sensors frame: the plant's sensor message, the trigger of a TCU cycle (the sync).
+pub fn is_sync_frame(f: &CanFrame) -> bool {
+    f.standard_id() == Some(ids::DCT_SENSORS)
+}
+
 /// The TCU's computation cycle: TCU_ClutchCmd's cycle time in the DBC.
 pub const CYCLE: Duration = Duration::from_millis(TcuClutchCmd::CYCLE_MS as u64);
 
@@ -221,11 +226,7 @@ impl Tcu {
     /// One TCU cycle at `now`.
     pub fn step(&mut self, now: Duration, inputs: &TcuInputs) -> TcuOutputs {
         self.steps += 1;
-        if inputs
-            .frames
-            .iter()
-            .any(|f| f.frame.standard_id() == Some(ids::DCT_SENSORS))
-        {
+        if inputs.frames.iter().any(|f| is_sync_frame(&f.frame)) {
             self.last_sync = Some(now);
         }
         self.receive(inputs.frames);
@@ -481,31 +482,19 @@ mod tests {
         assert_eq!(CYCLE, ms(10), "the DBC's TCU_ClutchCmd cycle");
         let mut tcu = Tcu::new(TcuConfig::default(), ms(5));
         assert_eq!(tcu.poll_timeout(), ms(5));
-        // Never a sensor frame: every cycle after the previous step.
-        tcu.step(ms(5), &TcuInputs { frames: &[] });
-        assert_eq!(tcu.poll_timeout(), ms(15));
-        // A sensor frame at 17 ms: the next own run 20 ms later, not 10.
-        tcu.step(
-            ms(17),
-            &TcuInputs {
-                frames: &[sensors(ms(17))],
-            },
-        );
-        assert_eq!(tcu.poll_timeout(), ms(37));
-        // A step without one (another node's frame) before then does not move it.
-        tcu.step(ms(30), &TcuInputs { frames: &[] });
-        assert_eq!(tcu.poll_timeout(), ms(37));
-        // Silent: every cycle from there.
-        tcu.step(ms(37), &TcuInputs { frames: &[] });
-        assert_eq!(tcu.poll_timeout(), ms(47));
-        tcu.step(ms(47), &TcuInputs { frames: &[] });
-        assert_eq!(tcu.poll_timeout(), ms(57));
-        tcu.step(
-            ms(52),
-            &TcuInputs {
-                frames: &[sensors(ms(52))],
-            },
-        );
-        assert_eq!(tcu.poll_timeout(), ms(72));
+        // (step at ms, with a DCT_Sensors frame, poll_timeout after it ms)
+        let steps = [
+            (5, false, 15),  // never a sensor frame: a cycle after the previous step
+            (17, true, 37),  // a sensor frame: the next own run two cycles later, not one
+            (30, false, 37), // a step without one (another node's frame) does not move it
+            (37, false, 47), // silent: every cycle from there
+            (47, false, 57),
+            (52, true, 72),
+        ];
+        for (at, sync, next) in steps {
+            let frames = if sync { vec![sensors(ms(at))] } else { vec![] };
+            tcu.step(ms(at), &TcuInputs { frames: &frames });
+            assert_eq!(tcu.poll_timeout(), ms(next), "after the step at {at} ms");
+        }
     }
 }
