@@ -22,12 +22,22 @@ use crate::model::thermal::{Thermal5State, ThermalInputs};
 
 /// An effect set as powertrain hooks (no backlash state: the replays see the measured position).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct SetHooks(pub EffectSet, pub Option<terms::Support>);
+pub struct SetHooks(pub EffectSet, pub Option<terms::ThermalTerms>);
 
 impl SetHooks {
     /// The hooks of a model: its library effects and its thermal class terms.
     pub fn of(m: &Model) -> Self {
-        SetHooks(m.set, m.terms.support)
+        let t = &m.terms;
+        let any = t.support.is_some() || t.convection.is_some() || t.partition.is_some();
+        SetHooks(
+            m.set,
+            any.then_some(terms::ThermalTerms {
+                a: m.p.thermal5,
+                support: t.support,
+                convection: t.convection,
+                partition: t.partition,
+            }),
+        )
     }
 }
 
@@ -60,7 +70,7 @@ impl Hooks for SetHooks {
     fn extra_heat(&self, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
         let e = effects::thermal5_extra(&self.0, s, u);
         match &self.1 {
-            Some(sp) => e.axpy(1.0, &sp.loss(s, u.theta_h_c)),
+            Some(t) => e.axpy(1.0, &t.rates(s, u)),
             None => e,
         }
     }

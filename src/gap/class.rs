@@ -48,9 +48,9 @@ pub enum Variable {
     Position,
     /// Temperature difference to the housing (K).
     TemperatureDifference,
-    /// Input speed (rad/s).
+    /// Flywheel speed ω_f (rad/s): the plates and the central disk turn with it.
     Speed,
-    /// Friction power split (-).
+    /// Friction power of the clutch T·ω_fc (W).
     Power,
     /// Engine torque (N·m).
     EngineTorque,
@@ -182,7 +182,7 @@ classes! {
         Some(EffectId::SupportConduction),
         "heat flow from the disks to supports at the housing temperature, q(θ − θ_h)";
     ConvectionSpeed = "convection_speed", Thermal, Speed, Physics, None,
-        "convection of (16) growing with the input speed";
+        "convection of (16) changing with the flywheel speed";
     HeatPartition = "heat_partition", Thermal, Power, Physics, None,
         "share of the friction heat entering the plates vs the disks differing from (16)";
     EngineTorqueError = "engine_torque_error", Engine, EngineTorque, Physics,

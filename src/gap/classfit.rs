@@ -106,6 +106,8 @@ pub fn shape_variable(class: ClassId) -> Option<Variable> {
         FrictionSlidingAcceleration => Some(Variable::SlidingAcceleration),
         FrictionEnergy | KissPointEnergy => Some(Variable::FrictionEnergy),
         SupportConduction => Some(Variable::TemperatureDifference),
+        ConvectionSpeed => Some(Variable::Speed),
+        HeatPartition => Some(Variable::Power),
         _ => None,
     }
 }
@@ -114,12 +116,18 @@ pub fn shape_variable(class: ClassId) -> Option<Variable> {
 pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool) -> Option<String> {
     use ClassId::*;
     if let Some(v) = shape_variable(class) {
-        if class == SupportConduction {
+        if group(class) == Subsystem::Thermal {
             if !has(Needs::Temperatures) {
                 return Some("no plate / central-disk temperatures".into());
             }
             if !knots.0.contains_key(&v) {
-                return Some("the records do not vary the temperature above the housing".into());
+                return Some(match v {
+                    Variable::TemperatureDifference => {
+                        "the records do not vary the temperature above the housing".into()
+                    }
+                    Variable::Speed => "the records do not vary the flywheel speed".into(),
+                    _ => "the records have no slipping clutch whose friction power varies".into(),
+                });
             }
             return None;
         }
@@ -140,12 +148,6 @@ pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool)
         {
             Some("no plate / central-disk temperatures".into())
         }
-        ConvectionSpeed | HeatPartition => Some(
-            "not implemented in this version: absorbed by the recalibrated convection and \
-             heating terms (α2, α3, α8, α9); what they cannot absorb is reported as a thermal \
-             residual outside the library"
-                .into(),
-        ),
         EngineTorqueError if !has(Needs::Engine) => Some(
             "needs vehicle records with T_e_Nm (on the rig the dyno replaces the engine)".into(),
         ),
@@ -202,6 +204,8 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
         SpringTemperature => m.terms.spring = None,
         KissPointTemperature | KissPointEnergy => m.terms.kiss = None,
         SupportConduction => m.terms.support = None,
+        ConvectionSpeed => m.terms.convection = None,
+        HeatPartition => m.terms.partition = None,
         ActuatorLag => m.p.actuator.tau_s = reference.p.actuator.tau_s,
         ActuatorTransfer => m.terms.transfer = None,
         SensorTorque => m.terms.torque_sensor = None,
@@ -265,6 +269,17 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             v.push(ParamSpec::new(format!("{name}.w_cd"), 1.0, 0.0, 3.0, 0.1));
             v
         }
+        // Relative change of the convective rates over the flywheel-speed range.
+        ConvectionSpeed => shape_params(name, 2.0, 0.05),
+        HeatPartition => {
+            // Share of the plate's heat moved to the disk over the friction-power range, and
+            // the disk's rate per unit of the plate's: C_pp/C_c = α4/α1 in (16).
+            let a = &base.p.thermal5;
+            let w = a.alpha4_per_s / a.alpha1_per_s.max(1e-12);
+            let mut v = shape_params(name, 0.5, 0.01);
+            v.push(ParamSpec::new(format!("{name}.w_c"), w, 0.0, 3.0 * w, 0.1 * w));
+            v
+        }
         ActuatorLag => {
             let tau = base.p.actuator.tau_s;
             vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
@@ -287,7 +302,6 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
         )],
         SensorTemperature => gain_offset(name, 0.2, "offset_c", 10.0, 0.5),
         SensorPosition => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
-        ConvectionSpeed | HeatPartition => vec![],
         c => c.member().map(member_params).unwrap_or_default(),
     }
 }
@@ -336,7 +350,17 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         SensorTemperatureLag => m.terms.temp_lag_s = v[0],
         SensorTemperature => m.terms.temp_sensor = Some(go(v)),
         SensorPosition => m.terms.pos_sensor = Some(go(v)),
-        ConvectionSpeed | HeatPartition => {}
+        ConvectionSpeed => {
+            m.terms.convection =
+                shape(Variable::Speed).map(|(_, shape)| super::terms::Convection { shape })
+        }
+        HeatPartition => {
+            m.terms.partition =
+                shape(Variable::Power).map(|(_, shape)| super::terms::Partition {
+                    shape,
+                    w_c: v.get(KNOTS - 1).copied().unwrap_or(0.0),
+                })
+        }
         c => {
             if let Some(id) = c.member() {
                 m.set.set_clamped(id, v);
@@ -378,6 +402,14 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
             t.support.map_or(0.0, |s| s.shape.span()),
             "K/s from a clutch disk at the top of θ − θ_h",
         ),
+        ConvectionSpeed => (
+            t.convection.map_or(0.0, |c| c.shape.span()),
+            "relative convection change over the flywheel-speed range",
+        ),
+        HeatPartition => (
+            t.partition.map_or(0.0, |p| p.shape.span()),
+            "share of the plate's friction heat moved to the disk over the power range",
+        ),
         ActuatorLag => (m.p.actuator.tau_s, "s"),
         ActuatorTransfer => (t.transfer.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
         SensorTorque => (
@@ -405,6 +437,8 @@ pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
         SpringTemperature => t.spring,
         KissPointTemperature | KissPointEnergy => t.kiss.map(|s| s.1),
         SupportConduction => t.support.map(|s| s.shape),
+        ConvectionSpeed => t.convection.map(|c| c.shape),
+        HeatPartition => t.partition.map(|p| p.shape),
         _ => {
             t.mu.iter()
                 .flatten()

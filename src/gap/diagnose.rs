@@ -457,6 +457,17 @@ fn knots(model: &Model, train: &[File]) -> Knots {
             vals.entry(Variable::TemperatureDifference)
                 .or_default()
                 .push(f.m.cd[k] - f.m.th[k]);
+            vals.entry(Variable::Speed)
+                .or_default()
+                .push(f.m.w_f[k].abs());
+        }
+        // The friction power of slipping clutches (the heat partition's variable).
+        for i in 0..2 {
+            for &k in f.fit.get(Channel::Torque(i)) {
+                vals.entry(Variable::Power)
+                    .or_default()
+                    .push(f.m.power[i][k].max(0.0));
+            }
         }
     }
     Knots(

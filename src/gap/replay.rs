@@ -263,6 +263,7 @@ pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
             beta1: beta[0],
             beta2: beta[1],
             theta_h_c: th,
+            w_f_radps: mid(&m.w_f),
         };
         let extra = h.extra_heat(&state, &tin);
         for i in 0..2 {
@@ -299,14 +300,24 @@ pub fn torque_eq(
     h.clutch_torque(&p.clutch, &m.context(i, k, theta_c[i][k]))
 }
 
+/// Thermal inputs at an interval midpoint (β filled in per state by [`thermal_derivative`]).
+fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
+    ThermalInputs {
+        p_fric1_w: pw[0],
+        p_fric2_w: pw[1],
+        theta_h_c: th,
+        w_f_radps: w_f,
+        ..ThermalInputs::default()
+    }
+}
+
 fn thermal_derivative(
     t5: &Thermal5,
     p: &Params,
     h: &dyn Hooks,
     s: &Thermal5State,
     ctx: [ClutchContext; 2],
-    pw: [f64; 2],
-    th: f64,
+    u: ThermalInputs,
 ) -> Thermal5State {
     let mut c = ctx;
     c[0].theta_c = s.c1;
@@ -316,11 +327,9 @@ fn thermal_derivative(
     c[1].theta_pp = s.pp2;
     c[1].theta_cd = s.cd;
     let tin = ThermalInputs {
-        p_fric1_w: pw[0],
-        p_fric2_w: pw[1],
         beta1: h.clutch_beta(&p.clutch, &c[0]),
         beta2: h.clutch_beta(&p.clutch, &c[1]),
-        theta_h_c: th,
+        ..u
     };
     t5.derivative(s, &tin).axpy(1.0, &h.extra_heat(s, &tin))
 }
@@ -339,9 +348,9 @@ pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5St
         }
         let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
         let pw = [mid(&m.power[0]), mid(&m.power[1])];
-        let th = mid(&m.th);
+        let u = inputs(pw, mid(&m.th), mid(&m.w_f));
         let ctx = [m.context(0, k, s.c1), m.context(1, k, s.c2)];
-        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, ctx, pw, th);
+        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, ctx, u);
         s = rk4_step_with(&s, m.dt, f);
     }
     out
@@ -380,9 +389,10 @@ pub fn full_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Replay {
             break;
         }
         let pw = [0, 1].map(|i| (tq[i] * m.slip[i][k]).max(0.0));
-        let th = 0.5 * (m.th[k] + m.th[k + 1]);
+        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+        let u = inputs(pw, mid(&m.th), mid(&m.w_f));
         let c = [ctx(0, &s, e[0]), ctx(1, &s, e[1])];
-        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, c, pw, th);
+        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, c, u);
         s = rk4_step_with(&s, m.dt, f);
         e[0] += pw[0] * m.dt;
         e[1] += pw[1] * m.dt;

@@ -108,6 +108,7 @@ impl<H: Hooks> RigModel<H> {
             beta1: beta[0],
             beta2: beta[1],
             theta_h_c: u.theta_h_c,
+            w_f_radps: u.slip_radps,
         };
         let dth = self
             .thermal

@@ -10,8 +10,8 @@ use super::class::Variable;
 use super::shape::Shape;
 use crate::model::clutch;
 use crate::model::effects::{self, EffectSet, TorqueContext};
-use crate::model::params::ClutchParams;
-use crate::model::thermal::Thermal5State;
+use crate::model::params::{ClutchParams, ThermalParams5};
+use crate::model::thermal::{Thermal5State, ThermalInputs};
 
 /// Reference position of the position gain terms (mm): the middle of the engagement range, so
 /// that a gain and an offset are nearly independent.
@@ -63,6 +63,86 @@ impl Support {
     }
 }
 
+/// Convection of (16) scaled by 1 + s(ω_f) with the flywheel speed (the plates and the central
+/// disk turn with the flywheel; the model's α2, α6, α8 are constant).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Convection {
+    pub shape: Shape,
+}
+
+impl Convection {
+    /// Extra temperature rates (K/s): s(ω_f) times the model's convective rates.
+    #[inline]
+    pub fn rates(&self, a: &ThermalParams5, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
+        let k = self.shape.eval(u.w_f_radps.abs());
+        let (o1, o2) = (1.0 - u.beta1, 1.0 - u.beta2);
+        let th = u.theta_h_c;
+        Thermal5State {
+            pp1: k * a.alpha2_per_s * o1 * (th - s.pp1),
+            pp2: k * a.alpha2_per_s * o2 * (th - s.pp2),
+            c1: k * a.alpha6_per_s * o1 * (th - s.c1),
+            c2: k * a.alpha6_per_s * o2 * (th - s.c2),
+            cd: k * a.alpha8_per_s * (o1 + o2) * (th - s.cd),
+        }
+    }
+}
+
+/// A share s(P) of the friction heat the model gives the pressure plate (α3·P of (16a)) goes to
+/// the clutch disk instead, depending on the friction power P; `w_c` converts the plate's rate
+/// into the disk's (the ratio of their heat capacities, fitted).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Partition {
+    pub shape: Shape,
+    pub w_c: f64,
+}
+
+impl Partition {
+    /// Extra temperature rates (K/s).
+    #[inline]
+    pub fn rates(&self, a: &ThermalParams5, u: &ThermalInputs) -> Thermal5State {
+        let moved = |p: f64| {
+            let p = p.max(0.0);
+            a.alpha3_k_per_j * self.shape.eval(p) * p
+        };
+        let (m1, m2) = (moved(u.p_fric1_w), moved(u.p_fric2_w));
+        Thermal5State {
+            pp1: -m1,
+            pp2: -m2,
+            c1: self.w_c * m1,
+            c2: self.w_c * m2,
+            cd: 0.0,
+        }
+    }
+}
+
+/// The thermal class terms with the thermal parameters they scale: what the thermal replays add
+/// to (16) besides the library's effects.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermalTerms {
+    pub a: ThermalParams5,
+    pub support: Option<Support>,
+    pub convection: Option<Convection>,
+    pub partition: Option<Partition>,
+}
+
+impl ThermalTerms {
+    /// Extra temperature rates (K/s) of every thermal term.
+    #[inline]
+    pub fn rates(&self, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
+        let mut r = Thermal5State::default();
+        if let Some(sp) = &self.support {
+            r = r.axpy(1.0, &sp.loss(s, u.theta_h_c));
+        }
+        if let Some(c) = &self.convection {
+            r = r.axpy(1.0, &c.rates(&self.a, s, u));
+        }
+        if let Some(p) = &self.partition {
+            r = r.axpy(1.0, &p.rates(&self.a, u));
+        }
+        r
+    }
+}
+
 /// The class terms of a model (all off by default).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Terms {
@@ -89,6 +169,10 @@ pub struct Terms {
     pub pos_sensor: Option<GainOffset>,
     /// Conduction to supports.
     pub support: Option<Support>,
+    /// Convection depending on the flywheel speed.
+    pub convection: Option<Convection>,
+    /// Heat partition between plate and disk depending on the friction power.
+    pub partition: Option<Partition>,
 }
 
 /// Measured variables at one torque sample besides the clutch context.

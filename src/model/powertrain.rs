@@ -469,6 +469,7 @@ impl<H: Hooks> Powertrain<H> {
             beta1: beta[0],
             beta2: beta[1],
             theta_h_c: u.theta_h_c,
+            w_f_radps: w[F],
         };
         let mut dth = self.thermal.derivative(&s.thermal, &tin);
         let extra = self.hooks.extra_heat(&s.thermal, &tin);

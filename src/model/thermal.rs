@@ -34,6 +34,9 @@ pub struct ThermalInputs {
     pub beta2: f64,
     /// Housing air temperature θ_h (°C).
     pub theta_h_c: f64,
+    /// Flywheel speed ω_f (rad/s): the pressure plates and the central disk turn with it (the
+    /// nominal model's convection does not depend on it; a speed-dependent convection does).
+    pub w_f_radps: f64,
 }
 
 /// β of a clutch: 1.0 when the flat spring is compressed (u_fs > 0), i.e. the clutch is not open.

@@ -99,6 +99,8 @@ impl ThermalEstimator {
             beta1: self.beta[0],
             beta2: self.beta[1],
             theta_h_c: u.theta_h_c,
+            // The TCU's model (16') has no speed-dependent convection.
+            ..ThermalInputs::default()
         };
         let next = self.model.step(&s, &tin, dt);
         if next.c1.is_finite() && next.c2.is_finite() && next.body.is_finite() {
