@@ -340,8 +340,11 @@ pub struct Summary {
     /// Class and sensor trials together.
     pub class_trials: Rate,
     pub by_class: BTreeMap<String, Rate>,
-    /// Class and sensor trials per magnitude band.
+    /// Class and sensor trials per magnitude band (identifiable effect size over the noise).
     pub by_band: BTreeMap<String, Rate>,
+    /// Class and sensor trials per band of the raw effect size (against the truth's own
+    /// baseline, nothing refitted).
+    pub by_raw_band: BTreeMap<String, Rate>,
     /// Class and sensor trials per form family.
     pub by_family: BTreeMap<String, Rate>,
     /// Nominal trials: with a recalibration finding, with an outside-library finding (counts).
@@ -399,6 +402,7 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
     };
     let by_class = group(&|r| r.truth.label());
     let by_band = group(&|r| r.truth.band.as_str().to_string());
+    let by_raw_band = group(&|r| Band::of(r.truth.raw_effect_size).as_str().to_string());
     let by_family = group(&|r| {
         r.truth
             .family
@@ -517,6 +521,7 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
         class_trials: Rate::of(&class_trials),
         by_class,
         by_band,
+        by_raw_band,
         by_family,
         nominal_with_recalibration: nominal
             .iter()
@@ -558,8 +563,8 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "{:>4}  {:<8} {:<44} {:<16} {:>7} {:<4} {:<28} {:>4} {:>7}",
-        "#", "kind", "truth", "family", "size", "band", "first finding", "ok", "gap %"
+        "{:>4}  {:<8} {:<44} {:<16} {:>7} {:>7} {:<4} {:<28} {:>4} {:>7}",
+        "#", "kind", "truth", "family", "raw", "size", "band", "first finding", "ok", "gap %"
     );
     for r in results {
         let t = &r.truth;
@@ -572,11 +577,12 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
         }
         let _ = writeln!(
             o,
-            "{:>4}  {:<8} {:<44} {:<16} {:>7.2} {:<4} {:<28} {:>4} {:>7}",
+            "{:>4}  {:<8} {:<44} {:<16} {:>7.2} {:>7.2} {:<4} {:<28} {:>4} {:>7}",
             r.index,
             t.kind.as_str(),
             label,
             t.family.map(|f| f.as_str()).unwrap_or("-"),
+            t.raw_effect_size,
             t.effect_size,
             t.band.as_str(),
             if r.error.is_some() {
@@ -626,8 +632,15 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
     table(&mut o, "class and sensor trials per class", &s.by_class);
     table(
         &mut o,
-        "class and sensor trials per magnitude band (effect size over the noise)",
+        "class and sensor trials per magnitude band (identifiable effect size over the noise: \
+         what no baseline within ±20 % reproduces)",
         &s.by_band,
+    );
+    table(
+        &mut o,
+        "class and sensor trials per band of the raw effect size (against the truth's own \
+         baseline)",
+        &s.by_raw_band,
     );
     table(
         &mut o,

@@ -575,8 +575,9 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
         );
     }
     println!(
-        "  effect size over the noise {:.2} ({}), band {}",
-        t.effect_size, t.effect_channel, t.band
+        "  effect size over the noise {:.2} ({}), band {}; raw (against the truth's own \
+         baseline, before the closest baseline within ±20 % is refitted) {:.2}",
+        t.effect_size, t.effect_channel, t.band, t.raw_effect_size
     );
     if !t.detune.is_empty() {
         println!(

@@ -277,7 +277,13 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             let a = &base.p.thermal5;
             let w = a.alpha4_per_s / a.alpha1_per_s.max(1e-12);
             let mut v = shape_params(name, 0.5, 0.01);
-            v.push(ParamSpec::new(format!("{name}.w_c"), w, 0.0, 3.0 * w, 0.1 * w));
+            v.push(ParamSpec::new(
+                format!("{name}.w_c"),
+                w,
+                0.0,
+                3.0 * w,
+                0.1 * w,
+            ));
             v
         }
         ActuatorLag => {
@@ -355,11 +361,10 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
                 shape(Variable::Speed).map(|(_, shape)| super::terms::Convection { shape })
         }
         HeatPartition => {
-            m.terms.partition =
-                shape(Variable::Power).map(|(_, shape)| super::terms::Partition {
-                    shape,
-                    w_c: v.get(KNOTS - 1).copied().unwrap_or(0.0),
-                })
+            m.terms.partition = shape(Variable::Power).map(|(_, shape)| super::terms::Partition {
+                shape,
+                w_c: v.get(KNOTS - 1).copied().unwrap_or(0.0),
+            })
         }
         c => {
             if let Some(id) = c.member() {

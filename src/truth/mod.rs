@@ -18,6 +18,7 @@
 
 pub mod experiments;
 pub mod form;
+pub mod identifiable;
 pub mod inject;
 pub mod physics;
 pub mod rng;
@@ -30,12 +31,11 @@ use form::Family;
 use inject::{Effect, OutsideKind, Target, PHYSICS_CLASSES, SENSOR_CLASSES};
 use physics::Physics;
 use rng::{derive, Xoshiro};
-use sim::{Noise, Signals};
+use sim::Noise;
 use std::collections::BTreeMap;
 use std::fmt;
 
-/// Largest relative detuning of the recalibratable baseline parameters.
-pub const DETUNE: f64 = 0.2;
+pub use identifiable::DETUNE;
 
 /// What a truth is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
@@ -150,11 +150,17 @@ pub struct Truth {
     /// Magnitude of the (first) effect, signed, in `unit`.
     pub magnitude: f64,
     pub unit: &'static str,
-    /// Effect size over the noise (largest over the channel groups) and its band.
+    /// Identifiable effect size over the noise (largest over the channel groups: what no
+    /// baseline within the detuning box reproduces, see [`identifiable`]) and its band.
     pub effect_size: f64,
     pub effect_channel: &'static str,
     pub band: Band,
-    /// Effect size of each effect alone (pairs: two entries).
+    /// Raw effect size over the noise (against the truth's own baseline).
+    pub raw_effect_size: f64,
+    /// Relative factors (against the truth's plant) of the baseline closest to the records with
+    /// the effect; empty when the plant itself is the closest.
+    pub refit: BTreeMap<String, f64>,
+    /// Identifiable effect size of each effect alone (pairs: two entries).
     pub effect_sizes: Vec<f64>,
     /// Relative factor applied to each recalibratable baseline parameter (1 = nominal).
     pub detune: BTreeMap<String, f64>,
@@ -197,34 +203,11 @@ pub fn detune(nominal: &Params, r: f64, rng: &mut Xoshiro) -> (Params, BTreeMap<
     for _ in 0..50 {
         let mut p = *nominal;
         let mut f = BTreeMap::new();
-        let mut draw = |name: &str, v: &mut f64, rng: &mut Xoshiro| {
+        for name in identifiable::DETUNED {
             let k = 1.0 + r * rng.range(-1.0, 1.0);
-            *v *= k;
+            identifiable::scale(&mut p, name, k);
             f.insert(name.to_string(), k);
-            k
-        };
-        draw("clutch.x_isp0_mm", &mut p.clutch.x_isp0_mm, rng);
-        draw("clutch.x_isp1_mm_per_c", &mut p.clutch.x_isp1_mm_per_c, rng);
-        draw(
-            "clutch.x_isp2_mm_per_c2",
-            &mut p.clutch.x_isp2_mm_per_c2,
-            rng,
-        );
-        let k = draw("clutch.friction_level", &mut p.clutch.mu_s, rng);
-        p.clutch.c4 *= k;
-        draw("thermal5.alpha2_per_s", &mut p.thermal5.alpha2_per_s, rng);
-        draw(
-            "thermal5.alpha3_k_per_j",
-            &mut p.thermal5.alpha3_k_per_j,
-            rng,
-        );
-        draw("thermal5.alpha8_per_s", &mut p.thermal5.alpha8_per_s, rng);
-        draw(
-            "thermal5.alpha9_k_per_j",
-            &mut p.thermal5.alpha9_k_per_j,
-            rng,
-        );
-        draw("actuator.tau_s", &mut p.actuator.tau_s, rng);
+        }
         if p.validate().is_ok() {
             return (p, f);
         }
@@ -413,12 +396,11 @@ fn finish(
         _ => None,
     });
     let fx_seed = derive(seed, &[0xEFF, index as u64]);
-    let (size, channel) = effect_size(&plant, &effects, variants, fx_seed);
+    let sizes = effect_sizes(&plant, &detune, &effects, variants, fx_seed);
+    let (all, each) = (sizes[0].clone(), sizes[1..].to_vec());
+    let size = all.identifiable.size;
     let effect_sizes = if effects.len() > 1 {
-        effects
-            .iter()
-            .map(|e| effect_size(&plant, std::slice::from_ref(e), variants, fx_seed).0)
-            .collect()
+        each.iter().map(|s| s.identifiable.size).collect()
     } else {
         vec![size]
     };
@@ -447,8 +429,10 @@ fn finish(
         outside,
         effects,
         effect_size: size,
-        effect_channel: channel,
+        effect_channel: all.identifiable.channel,
         band: Band::of(size),
+        raw_effect_size: all.raw.size,
+        refit: all.refit,
         effect_sizes,
         detune,
         variants,
@@ -484,53 +468,39 @@ fn simulate_all(
     out
 }
 
-/// Effect size over the noise: per channel group (torque, temperatures, positions) the RMS over
-/// the group's samples of (noise-free record with the effects − without) divided by the group's
-/// noise σ, over every record; the largest group. Torque samples are those where either record
-/// transmits more than 1 N·m (the torque channel says nothing while the clutch is open).
-pub fn effect_size(
+/// Sizes of a truth's effects ([`identifiable`]): first of all its effects together, then (two
+/// or more effects) of each alone. No effect: zero. The baseline's sensitivities are simulated
+/// once and shared.
+fn effect_sizes(
     plant: &Params,
+    detune: &BTreeMap<String, f64>,
     effects: &[Effect],
     variants: Variants,
     fx_seed: u64,
-) -> (f64, &'static str) {
+) -> Vec<identifiable::Sizes> {
+    let zero = identifiable::Sizes {
+        raw: identifiable::Size::ZERO,
+        identifiable: identifiable::Size::ZERO,
+        refit: BTreeMap::new(),
+    };
     if effects.is_empty() {
-        return (0.0, "none");
+        return vec![zero];
     }
-    let noise = Noise::default();
-    let with = simulate_all(plant, effects, variants, fx_seed);
-    let without = simulate_all(plant, &[], variants, fx_seed);
-    let (mut st, mut nt) = (0.0, 0usize);
-    let (mut sth, mut nth) = (0.0, 0usize);
-    let (mut sx, mut nx) = (0.0, 0usize);
-    for ((_, a), (_, b)) in with.iter().zip(&without) {
-        let (a, b): (&Signals, &Signals) = (&a.signals, &b.signals);
-        for k in 0..a.len() {
-            for i in 0..2 {
-                if a.torque[i][k].abs() > 1.0 || b.torque[i][k].abs() > 1.0 {
-                    st += (a.torque[i][k] - b.torque[i][k]).powi(2);
-                    nt += 1;
-                }
-                sth += (a.pp[i][k] - b.pp[i][k]).powi(2);
-                sx += (a.x[i][k] - b.x[i][k]).powi(2);
-                nth += 1;
-                nx += 1;
-            }
-            sth += (a.cd[k] - b.cd[k]).powi(2);
-            nth += 1;
+    let run = |p: &Params, fx: &[Effect]| -> Vec<sim::SimOut> {
+        simulate_all(p, fx, variants, fx_seed)
+            .into_iter()
+            .map(|(_, s)| s)
+            .collect()
+    };
+    let baseline = identifiable::Baseline::new(plant, detune, &|p| run(p, &[]));
+    let base_sim = |p: &Params| run(p, &[]);
+    let mut out = vec![baseline.sizes(&run(plant, effects), &base_sim)];
+    if effects.len() > 1 {
+        for e in effects {
+            out.push(baseline.sizes(&run(plant, std::slice::from_ref(e)), &base_sim));
         }
     }
-    let rms = |s: f64, n: usize| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
-    let groups = [
-        ("torque", rms(st, nt) / noise.torque_nm),
-        ("temperature", rms(sth, nth) / noise.temp_c),
-        ("position", rms(sx, nx) / noise.pos_mm),
-    ];
-    groups
-        .into_iter()
-        .map(|(c, v)| (v, c))
-        .max_by(|a, b| a.0.total_cmp(&b.0))
-        .unwrap()
+    out
 }
 
 /// The noisy training and validation records of a truth, as CSV text. `seed` drives the sensor
