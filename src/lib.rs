@@ -8,6 +8,7 @@
 pub mod blind;
 pub mod can;
 pub mod daemon;
+pub mod error_chain;
 pub mod gap;
 pub mod model;
 pub mod plant;

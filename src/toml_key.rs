@@ -6,6 +6,95 @@
 //! same error, since serde reports a wrong type while it visits the keys, before missing ones.
 
 use serde::Deserialize;
+use toml_edit::{ImDocument, Item, TableLike, Value};
+
+/// The 1-based line where a key path is written in TOML text: `table.key`, with `[i]` after a
+/// segment for an element of an array or of an array of tables (`faults[2].value`,
+/// `pedal_pct[1]`). `None` when the text does not parse or does not hold the whole path.
+pub fn line_of(text: &str, path: &str) -> Option<usize> {
+    let doc = ImDocument::parse(text).ok()?;
+    let mut node = Node::Item(doc.as_item());
+    let mut span = None;
+    for seg in path.split('.') {
+        let (name, indexes) = seg.split_at(seg.find('[').unwrap_or(seg.len()));
+        (node, span) = child(node, name)?;
+        for ix in indexes.split(['[', ']']).filter(|s| !s.is_empty()) {
+            (node, span) = element(node, ix.parse().ok()?)?;
+        }
+    }
+    span.map(|s| line_at(text, s.start))
+}
+
+/// [`line_of`] in a file (read again: errors are rare and configuration files small); `None`
+/// when it cannot be read or does not hold the path.
+/// A key named relative to a table of the file (a scenario's `[driver]` read by the profile
+/// parser says `pedal_pct[3]`) is looked up under each top-level table and taken when exactly
+/// one holds it.
+pub fn line_in_file(path: &std::path::Path, key: &str) -> Option<usize> {
+    let text = std::fs::read_to_string(path).ok()?;
+    if let Some(l) = line_of(&text, key) {
+        return Some(l);
+    }
+    let doc: toml::Table = toml::from_str(&text).ok()?;
+    let found: Vec<usize> = doc
+        .iter()
+        .filter(|(_, v)| v.is_table())
+        .filter_map(|(t, _)| line_of(&text, &format!("{t}.{key}")))
+        .collect();
+    match found.as_slice() {
+        [l] => Some(*l),
+        _ => None,
+    }
+}
+
+/// ` line N` after a file name, or nothing.
+pub fn at_line(line: Option<usize>) -> String {
+    line.map_or(String::new(), |l| format!(" line {l}"))
+}
+
+/// A place in a parsed document.
+#[derive(Clone, Copy)]
+enum Node<'a> {
+    Item(&'a Item),
+    Value(&'a Value),
+    Table(&'a toml_edit::Table),
+}
+
+type Span = Option<std::ops::Range<usize>>;
+
+/// The key `name` of a table (its span: the key's).
+fn child<'a>(n: Node<'a>, name: &str) -> Option<(Node<'a>, Span)> {
+    let t: &dyn TableLike = match n {
+        Node::Item(i) => i.as_table_like()?,
+        Node::Value(v) => v.as_inline_table()?,
+        Node::Table(t) => t,
+    };
+    let (k, v) = t.get_key_value(name)?;
+    Some((Node::Item(v), k.span().or(v.span())))
+}
+
+/// Element `i` of an array or an array of tables.
+fn element(n: Node<'_>, i: usize) -> Option<(Node<'_>, Span)> {
+    match n {
+        Node::Item(Item::ArrayOfTables(a)) => {
+            let t = a.get(i)?;
+            Some((Node::Table(t), t.span()))
+        }
+        Node::Item(Item::Value(Value::Array(a))) | Node::Value(Value::Array(a)) => {
+            let v = a.get(i)?;
+            Some((Node::Value(v), v.span()))
+        }
+        _ => None,
+    }
+}
+
+/// The 1-based line of a byte offset.
+fn line_at(text: &str, offset: usize) -> usize {
+    1 + text[..offset.min(text.len())]
+        .bytes()
+        .filter(|b| *b == b'\n')
+        .count()
+}
 
 /// The key of `table` that `T` refuses, if one alone explains the error.
 pub fn refused_key<T: for<'de> Deserialize<'de>>(table: &toml::Table) -> Option<String> {
@@ -41,6 +130,23 @@ mod tests {
 
     fn table(text: &str) -> toml::Table {
         toml::from_str(text).unwrap()
+    }
+
+    #[test]
+    fn keys_are_found_at_their_lines() {
+        let text = "a = 1\n[rig]\nspeed = 3.0\npedal_pct = [\n  10,\n  20,\n]\n\
+                    point = { x = 1, y = 2 }\n[[faults]]\nsignal = \"s\"\n[[faults]]\n\
+                    signal = \"t\"\nvalue = 7\n";
+        assert_eq!(line_of(text, "a"), Some(1));
+        assert_eq!(line_of(text, "rig.speed"), Some(3));
+        assert_eq!(line_of(text, "rig.pedal_pct"), Some(4));
+        assert_eq!(line_of(text, "rig.pedal_pct[1]"), Some(6));
+        assert_eq!(line_of(text, "rig.point.y"), Some(8));
+        assert_eq!(line_of(text, "faults[1]"), Some(11));
+        assert_eq!(line_of(text, "faults[1].value"), Some(13));
+        assert_eq!(line_of(text, "faults[0].value"), None);
+        assert_eq!(line_of(text, "rig.missing"), None);
+        assert_eq!(line_of("not toml [", "a"), None);
     }
 
     #[test]

@@ -455,10 +455,10 @@ fn rig_csv_files_load_or_are_refused_naming_the_file() {
 
 /// Every numeric key of every shipped configuration (TCU calibration, plant and rig, physical
 /// parameters, the `ddct sim` scenarios, the fault file), set to NaN, ±infinity, 1e300 or a
-/// string: each is refused, and the error names the file and the key. Copies of `config/` in a
+/// string: each is refused, and the error names the file, the key and its line. Copies of `config/` in a
 /// temporary directory, so that the files' references to each other still resolve.
 #[test]
-fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_and_key() {
+fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_line_and_key() {
     let tmp = std::env::temp_dir().join(format!("ddct-config-fuzz-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     copy_dir(&root().join("config"), &tmp.join("config"));
@@ -467,15 +467,27 @@ fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_and_key
     let loaders: Vec<(&str, Loader)> = vec![
         (
             "tcu.toml",
-            Box::new(|p| TcuConfig::load(p).map(drop).map_err(|e| e.to_string())),
+            Box::new(|p| {
+                TcuConfig::load(p)
+                    .map(drop)
+                    .map_err(|e| ddct::error_chain::chain(&e))
+            }),
         ),
         (
             "plant.toml",
-            Box::new(|p| PlantConfig::load(p).map(drop).map_err(|e| e.to_string())),
+            Box::new(|p| {
+                PlantConfig::load(p)
+                    .map(drop)
+                    .map_err(|e| ddct::error_chain::chain(&e))
+            }),
         ),
         (
             "plant_rig.toml",
-            Box::new(|p| PlantConfig::load(p).map(drop).map_err(|e| e.to_string())),
+            Box::new(|p| {
+                PlantConfig::load(p)
+                    .map(drop)
+                    .map_err(|e| ddct::error_chain::chain(&e))
+            }),
         ),
         // A parameter error names the key; every caller (plant, TCU, CLI) adds the file.
         (
@@ -483,12 +495,17 @@ fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_and_key
             Box::new(|p| {
                 ddct::model::params::Params::load(p)
                     .map(drop)
-                    .map_err(|e| format!("{}: {e}", p.display()))
+                    .map_err(|e| format!("{}: {}", p.display(), ddct::error_chain::chain(&e)))
             }),
         ),
         (
             "plant_faults.toml",
-            Box::new(move |p| plant.load_faults(p).map(drop).map_err(|e| e.to_string())),
+            Box::new(move |p| {
+                plant
+                    .load_faults(p)
+                    .map(drop)
+                    .map_err(|e| ddct::error_chain::chain(&e))
+            }),
         ),
     ];
     let mut files: Vec<(PathBuf, usize)> = loaders
@@ -499,8 +516,11 @@ fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_and_key
     let scenarios = tmp.join("config/scenarios");
     let mut tried = 0;
     let mut failures = Vec::new();
-    let scenario_loader: Loader =
-        Box::new(|p| SimScenario::load(p).map(drop).map_err(|e| e.to_string()));
+    let scenario_loader: Loader = Box::new(|p| {
+        SimScenario::load(p)
+            .map(drop)
+            .map_err(|e| ddct::error_chain::chain(&e))
+    });
     for e in std::fs::read_dir(&scenarios).unwrap() {
         let p = e.unwrap().path();
         if SimScenario::load(&p).is_ok() {
@@ -539,7 +559,11 @@ fn every_config_key_with_nan_inf_huge_or_a_string_is_refused_naming_file_and_key
                 let file = path.file_name().unwrap().to_string_lossy().to_string();
                 match load(path) {
                     Ok(()) => failures.push(format!("{file}:{} `{key} = {bad}` accepted", n + 1)),
-                    Err(e) if !(e.contains(&file) && e.contains(key)) => {
+                    Err(e)
+                        if !(e.contains(&file)
+                            && e.contains(key)
+                            && e.contains(&format!("line {}", n + 1))) =>
+                    {
                         failures.push(format!("{file}:{} `{key} = {bad}`: {e}", n + 1))
                     }
                     Err(_) => {}

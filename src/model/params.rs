@@ -54,6 +54,28 @@ pub enum ParamsError {
     Unknown { key: String },
     #[error("inconsistent parameter `{key}`: {reason}")]
     Inconsistent { key: String, reason: String },
+    /// An error of a key placed at the key's line of the file ([`Params::load`]).
+    #[error("line {line}")]
+    AtLine {
+        line: usize,
+        #[source]
+        source: Box<ParamsError>,
+    },
+}
+
+impl ParamsError {
+    /// The `table.key` the error is about, if any.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            ParamsError::Missing { key, .. }
+            | ParamsError::NotANumber { key, .. }
+            | ParamsError::OutOfRange { key, .. }
+            | ParamsError::Unknown { key }
+            | ParamsError::Inconsistent { key, .. } => Some(key),
+            ParamsError::AtLine { source, .. } => source.key(),
+            _ => None,
+        }
+    }
 }
 
 macro_rules! param_table {
@@ -348,7 +370,15 @@ impl Params {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
-        Params::from_toml_str(&text)
+        Params::from_toml_str(&text).map_err(|e| {
+            match e.key().and_then(|k| crate::toml_key::line_of(&text, k)) {
+                Some(line) => ParamsError::AtLine {
+                    line,
+                    source: Box::new(e),
+                },
+                None => e,
+            }
+        })
     }
 
     /// Serialises to TOML (without the comments of the original file).

@@ -504,7 +504,7 @@ mod tests {
             matches!(&e, PlantError::Key { key, .. } if key == "initial.rpm"),
             "{e}"
         );
-        assert!(e.to_string().contains("rpm"), "{e}");
+        assert!(crate::error_chain::chain(&e).contains("rpm"), "{e}");
         let e = PlantConfig::from_toml_str(p, "[plant]\nmode = \"boat\"\n", None).unwrap_err();
         assert!(
             matches!(&e, PlantError::Key { key, .. } if key == "plant.mode"),
@@ -513,7 +513,7 @@ mod tests {
         let e = PlantConfig::from_toml_str(p, "[effects.actuator_backlash]\nwidth_mm = 5\n", None)
             .unwrap_err();
         assert!(matches!(&e, PlantError::Effects { .. }), "{e}");
-        assert!(e.to_string().contains("effects.actuator_backlash.width_mm"));
+        assert!(crate::error_chain::chain(&e).contains("effects.actuator_backlash.width_mm"));
         let e = PlantConfig::from_toml_str(p, "[gearbox]\n", None).unwrap_err();
         assert!(
             matches!(&e, PlantError::Key { key, .. } if key == "gearbox"),

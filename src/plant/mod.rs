@@ -43,19 +43,21 @@ pub enum PlantError {
     Io { path: PathBuf, message: String },
     #[error("{path}: not valid TOML: {message}")]
     Syntax { path: PathBuf, message: String },
-    #[error("{path}: `{key}`: {reason}")]
+    #[error("{path}{}: `{key}`: {reason}", crate::toml_key::at_line(*.line))]
     Key {
         path: PathBuf,
+        /// The line of the key in the file, when the file holds it.
+        line: Option<usize>,
         key: String,
         reason: String,
     },
-    #[error("{path}: {source}")]
+    #[error("{path}")]
     Params {
         path: PathBuf,
         #[source]
         source: crate::model::ParamsError,
     },
-    #[error("{path}: {source}")]
+    #[error("{path}")]
     Effects {
         path: PathBuf,
         #[source]
@@ -69,9 +71,11 @@ impl PlantError {
         key: impl Into<String>,
         reason: impl Into<String>,
     ) -> Self {
+        let key = key.into();
         PlantError::Key {
             path: path.to_path_buf(),
-            key: key.into(),
+            line: crate::toml_key::line_in_file(path, &key),
+            key,
             reason: reason.into(),
         }
     }

@@ -35,13 +35,15 @@ pub enum ScenarioError {
     Io { path: PathBuf, message: String },
     #[error("scenario {path}: not valid TOML: {message}")]
     Syntax { path: PathBuf, message: String },
-    #[error("scenario {path}: `{key}`: {reason}")]
+    #[error("scenario {path}{}: `{key}`: {reason}", crate::toml_key::at_line(*.line))]
     Key {
         path: PathBuf,
+        /// The line of the key in the file, when the file holds it.
+        line: Option<usize>,
         key: String,
         reason: String,
     },
-    #[error("scenario {path}: {source}")]
+    #[error("scenario {path}")]
     Plant {
         path: PathBuf,
         #[source]
@@ -50,9 +52,11 @@ pub enum ScenarioError {
 }
 
 fn key_err(path: &Path, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
+    let key = key.into();
     ScenarioError::Key {
         path: path.to_path_buf(),
-        key: key.into(),
+        line: crate::toml_key::line_in_file(path, &key),
+        key,
         reason: reason.into(),
     }
 }
@@ -77,7 +81,7 @@ impl TcuOverrides {
                 let key = key.rsplit('.').next().unwrap_or(key);
                 key_err(path, format!("tcu.{key}"), e.to_string())
             }
-            other => key_err(path, "tcu", other.to_string()),
+            other => key_err(path, "tcu", crate::error_chain::chain(other)),
         })
     }
 
@@ -334,12 +338,12 @@ initial_temp_c = 140.0
     fn errors_name_the_key() {
         let bad = TEXT.replace("duration_s = 2.0", "duration_s = 2.0\nfoo = 1");
         let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
-        assert!(e.to_string().contains("`foo`"), "{e}");
+        assert!(crate::error_chain::chain(&e).contains("`foo`"), "{e}");
         let bad = TEXT.replace("pedal_pct = [0.0, 50.0]", "pedal_pct = [0.0, 150.0]");
         let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
-        assert!(e.to_string().contains("pedal_pct"), "{e}");
+        assert!(crate::error_chain::chain(&e).contains("pedal_pct"), "{e}");
         let bad = TEXT.replace("initial_temp_c = 140.0", "initial_tmp_c = 140.0");
         let e = SimScenario::from_toml_str(Path::new("x.toml"), &bad).unwrap_err();
-        assert!(e.to_string().contains("tcu"), "{e}");
+        assert!(crate::error_chain::chain(&e).contains("tcu"), "{e}");
     }
 }

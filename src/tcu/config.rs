@@ -33,14 +33,14 @@ pub enum TcuConfigError {
     Inconsistent { key: String, reason: String },
     #[error("TCU calibration: effects file {path}: {message}")]
     Effects { path: PathBuf, message: String },
-    #[error("TCU calibration {location}: {source}")]
+    #[error("TCU calibration {location}")]
     InFile {
         /// The file, and the line of the key when it is found.
         location: String,
         #[source]
         source: Box<TcuConfigError>,
     },
-    #[error("TCU calibration: parameter file {path}: {source}")]
+    #[error("TCU calibration: parameter file {path}")]
     Params {
         path: PathBuf,
         #[source]
@@ -542,15 +542,18 @@ mod tests {
         let nan = DEFAULT_TOML.replace("clamp_margin = 0.25", "clamp_margin = nan");
         let e = TcuConfig::from_toml_str(&nan, Path::new("x.toml")).unwrap_err();
         assert!(
-            e.to_string().contains(&format!("x.toml line {line}")),
+            crate::error_chain::chain(&e).contains(&format!("x.toml line {line}")),
             "{e}"
         );
         let bad = DEFAULT_TOML.replace("clamp_margin = 0.25", "clamp_margn = 0.25");
         let e = TcuConfig::from_toml_str(&bad, Path::new("x.toml")).unwrap_err();
-        assert!(e.to_string().contains("clamp_margn"), "{e}");
+        assert!(crate::error_chain::chain(&e).contains("clamp_margn"), "{e}");
         let bad = DEFAULT_TOML.replace("down_kmh_0 = [13.0", "down_kmh_0 = [15.0");
         let e = TcuConfig::from_toml_str(&bad, Path::new("x.toml")).unwrap_err();
-        assert!(e.to_string().contains("shift.down_kmh_0[0]"), "{e}");
+        assert!(
+            crate::error_chain::chain(&e).contains("shift.down_kmh_0[0]"),
+            "{e}"
+        );
     }
 
     #[test]
