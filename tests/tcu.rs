@@ -622,3 +622,53 @@ fn garbage_frames_never_panic_or_leak_nan() {
         }
     }
 }
+
+/// The InternalNonFinite path end to end. A configuration file cannot carry a non-finite value
+/// any more (the config fuzz shows every key refused), so the corruption is made where nothing
+/// checks it — a heating coefficient of the TCU's thermal model set to NaN in memory after
+/// loading, as a corrupted RAM cell or a model singularity would. Expected (docs/tcu.md): the
+/// TCU_Status frames on the bus carry FaultCode InternalNonFinite, the clutch commands stay
+/// finite (the last finite one held) and no non-finite value reaches the bus.
+#[test]
+fn a_non_finite_internal_value_gives_internal_non_finite_on_the_bus() {
+    use ddct::can::messages::TcuEstimates;
+    let sc = SimScenario::from_toml_str(std::path::Path::new("inline.toml"), LAUNCH_DRIVER)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut cfg = tcu_config();
+    cfg.physics.thermal3.alpha3_k_per_j = f64::NAN;
+    let r = sim::run_scenario(&sc, &cfg, &SimOptions::default());
+    let mut codes = std::collections::BTreeMap::new();
+    for (_, f) in tcu_frames(&r, ids::TCU_STATUS) {
+        *codes
+            .entry(format!(
+                "{:?}",
+                TcuStatus::decode(f.bytes()).unwrap().fault_code
+            ))
+            .or_insert(0usize) += 1;
+    }
+    // From the third cycle on (the first frames precede the first estimator update and the
+    // inputs' arrival) every status frame says so, in the safe state.
+    let late: Vec<TcuStatus> = tcu_frames(&r, ids::TCU_STATUS)
+        .filter(|(t, _)| *t >= Duration::from_millis(30))
+        .map(|(_, f)| TcuStatus::decode(f.bytes()).unwrap())
+        .collect();
+    assert!(late.len() > 500, "{} status frames", late.len());
+    assert!(
+        late.iter()
+            .all(|s| s.fault_code == FaultCode::InternalNonFinite
+                && s.tcu_state == TcuState::SafeState),
+        "status codes on the bus: {codes:?}"
+    );
+    for (t, f) in tcu_frames(&r, ids::TCU_CLUTCH_CMD) {
+        let c = TcuClutchCmd::decode(f.bytes()).unwrap();
+        assert!(
+            c.clutch1_pos_req.is_finite() && c.clutch2_pos_req.is_finite(),
+            "{t:?}: {c:?}"
+        );
+    }
+    for (t, f) in tcu_frames(&r, ids::TCU_ESTIMATES) {
+        let e = TcuEstimates::decode(f.bytes()).unwrap();
+        assert!(format!("{e:?}").find("NaN").is_none(), "{t:?}: {e:?}");
+    }
+    println!("status codes on the bus: {codes:?}");
+}

@@ -37,6 +37,8 @@ pub struct ThermalEstimator {
     /// β of the last update.
     pub beta: [f64; 2],
     deadband: f64,
+    /// The last update computed a non-finite state (it was not taken).
+    failed: bool,
 }
 
 impl ThermalEstimator {
@@ -50,7 +52,14 @@ impl ThermalEstimator {
             torque_nm: [0.0; 2],
             beta: [0.0; 2],
             deadband: slip_deadband_radps,
+            failed: false,
         }
+    }
+
+    /// True when the last update computed a non-finite temperature or power: the estimate is
+    /// frozen at its last finite value and must not be trusted (FaultCode InternalNonFinite).
+    pub fn failed(&self) -> bool {
+        self.failed
     }
 
     /// Current estimate, if initialised.
@@ -103,7 +112,11 @@ impl ThermalEstimator {
             ..ThermalInputs::default()
         };
         let next = self.model.step(&s, &tin, dt);
-        if next.c1.is_finite() && next.c2.is_finite() && next.body.is_finite() {
+        self.failed = !(next.c1.is_finite()
+            && next.c2.is_finite()
+            && next.body.is_finite()
+            && self.power_w.iter().all(|p| p.is_finite()));
+        if !self.failed {
             self.state = Some(next);
         }
     }
@@ -118,6 +131,21 @@ mod tests {
     fn model() -> ClutchModel {
         let c = TcuConfig::default();
         ClutchModel::new(c.physics.clutch, c.compensation)
+    }
+
+    #[test]
+    fn a_non_finite_update_is_refused_and_reported() {
+        let mut p = Params::default().thermal3;
+        p.alpha3_k_per_j = f64::NAN;
+        let mut e = ThermalEstimator::new(p, Some(60.0), 0.1);
+        let u = EstimatorInputs {
+            x_mm: [0.0, 0.0],
+            slip_radps: [100.0, 100.0],
+            theta_h_c: 40.0,
+        };
+        e.update(&model(), &u, 0.01);
+        assert!(e.failed());
+        assert_eq!(e.clutch_temps(0.0), [60.0, 60.0]);
     }
 
     #[test]

@@ -271,18 +271,23 @@ impl Tcu {
         // Top-level state.
         let grace = now.saturating_sub(self.start) >= CYCLE * self.cfg.inputs.timeout_cycles;
         let restart = match self.top {
-            Top::Init => self.inputs.all_seen() && health.all_fresh,
+            Top::Init => self.inputs.all_seen() && health.all_fresh && !self.est.failed(),
             Top::Run => {
                 if !health.all_fresh {
                     self.enter_safe(health.fault.unwrap_or(FaultCode::InternalNonFinite));
+                } else if self.est.failed() {
+                    // The temperature estimate the torque inversion needs is gone.
+                    self.enter_safe(FaultCode::InternalNonFinite);
                 }
                 false
             }
             Top::Safe => {
                 if let Some(f) = health.fault {
                     self.safe_fault = f;
+                } else if self.est.failed() {
+                    self.safe_fault = FaultCode::InternalNonFinite;
                 }
-                health.recovered
+                health.recovered && !self.est.failed()
             }
         };
         let ctx = Ctx {
@@ -346,7 +351,11 @@ impl Tcu {
             self.safe_fault
         } else if self.top == Top::Init {
             if grace {
-                health.fault.unwrap_or(FaultCode::None)
+                health.fault.unwrap_or(if self.est.failed() {
+                    FaultCode::InternalNonFinite
+                } else {
+                    FaultCode::None
+                })
             } else {
                 FaultCode::None
             }
