@@ -13,7 +13,12 @@ use toml_edit::{ImDocument, Item, TableLike, Value};
 /// `pedal_pct[1]`). `None` when the text does not parse or does not hold the whole path.
 pub fn line_of(text: &str, path: &str) -> Option<usize> {
     let doc = ImDocument::parse(text).ok()?;
-    let mut node = Node::Item(doc.as_item());
+    span_of(doc.as_item(), path).map(|s| line_at(text, s.start))
+}
+
+/// The span of a key path below `root`.
+fn span_of(root: &Item, path: &str) -> Span {
+    let mut node = Node::Item(root);
     let mut span = None;
     for seg in path.split('.') {
         let (name, indexes) = seg.split_at(seg.find('[').unwrap_or(seg.len()));
@@ -22,29 +27,27 @@ pub fn line_of(text: &str, path: &str) -> Option<usize> {
             (node, span) = element(node, ix.parse().ok()?)?;
         }
     }
-    span.map(|s| line_at(text, s.start))
+    span
 }
 
-/// [`line_of`] in a file (read again: errors are rare and configuration files small); `None`
-/// when it cannot be read or does not hold the path.
-/// A key named relative to a table of the file (a scenario's `[driver]` read by the profile
-/// parser says `pedal_pct[3]`) is looked up under each top-level table and taken when exactly
-/// one holds it.
-pub fn line_in_file(path: &std::path::Path, key: &str) -> Option<usize> {
-    let text = std::fs::read_to_string(path).ok()?;
-    if let Some(l) = line_of(&text, key) {
-        return Some(l);
-    }
-    let doc: toml::Table = toml::from_str(&text).ok()?;
-    let found: Vec<usize> = doc
-        .iter()
-        .filter(|(_, v)| v.is_table())
-        .filter_map(|(t, _)| line_of(&text, &format!("{t}.{key}")))
-        .collect();
-    match found.as_slice() {
-        [l] => Some(*l),
-        _ => None,
-    }
+/// [`line_of`], and for a key named relative to a table of the text (a scenario's `[driver]`
+/// read by the profile parser says `pedal_pct[3]`) the line under the one top-level table that
+/// holds it (none when several do).
+pub fn line_in_text(text: &str, key: &str) -> Option<usize> {
+    let doc = ImDocument::parse(text).ok()?;
+    let root = doc.as_item();
+    let span = span_of(root, key).or_else(|| {
+        let found: Vec<_> = root
+            .as_table_like()?
+            .iter()
+            .filter_map(|(_, item)| item.as_table_like().and(span_of(item, key)))
+            .collect();
+        match <[_; 1]>::try_from(found) {
+            Ok([s]) => Some(s),
+            Err(_) => None,
+        }
+    });
+    span.map(|s| line_at(text, s.start))
 }
 
 /// ` line N` after a file name, or nothing.

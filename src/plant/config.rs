@@ -6,7 +6,7 @@
 
 use super::faults::{parse_faults, Fault};
 use super::profile::{RigProfile, Scenario};
-use super::{parse_toml, read_toml, PlantError};
+use super::{parse_toml, read_text, PlantError};
 use crate::can::messages::ids;
 use crate::model::effects::EffectSet;
 use crate::model::Params;
@@ -261,17 +261,22 @@ impl PlantConfig {
     /// Reads and validates a plant configuration; relative file names inside it are relative to
     /// its folder.
     pub fn load(path: &Path) -> Result<Self, PlantError> {
-        let text = std::fs::read_to_string(path).map_err(|e| PlantError::Io {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        Self::from_toml_str(path, &text, Some(path))
+        Self::from_toml_str(path, &read_text(path)?, Some(path))
     }
 
-    /// Parses a configuration's text; `path` names it in errors, `base` (the file) resolves
-    /// relative file names (`None`: relative to the working directory).
+    /// Parses a configuration's text; `path` names it in errors (with the key's line), `base`
+    /// (the file) resolves relative file names (`None`: relative to the working directory).
     pub fn from_toml_str(path: &Path, text: &str, base: Option<&Path>) -> Result<Self, PlantError> {
-        let doc = parse_toml(path, text)?;
+        Self::from_doc(path, &parse_toml(path, text)?, base).map_err(|e| e.located(path, text))
+    }
+
+    /// [`PlantConfig::from_toml_str`] of a parsed table (errors name keys, not lines: a caller
+    /// holding the text places them with [`PlantError::located`]).
+    pub(crate) fn from_doc(
+        path: &Path,
+        doc: &toml::Table,
+        base: Option<&Path>,
+    ) -> Result<Self, PlantError> {
         for k in doc.keys() {
             if !matches!(
                 k.as_str(),
@@ -291,7 +296,7 @@ impl PlantConfig {
                 ));
             }
         }
-        let plant: PlantTable = table(path, &doc, "plant")?;
+        let plant: PlantTable = table(path, doc, "plant")?;
         let params = match &plant.params {
             None => Params::default(),
             Some(p) => {
@@ -299,11 +304,11 @@ impl PlantConfig {
                 Params::load(&pp).map_err(|source| PlantError::Params { path: pp, source })?
             }
         };
-        let initial: Initial = table(path, &doc, "initial")?;
-        let housing: Housing = table(path, &doc, "housing")?;
-        let sensors: SensorNoise = table(path, &doc, "sensors")?;
-        let inputs: InputOptions = table(path, &doc, "inputs")?;
-        let rig: RigOptions = table(path, &doc, "rig")?;
+        let initial: Initial = table(path, doc, "initial")?;
+        let housing: Housing = table(path, doc, "housing")?;
+        let sensors: SensorNoise = table(path, doc, "sensors")?;
+        let inputs: InputOptions = table(path, doc, "inputs")?;
+        let rig: RigOptions = table(path, doc, "rig")?;
         let effects = match doc.get("effects") {
             None => EffectSet::nominal(),
             Some(toml::Value::Table(t)) => {
@@ -323,7 +328,7 @@ impl PlantConfig {
             None => None,
         };
         let sent = sent_ids(plant.mode, scenario.is_some());
-        let faults = parse_faults(path, &doc, &sent)?;
+        let faults = parse_faults(path, doc, &sent)?;
         let cfg = PlantConfig {
             mode: plant.mode,
             params,
@@ -445,17 +450,17 @@ impl PlantConfig {
 
     /// Loads a faults file (`[[faults]]` tables) for this configuration.
     pub fn load_faults(&self, path: &Path) -> Result<Vec<Fault>, PlantError> {
-        let doc = read_toml(path)?;
-        for k in doc.keys() {
-            if k != "faults" {
-                return Err(PlantError::key(
-                    path,
-                    k,
-                    "a faults file holds only [[faults]] tables",
-                ));
-            }
-        }
-        parse_faults(path, &doc, &sent_ids(self.mode, self.scenario.is_some()))
+        let text = read_text(path)?;
+        let doc = parse_toml(path, &text)?;
+        let faults = match doc.keys().find(|k| *k != "faults") {
+            Some(k) => Err(PlantError::key(
+                path,
+                k,
+                "a faults file holds only [[faults]] tables",
+            )),
+            None => parse_faults(path, &doc, &sent_ids(self.mode, self.scenario.is_some())),
+        };
+        faults.map_err(|e| e.located(path, &text))
     }
 
     /// Re-checks the faults against the messages sent after mode or driver changed.

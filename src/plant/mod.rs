@@ -74,19 +74,37 @@ impl PlantError {
         let key = key.into();
         PlantError::Key {
             path: path.to_path_buf(),
-            line: crate::toml_key::line_in_file(path, &key),
+            line: None,
             key,
             reason: reason.into(),
         }
     }
+
+    /// Places a key error of the file `path` at its key's line in that file's `text` (the
+    /// loaders call it where they hold the text; other errors pass unchanged).
+    pub(crate) fn located(self, path: &std::path::Path, text: &str) -> Self {
+        match self {
+            PlantError::Key {
+                path: p,
+                line: None,
+                key,
+                reason,
+            } if p == path => PlantError::Key {
+                line: crate::toml_key::line_in_text(text, &key),
+                path: p,
+                key,
+                reason,
+            },
+            e => e,
+        }
+    }
 }
 
-pub(crate) fn read_toml(path: &std::path::Path) -> Result<toml::Table, PlantError> {
-    let text = std::fs::read_to_string(path).map_err(|e| PlantError::Io {
+pub(crate) fn read_text(path: &std::path::Path) -> Result<String, PlantError> {
+    std::fs::read_to_string(path).map_err(|e| PlantError::Io {
         path: path.to_path_buf(),
         message: e.to_string(),
-    })?;
-    parse_toml(path, &text)
+    })
 }
 
 pub(crate) fn parse_toml(path: &std::path::Path, text: &str) -> Result<toml::Table, PlantError> {

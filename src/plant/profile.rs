@@ -8,7 +8,7 @@
 //! same time make a step. `scripts/rig_partial_engagements.py` evaluates the same rig profile
 //! files with the same rules, so an experiment runs identically over vcan and in process.
 
-use super::{parse_toml, read_toml, PlantError};
+use super::{parse_toml, read_text, PlantError};
 use crate::can::messages::GearLever;
 use std::path::{Path, PathBuf};
 
@@ -177,11 +177,11 @@ pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../../config/scenarios/dri
 impl Scenario {
     /// Parses a scenario file's text (`path` names it in errors).
     pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, PlantError> {
-        Self::from_table(path, &parse_toml(path, text)?)
+        Self::from_table(path, &parse_toml(path, text)?).map_err(|e| e.located(path, text))
     }
 
     pub fn load(path: &Path) -> Result<Self, PlantError> {
-        let mut s = Self::from_table(path, &read_toml(path)?)?;
+        let mut s = Self::from_toml_str(path, &read_text(path)?)?;
         s.source = Some(path.to_path_buf());
         Ok(s)
     }
@@ -195,7 +195,9 @@ impl Scenario {
         .expect("the built-in scenario is valid (checked by a unit test)")
     }
 
-    fn from_table(path: &Path, doc: &toml::Table) -> Result<Self, PlantError> {
+    /// A scenario from a parsed table (errors name keys, not lines: see
+    /// [`PlantError::located`]).
+    pub(crate) fn from_table(path: &Path, doc: &toml::Table) -> Result<Self, PlantError> {
         check_keys(
             path,
             doc,
@@ -307,11 +309,11 @@ pub struct RigProfile {
 
 impl RigProfile {
     pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, PlantError> {
-        Self::from_table(path, &parse_toml(path, text)?)
+        Self::from_table(path, &parse_toml(path, text)?).map_err(|e| e.located(path, text))
     }
 
     pub fn load(path: &Path) -> Result<Self, PlantError> {
-        let mut r = Self::from_table(path, &read_toml(path)?)?;
+        let mut r = Self::from_toml_str(path, &read_text(path)?)?;
         r.source = Some(path.to_path_buf());
         Ok(r)
     }

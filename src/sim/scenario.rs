@@ -51,11 +51,36 @@ pub enum ScenarioError {
     },
 }
 
+impl ScenarioError {
+    /// Places a key error of the file `path` — the scenario's own or one of its plant's — at its
+    /// key's line in that file's `text`.
+    fn located(self, path: &Path, text: &str) -> Self {
+        match self {
+            ScenarioError::Key {
+                path: p,
+                line: None,
+                key,
+                reason,
+            } if p == path => ScenarioError::Key {
+                line: crate::toml_key::line_in_text(text, &key),
+                path: p,
+                key,
+                reason,
+            },
+            ScenarioError::Plant { path: p, source } => ScenarioError::Plant {
+                path: p,
+                source: source.located(path, text),
+            },
+            e => e,
+        }
+    }
+}
+
 fn key_err(path: &Path, key: impl Into<String>, reason: impl Into<String>) -> ScenarioError {
     let key = key.into();
     ScenarioError::Key {
         path: path.to_path_buf(),
-        line: crate::toml_key::line_in_file(path, &key),
+        line: None,
         key,
         reason: reason.into(),
     }
@@ -133,7 +158,12 @@ impl SimScenario {
         Self::from_toml_str(path, &text)
     }
 
+    /// Parses a scenario's text; `path` names it in errors (with the key's line).
     pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, ScenarioError> {
+        Self::from_text(path, text).map_err(|e| e.located(path, text))
+    }
+
+    fn from_text(path: &Path, text: &str) -> Result<Self, ScenarioError> {
         let plant_err = |source| ScenarioError::Plant {
             path: path.to_path_buf(),
             source,
@@ -210,9 +240,7 @@ impl SimScenario {
         if let Some(toml::Value::Table(p)) = base.get_mut("plant") {
             p.remove("scenario");
         }
-        let merged = toml::to_string(&base).map_err(|e| key_err(path, "plant", e.to_string()))?;
-        let mut plant =
-            PlantConfig::from_toml_str(path, &merged, Some(&base_path)).map_err(plant_err)?;
+        let mut plant = PlantConfig::from_doc(path, &base, Some(&base_path)).map_err(plant_err)?;
         if plant.mode != Mode::Vehicle {
             return Err(key_err(
                 path,
@@ -221,11 +249,7 @@ impl SimScenario {
             ));
         }
         let driver = match doc.get("driver") {
-            Some(toml::Value::Table(t)) => {
-                let text =
-                    toml::to_string(t).map_err(|e| key_err(path, "driver", e.to_string()))?;
-                Scenario::from_toml_str(path, &text).map_err(plant_err)?
-            }
+            Some(toml::Value::Table(t)) => Scenario::from_table(path, t).map_err(plant_err)?,
             Some(toml::Value::String(f)) => Scenario::load(&dir.join(f)).map_err(plant_err)?,
             _ => {
                 return Err(key_err(
