@@ -185,6 +185,18 @@ pub struct Health {
     pub recovered: bool,
 }
 
+impl Health {
+    /// This health with an internal fault: not fresh, not recovered, the input's code first.
+    pub fn with_internal_fault(self, code: FaultCode) -> Health {
+        Health {
+            all_fresh: false,
+            fault: self.fault.or(Some(code)),
+            recovered: false,
+            ..self
+        }
+    }
+}
+
 /// Per-message counters for diagnostics.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
 pub struct InputCounters {

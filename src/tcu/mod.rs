@@ -257,6 +257,13 @@ impl Tcu {
             };
             self.est.update(&self.model, &u, dt);
         }
+        // A failed estimator update is a fault like a missing input: the temperature estimate
+        // the torque inversion needs is gone.
+        let health = if self.est.failed() {
+            health.with_internal_fault(FaultCode::InternalNonFinite)
+        } else {
+            health
+        };
         let theta = self.est.clutch_temps(if m.theta_h.is_finite() {
             m.theta_h
         } else {
@@ -271,23 +278,18 @@ impl Tcu {
         // Top-level state.
         let grace = now.saturating_sub(self.start) >= CYCLE * self.cfg.inputs.timeout_cycles;
         let restart = match self.top {
-            Top::Init => self.inputs.all_seen() && health.all_fresh && !self.est.failed(),
+            Top::Init => self.inputs.all_seen() && health.all_fresh,
             Top::Run => {
                 if !health.all_fresh {
                     self.enter_safe(health.fault.unwrap_or(FaultCode::InternalNonFinite));
-                } else if self.est.failed() {
-                    // The temperature estimate the torque inversion needs is gone.
-                    self.enter_safe(FaultCode::InternalNonFinite);
                 }
                 false
             }
             Top::Safe => {
                 if let Some(f) = health.fault {
                     self.safe_fault = f;
-                } else if self.est.failed() {
-                    self.safe_fault = FaultCode::InternalNonFinite;
                 }
-                health.recovered && !self.est.failed()
+                health.recovered
             }
         };
         let ctx = Ctx {
@@ -351,11 +353,7 @@ impl Tcu {
             self.safe_fault
         } else if self.top == Top::Init {
             if grace {
-                health.fault.unwrap_or(if self.est.failed() {
-                    FaultCode::InternalNonFinite
-                } else {
-                    FaultCode::None
-                })
+                health.fault.unwrap_or(FaultCode::None)
             } else {
                 FaultCode::None
             }
