@@ -74,7 +74,8 @@ impl Convection {
     /// Extra temperature rates (K/s): s(ω_f) times the model's convective rates.
     #[inline]
     pub fn rates(&self, a: &ThermalParams5, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
-        let k = self.shape.eval(u.w_f_radps.abs());
+        // Convection cannot turn into heating: the factor 1 + s stays ≥ 0.
+        let k = self.shape.eval(u.w_f_radps.abs()).max(-1.0);
         let (o1, o2) = (1.0 - u.beta1, 1.0 - u.beta2);
         let th = u.theta_h_c;
         Thermal5State {

@@ -70,8 +70,13 @@ impl Size {
     };
 }
 
+/// Channel group of each entry of a sample in [`stack`]'s order (0 torque, 1 temperature,
+/// 2 position).
+const LAYOUT: [usize; 7] = [0, 1, 2, 0, 1, 2, 1];
+
 /// The records of a simulation standardized and stacked into one vector: per record and sample
-/// the torques, plate temperatures and positions of both clutches, then the central disk.
+/// the torque, plate temperature and position of clutch 1, of clutch 2, then the central disk
+/// ([`LAYOUT`]).
 fn stack(sims: &[SimOut], noise: &Noise) -> Vec<f64> {
     let mut v = Vec::new();
     for s in sims {
@@ -88,14 +93,10 @@ fn stack(sims: &[SimOut], noise: &Noise) -> Vec<f64> {
     v
 }
 
-/// Group of a stacked entry: 0 torque, 1 temperature, 2 position.
+/// Group of a stacked entry.
 #[inline]
 fn group(j: usize) -> usize {
-    match j % 7 {
-        0 | 3 => 0,
-        2 | 5 => 2,
-        _ => 1,
-    }
+    LAYOUT[j % LAYOUT.len()]
 }
 
 /// Distance between two stacked records (see the module doc).

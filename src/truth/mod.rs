@@ -492,8 +492,8 @@ fn effect_sizes(
             .map(|(_, s)| s)
             .collect()
     };
-    let baseline = identifiable::Baseline::new(plant, detune, &|p| run(p, &[]));
     let base_sim = |p: &Params| run(p, &[]);
+    let baseline = identifiable::Baseline::new(plant, detune, &base_sim);
     let mut out = vec![baseline.sizes(&run(plant, effects), &base_sim)];
     if effects.len() > 1 {
         for e in effects {
