@@ -412,9 +412,14 @@ async fn daemon_launches_with_the_plant_and_detects_its_silence() {
     let (p, t) = (p.unwrap(), t.unwrap());
     eprintln!("{}{}", p.summary(), t.summary());
     assert_eq!(t.stopped_by, "duration");
-    // Every plant cycle's DCT_Sensors triggered a computation (generous: a loaded machine may
-    // make the fallback step in once in a while).
-    assert!(t.sync_computations >= 250, "{t:?}");
+    // Every plant cycle's DCT_Sensors was handled: it triggered a computation, or it came within
+    // half a cycle of one (a late fallback step on a loaded machine) and was coalesced into it.
+    // None is lost; most trigger their own (generous bound: a loaded CI host coalesced 54).
+    assert!(
+        t.sync_computations + t.syncs_coalesced >= 290,
+        "a sensors frame neither computed on nor coalesced: {t:?}"
+    );
+    assert!(t.sync_computations >= 150, "{t:?}");
     assert!(
         t.fallback_computations >= 20,
         "the 300 ms after the plant stopped: {t:?}"
