@@ -14,7 +14,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::replay::{self, Measured};
-use super::terms::{self, Extra, Terms, THETA_REF_C, X_REF_MM};
+use super::terms::{self, Extra, Terms, X_REF_MM};
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
 use crate::model::params::{ClutchParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
@@ -355,7 +355,7 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         }
         if let Some(g) = &t.temp_sensor {
             for x in v.iter_mut() {
-                *x = g.invert(*x, THETA_REF_C);
+                *x = g.invert(*x);
             }
         }
     };
@@ -468,7 +468,7 @@ fn predict_inner(
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {
                 v[k] = match &t.temp_sensor {
-                    Some(g) => g.apply(series[k], THETA_REF_C),
+                    Some(g) => g.apply(series[k]),
                     None => series[k],
                 };
             }

@@ -306,7 +306,11 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             60.0,
             1.0,
         )],
-        SensorTemperature => gain_offset(name, 0.2, "offset_c", 10.0, 0.5),
+        SensorTemperature => {
+            let mut v = vec![ParamSpec::new("sensor_temperature.offset_c", 0.0, -10.0, 10.0, 0.5)];
+            v.extend(shape_params(name, 15.0, 0.5));
+            v
+        }
         SensorPosition => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
         c => c.member().map(member_params).unwrap_or_default(),
     }
@@ -354,7 +358,14 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         SensorTorque => m.terms.torque_sensor = Some(go(v)),
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
         SensorTemperatureLag => m.terms.temp_lag_s = v[0],
-        SensorTemperature => m.terms.temp_sensor = Some(go(v)),
+        SensorTemperature => {
+            m.terms.temp_sensor = knots.0.get(&Variable::Measurement).map(|z| {
+                super::terms::Reading {
+                    offset: v[0],
+                    shape: Shape::from_increments(*z, &v[1..]),
+                }
+            })
+        }
         SensorPosition => m.terms.pos_sensor = Some(go(v)),
         ConvectionSpeed => {
             m.terms.convection =
@@ -423,7 +434,10 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
         ),
         SensorTorqueSkew => (t.torque_skew_s, "s"),
         SensorTemperatureLag => (t.temp_lag_s, "s"),
-        SensorTemperature => (t.temp_sensor.map_or(0.0, |g| g.offset), "°C offset"),
+        SensorTemperature => (
+            t.temp_sensor.map_or(0.0, |g| g.largest_error(20.0, 250.0)),
+            "K, largest reading error over 20…250 °C",
+        ),
         SensorPosition => (t.pos_sensor.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
         c => match c.member().and_then(|id| Some((id, m.set.get(id)?))) {
             Some((id, v)) => (v[0], id.params()[0].unit),
@@ -444,6 +458,10 @@ pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
         SupportConduction => t.support.map(|s| s.shape),
         ConvectionSpeed => t.convection.map(|c| c.shape),
         HeatPartition => t.partition.map(|p| p.shape),
+        SensorTemperature => t.temp_sensor.map(|r| Shape {
+            z: r.shape.z,
+            v: r.shape.v.map(|v| v + r.offset),
+        }),
         _ => {
             t.mu.iter()
                 .flatten()

@@ -461,6 +461,13 @@ fn knots(model: &Model, train: &[File]) -> Knots {
                 .or_default()
                 .push(f.m.w_f[k].abs());
         }
+        // The thermocouple readings (a reading error's variable).
+        for j in 0..3 {
+            for &k in f.fit.get(Channel::Temp(j)) {
+                let v = [&f.m.pp[0], &f.m.pp[1], &f.m.cd][j][k];
+                vals.entry(Variable::Measurement).or_default().push(v);
+            }
+        }
         // The friction power of slipping clutches (the heat partition's variable).
         for i in 0..2 {
             for &k in f.fit.get(Channel::Torque(i)) {

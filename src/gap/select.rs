@@ -255,12 +255,24 @@ fn candidate(
     if class == ClassId::SensorTorque {
         recal.extend(recal_keys(Subsystem::Thermal));
     }
-    let fit_chans: Vec<Channel> = classfit::channels(class)
+    let mut fit_chans: Vec<Channel> = classfit::channels(class)
         .into_iter()
         .filter(|c| s.chans.contains(c))
         .collect();
     if fit_chans.is_empty() {
         return None;
+    }
+    // A thermocouple reading error also moves the disk temperature estimated from the readings,
+    // and so the torque: fitted on the torque channels too, jointly with the torque
+    // recalibration (fitted on the thermocouples alone it trades a wrong offset against the
+    // thermal parameters and leaves the torque worse than before).
+    if class == ClassId::SensorTemperature {
+        recal.extend(recal_keys(Subsystem::TorqueCharacteristic));
+        fit_chans.extend(
+            classfit::group_channels(Subsystem::TorqueCharacteristic)
+                .into_iter()
+                .filter(|c| s.chans.contains(c)),
+        );
     }
     // A torque reading error also changes the friction power the disk temperature is estimated
     // from: that class needs the disk replayed, not the base model's cached estimate.
@@ -385,19 +397,19 @@ fn candidate(
     })
 }
 
-/// The largest reading error of a fitted gain-and-offset sensor class over its channel's
-/// working range (thermocouples 20…250 °C, clutch torque 0…150 N·m), with that channel's
+/// The largest reading error of a fitted sensor class over its channel's working range
+/// (thermocouples 20…250 °C, clutch torque 0…150 N·m), with that channel's
 /// practical tolerance and unit; `None` for other classes.
 fn reading_error(class: ClassId, m: &Model) -> Option<(f64, f64, &'static str)> {
-    use super::terms::THETA_REF_C;
     let (g, range, reference, chan, unit) = match class {
-        ClassId::SensorTemperature => (
-            m.terms.temp_sensor?,
-            [20.0, 250.0],
-            THETA_REF_C,
-            Channel::Temp(0),
-            "°C",
-        ),
+        ClassId::SensorTemperature => {
+            let r = m.terms.temp_sensor?;
+            return Some((
+                r.largest_error(20.0, 250.0),
+                context::tolerance(Channel::Temp(0)),
+                "K",
+            ));
+        }
         ClassId::SensorTorque => (
             m.terms.torque_sensor?,
             [0.0, 150.0],

@@ -39,6 +39,51 @@ impl GainOffset {
     }
 }
 
+/// A thermocouple's reading error, `measured = θ + offset + s(θ)`: an offset and a curve in the
+/// temperature itself (zero at its first knot, the training records' 2 % quantile of the
+/// readings). A gain is the straight special case; a bent characteristic (a reading error that
+/// grows with the square of the temperature, a kink) is within the knots' interpolation error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reading {
+    pub offset: f64,
+    pub shape: Shape,
+}
+
+impl Reading {
+    #[inline]
+    pub fn apply(&self, v: f64) -> f64 {
+        v + self.offset + self.shape.eval(v)
+    }
+
+    /// The temperature that `apply` maps to `measured` (Newton on the piecewise-linear map; a
+    /// reading that falls with the temperature is not a thermocouple, its slope is held ≥ 0.1).
+    pub fn invert(&self, measured: f64) -> f64 {
+        let mut v = measured - self.offset - self.shape.eval(measured);
+        for _ in 0..6 {
+            let r = self.apply(v) - measured;
+            if r.abs() < 1e-9 {
+                break;
+            }
+            let h = 1e-3;
+            let slope = ((self.apply(v + h) - self.apply(v - h)) / (2.0 * h)).max(0.1);
+            v -= r / slope;
+        }
+        v
+    }
+
+    /// Largest |reading error| over `[lo, hi]` (at the ends and the knots inside).
+    pub fn largest_error(&self, lo: f64, hi: f64) -> f64 {
+        self.shape
+            .z
+            .iter()
+            .copied()
+            .filter(|z| *z > lo && *z < hi)
+            .chain([lo, hi])
+            .map(|v| (self.apply(v) - v).abs())
+            .fold(0.0, f64::max)
+    }
+}
+
 /// Heat flow to supports at the housing temperature (K/s): s(θ − θ_h) from each clutch disk,
 /// weighted for the pressure plates and the central disk.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -165,7 +210,7 @@ pub struct Terms {
     /// Thermocouple first-order lag (s).
     pub temp_lag_s: f64,
     /// Measured temperature = temp_sensor(temperature).
-    pub temp_sensor: Option<GainOffset>,
+    pub temp_sensor: Option<Reading>,
     /// Measured position = pos_sensor(position).
     pub pos_sensor: Option<GainOffset>,
     /// Conduction to supports.
@@ -301,6 +346,45 @@ pub fn lag(v: &[f64], tau_s: f64, dt: f64) -> Vec<f64> {
 mod tests {
     use super::*;
     use crate::model::params::Params;
+
+    /// The straight curve is a gain and an offset (the gain's reference at the first knot); a
+    /// bent one inverts exactly too, and its largest error is found at a knot inside the range.
+    #[test]
+    fn a_thermocouple_reading_is_a_gain_offset_or_a_bend_and_inverts() {
+        let z = [30.0, 80.0, 120.0, 170.0, 240.0];
+        let straight = Reading {
+            offset: 1.5,
+            shape: Shape {
+                z,
+                v: z.map(|t| 0.03 * (t - 30.0)),
+            },
+        };
+        let g = GainOffset {
+            gain: 1.03,
+            offset: 1.5,
+        };
+        for v in [10.0, 30.0, 95.0, 240.0, 300.0] {
+            assert!((straight.apply(v) - g.apply(v, 30.0)).abs() < 1e-9, "{v}");
+        }
+        let bent = Reading {
+            offset: -0.5,
+            shape: Shape {
+                z,
+                v: [0.0, -0.2, -3.0, -3.5, -4.0],
+            },
+        };
+        for v in [0.0, 25.0, 100.0, 119.0, 121.0, 200.0, 280.0] {
+            assert!((bent.invert(bent.apply(v)) - v).abs() < 1e-6, "{v}");
+        }
+        // The largest |error| over 20…150 °C equals the maximum over a fine grid (piecewise
+        // linear: it sits at an end or a knot).
+        let grid = (0..=1300)
+            .map(|i| 20.0 + 0.1 * f64::from(i))
+            .map(|v| (bent.apply(v) - v).abs())
+            .fold(0.0, f64::max);
+        assert!((bent.largest_error(20.0, 150.0) - grid).abs() < 1e-9);
+        assert!((grid - 3.8).abs() < 1e-9);
+    }
 
     #[test]
     fn gain_offset_inverts() {
