@@ -247,6 +247,11 @@ impl InputMonitor {
         self.lever_refused
     }
 
+    /// Whether an input's id is flooded with frames that fail the CRC at `now`.
+    pub fn flooded(&self, input: Input, now: Duration) -> bool {
+        self.senders[input.index()].flooded(now, input.cycle())
+    }
+
     /// Whether a second sender is evident on an input's id at `now`.
     pub fn second_sender(&self, input: Input, now: Duration) -> bool {
         self.senders[input.index()].evident(now, input.cycle())
@@ -312,7 +317,9 @@ impl InputMonitor {
         let (_, crc_code, counter_code) = input.codes();
         let data = f.frame.bytes();
         let e2e = self.checker.check(f.at, f.frame.raw_id(), data);
-        if !matches!(e2e, Err(E2eError::BadCrc { .. })) {
+        if matches!(e2e, Err(E2eError::BadCrc { .. })) {
+            self.senders[input.index()].bad_crc(f.at, input.cycle());
+        } else {
             let counter_error = matches!(
                 e2e,
                 Err(E2eError::CounterSkipped { .. } | E2eError::CounterRepeated { .. })
@@ -413,6 +420,7 @@ impl InputMonitor {
         let mut all_fresh = true;
         let mut recovered = true;
         let mut spoofed = None;
+        let mut flood = None;
         for input in INPUTS {
             let c = &self.ch[input.index()];
             let reference = c.last_valid.unwrap_or(self.start);
@@ -422,7 +430,12 @@ impl InputMonitor {
             if second && spoofed.is_none() {
                 spoofed = Some(input);
             }
-            let stale = now.saturating_sub(reference) >= limit || second;
+            // So does a flood of corrupted frames beside the real sender's valid ones.
+            let flooded = self.flooded(input, now);
+            if flooded && !second && spoofed.is_none() && flood.is_none() {
+                flood = Some(input);
+            }
+            let stale = now.saturating_sub(reference) >= limit || second || flooded;
             if stale {
                 all_fresh = false;
                 if missing.is_none() {
@@ -437,6 +450,8 @@ impl InputMonitor {
             let c = &self.ch[input.index()];
             if spoofed == Some(input) {
                 FaultCode::SecondSender
+            } else if flood == Some(input) {
+                input.codes().1
             } else {
                 c.cause.unwrap_or(input.codes().0)
             }
@@ -680,5 +695,62 @@ mod tests {
             }
         }
         assert!(first.is_some_and(|t| t <= 100), "found at {first:?}");
+    }
+
+    /// Issue 12: a flood of bad-CRC DCT_Sensors frames (4 per ms) beside the real plant's valid
+    /// ones. The valid frames keep the input fresh, so before the flood check the TCU drove on
+    /// under it; now the input is missing with SensorsCrc within the first cycle of the flood,
+    /// and healthy again (with its recovery frames) a window after the flood ends.
+    #[test]
+    fn a_bad_crc_flood_beside_the_real_sender_is_a_crc_fault() {
+        let mut m = monitor();
+        let (mut te, mut ts, mut ta, mut tp) = (
+            E2eSender::new(),
+            E2eSender::new(),
+            E2eSender::new(),
+            E2eSender::new(),
+        );
+        let mut flood = sensors(&mut E2eSender::new(), 0.0).bytes().to_vec();
+        flood[7] ^= 0xFF;
+        let flood = CanFrame::standard(ids::DCT_SENSORS, &flood).unwrap();
+        let (mut detected, mut healthy_after) = (None, None);
+        for t in 1..=600u64 {
+            if t % 10 == 0 {
+                at(&mut m, t, eng(&mut te, 800.0));
+                assert_eq!(at(&mut m, t, sensors(&mut ts, 0.0)), Verdict::Accepted);
+                at(&mut m, t, actuators(&mut ta));
+                at(&mut m, t, pedal(&mut tp, GearLever::N));
+            }
+            if (200..400).contains(&t) {
+                for _ in 0..4 {
+                    assert_eq!(
+                        at(&mut m, t, flood),
+                        Verdict::Rejected(FaultCode::SensorsCrc)
+                    );
+                }
+            }
+            let h = m.health(ms(t));
+            if t < 200 {
+                assert!(h.all_fresh && h.fault.is_none(), "before the flood, {t} ms");
+            } else if t < 400 {
+                if h.fault.is_some() && detected.is_none() {
+                    detected = Some(t);
+                }
+                if detected.is_some() {
+                    assert_eq!(h.fault, Some(FaultCode::SensorsCrc), "{t} ms");
+                    assert!(!h.all_fresh && !h.recovered);
+                }
+            } else if h.recovered && healthy_after.is_none() {
+                healthy_after = Some(t);
+            }
+        }
+        assert!(
+            detected.is_some_and(|t| t <= 210),
+            "detected at {detected:?}"
+        );
+        assert!(
+            healthy_after.is_some_and(|t| t <= 400 + 100 + 20),
+            "healthy again at {healthy_after:?}"
+        );
     }
 }

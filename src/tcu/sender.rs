@@ -10,6 +10,12 @@
 //! scheduling burst of a late sender does not raise the average over the window) of which at
 //! least [`MIN_COUNTER_ERRORS`] broke the counter sequence. The condition ends when the window no
 //! longer holds it. Pure: times are arguments.
+//!
+//! A flood of corrupted frames on the id (issue 12: a bad-CRC flood at thousands of frames/s
+//! beside the real sender) is the same excess with CRC errors instead of counter errors: within
+//! the window at least [`MIN_FRAMES_PER_WINDOW`] frames in all of which at least
+//! [`MIN_COUNTER_ERRORS`] failed the CRC ([`SenderMonitor::flooded`]). The real sender's valid
+//! frames keep the input fresh, so without this the TCU drove on under the flood.
 
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -26,6 +32,8 @@ pub const MIN_COUNTER_ERRORS: usize = 3;
 pub struct SenderMonitor {
     /// Arrival and whether the frame broke the counter sequence.
     frames: VecDeque<(Duration, bool)>,
+    /// Arrivals of the frames that failed the CRC.
+    bad_crc: VecDeque<Duration>,
 }
 
 impl SenderMonitor {
@@ -42,6 +50,30 @@ impl SenderMonitor {
         }
         self.frames.push_back((at, counter_error));
         self.evident(at, cycle)
+    }
+
+    /// A frame that failed the CRC arrived at `at`. Returns whether the id is flooded.
+    pub fn bad_crc(&mut self, at: Duration, cycle: Duration) -> bool {
+        let window = cycle * WINDOW_CYCLES;
+        while self
+            .bad_crc
+            .front()
+            .is_some_and(|t| at.saturating_sub(*t) >= window)
+        {
+            self.bad_crc.pop_front();
+        }
+        self.bad_crc.push_back(at);
+        self.flooded(at, cycle)
+    }
+
+    /// Whether the id is flooded with corrupted frames at `now`: more frames than a sender's
+    /// cycle allows in the window, of which at least [`MIN_COUNTER_ERRORS`] failed the CRC.
+    pub fn flooded(&self, now: Duration, cycle: Duration) -> bool {
+        let window = cycle * WINDOW_CYCLES;
+        let recent = |t: &Duration| now.saturating_sub(*t) < window;
+        let bad = self.bad_crc.iter().filter(|t| recent(t)).count();
+        let valid = self.frames.iter().filter(|(t, _)| recent(t)).count();
+        bad >= MIN_COUNTER_ERRORS && bad + valid >= MIN_FRAMES_PER_WINDOW
     }
 
     /// Whether a second sender is evident at `now`.
@@ -104,5 +136,38 @@ mod tests {
             }
         }
         assert!(cleared.is_some_and(|c| c <= 300 + 100), "{cleared:?}");
+    }
+
+    /// A bad-CRC flood beside the real sender (2 frames/ms): flooded within 8 ms, not a second
+    /// sender, and over a window after it stops; one sender whose every frame fails the CRC (a
+    /// corrupted sender, the timeout path's case) is no flood.
+    #[test]
+    fn a_bad_crc_flood_is_found_and_forgotten() {
+        let mut m = SenderMonitor::default();
+        for k in 0..20u64 {
+            assert!(
+                !m.bad_crc(ms(k * 10), CYCLE),
+                "one corrupted sender at {} ms",
+                k * 10
+            );
+        }
+        let mut m = SenderMonitor::default();
+        let mut found = None;
+        for t in 0..300u64 {
+            if t % 10 == 0 {
+                m.frame(ms(t), false, CYCLE);
+            }
+            if (100..200).contains(&t) {
+                let f1 = m.bad_crc(ms(t), CYCLE);
+                let f2 = m.bad_crc(ms(t), CYCLE);
+                if (f1 || f2) && found.is_none() {
+                    found = Some(t);
+                }
+            }
+            assert!(!m.evident(ms(t), CYCLE), "no second sender at {t} ms");
+        }
+        assert!(found.is_some_and(|t| t <= 108), "{found:?}");
+        assert!(m.flooded(ms(295), CYCLE));
+        assert!(!m.flooded(ms(300), CYCLE), "over a window after the flood");
     }
 }
