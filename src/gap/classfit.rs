@@ -307,7 +307,13 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             1.0,
         )],
         SensorTemperature => {
-            let mut v = vec![ParamSpec::new("sensor_temperature.offset_c", 0.0, -10.0, 10.0, 0.5)];
+            let mut v = vec![ParamSpec::new(
+                "sensor_temperature.offset_c",
+                0.0,
+                -10.0,
+                10.0,
+                0.5,
+            )];
             v.extend(shape_params(name, 15.0, 0.5));
             v
         }
@@ -359,12 +365,14 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
         SensorTemperatureLag => m.terms.temp_lag_s = v[0],
         SensorTemperature => {
-            m.terms.temp_sensor = knots.0.get(&Variable::Measurement).map(|z| {
-                super::terms::Reading {
-                    offset: v[0],
-                    shape: Shape::from_increments(*z, &v[1..]),
-                }
-            })
+            m.terms.temp_sensor =
+                knots
+                    .0
+                    .get(&Variable::Measurement)
+                    .map(|z| super::terms::Reading {
+                        offset: v[0],
+                        shape: Shape::from_increments(*z, &v[1..]),
+                    })
         }
         SensorPosition => m.terms.pos_sensor = Some(go(v)),
         ConvectionSpeed => {

@@ -357,6 +357,29 @@ fn candidate(
     if gain_ci95.0 <= 0.0 {
         why.push("validation gain not significant".to_string());
     }
+    // A sensor's reading error shows in its own readings: a thermocouple class whose gain comes
+    // mostly from the torque (a corrected disk-temperature estimate standing in for a
+    // temperature-dependent torque effect) is not credited. Its readings must carry at least a
+    // third of the gain (a point estimate: the few validation blocks of the thermocouples make
+    // their own interval wide).
+    if class == ClassId::SensorTemperature && gain > 0.0 {
+        let own: Vec<Channel> = classfit::channels(class)
+            .into_iter()
+            .filter(|c| s.chans.contains(c))
+            .collect();
+        let u: Vec<f64> = base_val
+            .unit_std(&own)
+            .iter()
+            .zip(&val.unit_std(&own))
+            .map(|(a, b)| a - b)
+            .collect();
+        let own_gain: f64 = u.iter().sum();
+        if own_gain < gain / 3.0 {
+            why.push(format!(
+                "its own readings carry {own_gain:.1} of the gain {gain:.1} (less than a third): the gain is the torque's"
+            ));
+        }
+    }
     if gain < need {
         why.push(if gain >= s.min_gain * excess && gain < half_tol {
             format!(
