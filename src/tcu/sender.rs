@@ -27,19 +27,43 @@ pub const MIN_FRAMES_PER_WINDOW: usize = 15;
 /// Counter errors in the window that a double rate must come with.
 pub const MIN_COUNTER_ERRORS: usize = 3;
 
-/// The CRC-valid frames of one id over the last window.
+/// How a frame of the id passed the end-to-end check.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// CRC valid, counter in sequence.
+    Valid,
+    /// CRC valid, counter repeated or jumped.
+    CounterError,
+    /// Failed the CRC.
+    BadCrc,
+}
+
+/// The frames of one id over the last window, each with how it passed the E2E check.
 #[derive(Debug, Clone, Default)]
 pub struct SenderMonitor {
-    /// Arrival and whether the frame broke the counter sequence.
-    frames: VecDeque<(Duration, bool)>,
-    /// Arrivals of the frames that failed the CRC.
-    bad_crc: VecDeque<Duration>,
+    frames: VecDeque<(Duration, Kind)>,
 }
 
 impl SenderMonitor {
     /// A CRC-valid frame arrived at `at`; `counter_error`: it repeated or jumped the counter.
     /// `cycle` is the message's cycle time. Returns whether a second sender is evident.
     pub fn frame(&mut self, at: Duration, counter_error: bool, cycle: Duration) -> bool {
+        let kind = if counter_error {
+            Kind::CounterError
+        } else {
+            Kind::Valid
+        };
+        self.push(at, kind, cycle);
+        self.evident(at, cycle)
+    }
+
+    /// A frame that failed the CRC arrived at `at`. Returns whether the id is flooded.
+    pub fn bad_crc(&mut self, at: Duration, cycle: Duration) -> bool {
+        self.push(at, Kind::BadCrc, cycle);
+        self.flooded(at, cycle)
+    }
+
+    fn push(&mut self, at: Duration, kind: Kind, cycle: Duration) {
         let window = cycle * WINDOW_CYCLES;
         while self
             .frames
@@ -48,42 +72,37 @@ impl SenderMonitor {
         {
             self.frames.pop_front();
         }
-        self.frames.push_back((at, counter_error));
-        self.evident(at, cycle)
+        self.frames.push_back((at, kind));
     }
 
-    /// A frame that failed the CRC arrived at `at`. Returns whether the id is flooded.
-    pub fn bad_crc(&mut self, at: Duration, cycle: Duration) -> bool {
+    /// Frames in the window at `now` that `counted` admits, and how many of them are `marked`.
+    fn count(
+        &self,
+        now: Duration,
+        cycle: Duration,
+        counted: impl Fn(Kind) -> bool,
+        marked: Kind,
+    ) -> (usize, usize) {
         let window = cycle * WINDOW_CYCLES;
-        while self
-            .bad_crc
-            .front()
-            .is_some_and(|t| at.saturating_sub(*t) >= window)
-        {
-            self.bad_crc.pop_front();
-        }
-        self.bad_crc.push_back(at);
-        self.flooded(at, cycle)
+        self.frames
+            .iter()
+            .filter(|(t, k)| now.saturating_sub(*t) < window && counted(*k))
+            .fold((0, 0), |(n, m), (_, k)| {
+                (n + 1, m + usize::from(*k == marked))
+            })
     }
 
     /// Whether the id is flooded with corrupted frames at `now`: more frames than a sender's
     /// cycle allows in the window, of which at least [`MIN_COUNTER_ERRORS`] failed the CRC.
     pub fn flooded(&self, now: Duration, cycle: Duration) -> bool {
-        let window = cycle * WINDOW_CYCLES;
-        let recent = |t: &Duration| now.saturating_sub(*t) < window;
-        let bad = self.bad_crc.iter().filter(|t| recent(t)).count();
-        let valid = self.frames.iter().filter(|(t, _)| recent(t)).count();
-        bad >= MIN_COUNTER_ERRORS && bad + valid >= MIN_FRAMES_PER_WINDOW
+        let (n, bad) = self.count(now, cycle, |_| true, Kind::BadCrc);
+        bad >= MIN_COUNTER_ERRORS && n >= MIN_FRAMES_PER_WINDOW
     }
 
-    /// Whether a second sender is evident at `now`.
+    /// Whether a second sender is evident at `now`: more CRC-valid frames than one sender's
+    /// cycle allows, of which at least [`MIN_COUNTER_ERRORS`] broke the counter sequence.
     pub fn evident(&self, now: Duration, cycle: Duration) -> bool {
-        let window = cycle * WINDOW_CYCLES;
-        let recent = self
-            .frames
-            .iter()
-            .filter(|(t, _)| now.saturating_sub(*t) < window);
-        let (n, errors) = recent.fold((0, 0), |(n, e), (_, err)| (n + 1, e + usize::from(*err)));
+        let (n, errors) = self.count(now, cycle, |k| k != Kind::BadCrc, Kind::CounterError);
         n >= MIN_FRAMES_PER_WINDOW && errors >= MIN_COUNTER_ERRORS
     }
 }
