@@ -65,8 +65,25 @@ impl Shape {
     /// Value at `x`: linear between knots, linear extrapolation of the end segments.
     #[inline]
     pub fn eval(&self, x: f64) -> f64 {
+        let seg = self.segment(x);
         let z = &self.z;
-        let seg = if x <= z[1] {
+        let w = (z[seg + 1] - z[seg]).max(1e-300);
+        let f = (x - z[seg]) / w;
+        self.v[seg] + f * (self.v[seg + 1] - self.v[seg])
+    }
+
+    /// Slope ds/dx at `x` (of the segment `x` falls in).
+    #[inline]
+    pub fn slope(&self, x: f64) -> f64 {
+        let seg = self.segment(x);
+        (self.v[seg + 1] - self.v[seg]) / (self.z[seg + 1] - self.z[seg]).max(1e-300)
+    }
+
+    /// The segment whose line gives the value at `x` (the end ones extrapolated).
+    #[inline]
+    fn segment(&self, x: f64) -> usize {
+        let z = &self.z;
+        if x <= z[1] {
             0
         } else if x >= z[KNOTS - 2] {
             KNOTS - 2
@@ -76,10 +93,7 @@ impl Shape {
                 i += 1;
             }
             i
-        };
-        let w = (z[seg + 1] - z[seg]).max(1e-300);
-        let f = (x - z[seg]) / w;
-        self.v[seg] + f * (self.v[seg + 1] - self.v[seg])
+        }
     }
 
     /// Largest |s| over the knots (the magnitude of the term over the training range).
@@ -101,6 +115,17 @@ impl Shape {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The slope is the difference quotient of `eval` inside every segment and beyond the ends.
+    #[test]
+    fn slope_is_the_segment_difference_quotient() {
+        let s = Shape::from_increments([0.0, 1.0, 2.0, 3.0, 4.0], &[1.0, 2.0, 0.5, -0.5]);
+        for x in [-2.0, 0.3, 1.5, 2.2, 3.7, 9.0] {
+            let h = 1e-6;
+            let q = (s.eval(x + h) - s.eval(x - h)) / (2.0 * h);
+            assert!((s.slope(x) - q).abs() < 1e-6, "{x}: {} vs {q}", s.slope(x));
+        }
+    }
 
     #[test]
     fn interpolates_and_extrapolates_linearly() {

@@ -55,8 +55,9 @@ impl Reading {
         v + self.offset + self.shape.eval(v)
     }
 
-    /// The temperature that `apply` maps to `measured` (Newton on the piecewise-linear map; a
-    /// reading that falls with the temperature is not a thermocouple, its slope is held ≥ 0.1).
+    /// The temperature that `apply` maps to `measured`: Newton on the piecewise-linear map,
+    /// exact once on the right segment (a reading that falls with the temperature is not a
+    /// thermocouple: its slope is held ≥ 0.1).
     pub fn invert(&self, measured: f64) -> f64 {
         let mut v = measured - self.offset - self.shape.eval(measured);
         for _ in 0..6 {
@@ -64,9 +65,7 @@ impl Reading {
             if r.abs() < 1e-9 {
                 break;
             }
-            let h = 1e-3;
-            let slope = ((self.apply(v + h) - self.apply(v - h)) / (2.0 * h)).max(0.1);
-            v -= r / slope;
+            v -= r / (1.0 + self.shape.slope(v)).max(0.1);
         }
         v
     }
