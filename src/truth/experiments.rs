@@ -439,13 +439,20 @@ pub fn validation() -> Vec<RecordDef> {
     vec![validate_mixed(), validate_hot()]
 }
 
+/// Every record in order: training, then validation.
+pub fn all() -> Vec<RecordDef> {
+    let mut v = training();
+    v.extend(validation());
+    v
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn records_are_moderate_and_engagements_do_not_overlap_per_clutch() {
-        for r in training().into_iter().chain(validation()) {
+        for r in all() {
             assert!(
                 r.duration_s > 120.0 && r.duration_s <= 400.0,
                 "{} {}",

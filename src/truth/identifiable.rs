@@ -212,6 +212,11 @@ impl Baseline {
         }
     }
 
+    /// Raw size of the records simulated with an effect: their distance from this baseline.
+    pub fn raw(&self, with: &[SimOut]) -> Size {
+        distance(&stack(with, &self.noise), &self.base, &self.noise)
+    }
+
     /// Raw and identifiable sizes of the records simulated with an effect, and the relative
     /// factors of the best baseline refit (against the plant; empty when the raw baseline is
     /// the closest).

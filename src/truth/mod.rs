@@ -463,11 +463,7 @@ fn simulate_from(
     let ph = Physics::new(plant);
     let mut e = [0.0; 2];
     let mut out = Vec::new();
-    for (k, mut rec) in experiments::training()
-        .into_iter()
-        .chain(experiments::validation())
-        .enumerate()
-    {
+    for (k, mut rec) in experiments::all().into_iter().enumerate() {
         if let Some(t0) = starts.and_then(|s| s.get(k)) {
             rec.theta0_c = *t0;
         }
@@ -512,11 +508,7 @@ fn effect_sizes(
     };
     let base_sim = |p: &Params| run(p, &[]);
     let baseline = identifiable::Baseline::new(plant, detune, &base_sim);
-    let own_starts: Vec<f64> = experiments::training()
-        .into_iter()
-        .chain(experiments::validation())
-        .map(|r| r.theta0_c)
-        .collect();
+    let own_starts: Vec<f64> = experiments::all().iter().map(|r| r.theta0_c).collect();
     let size = |fx: &[Effect]| {
         let with = run(plant, fx);
         let starts: Vec<f64> = with.iter().map(read_start).collect();
@@ -536,7 +528,7 @@ fn effect_sizes(
         let read = identifiable::Baseline::new(plant, detune, &sim_from);
         let mut s = read.sizes(&with, &sim_from);
         // The raw size stays against the truth's own baseline.
-        s.raw = baseline.sizes(&with, &base_sim).raw;
+        s.raw = baseline.raw(&with);
         s
     };
     let mut out = vec![size(effects)];
@@ -569,12 +561,13 @@ pub fn records_with(t: &Truth, seed: u64, noise: &Noise) -> TruthRecords {
         train: Vec::new(),
         validate: Vec::new(),
     };
+    let n_train = experiments::training().len();
     for (k, (rec, s)) in all.into_iter().enumerate() {
         let mut rng = Xoshiro::new(derive(seed, &[0x4015E, t.index as u64, k as u64]));
         let m = sim::measure(&s.signals, noise, &mut rng);
         let csv = sim::to_csv(&m, t.variants.only_req1, noise.q_torque_nm == 0.0);
         let name = format!("{}.csv", rec.name);
-        if k < 2 {
+        if k < n_train {
             out.train.push((name, csv));
         } else {
             out.validate.push((name, csv));
