@@ -1003,6 +1003,13 @@ pub fn diagnose(
     for r in &rounds {
         if let Some(k) = r.kept {
             let c = &r.candidates[k];
+            if let Some(old) = r.replaced {
+                notes.push(format!(
+                    "{old} was selected first, then replaced by {}: with the other selected \
+                     classes in, {} explains significantly more of what is left",
+                    c.class, c.class
+                ));
+            }
             if r.dropped {
                 notes.push(format!(
                     "{} was selected, then dropped: not significant once the later classes were in",

@@ -466,6 +466,9 @@ pub struct Round {
     /// The kept class was dropped by the backward check (not significant once the classes
     /// selected after it were in).
     pub dropped: bool,
+    /// The class this round first kept, replaced by the swap check (the candidates are then
+    /// those of the swap round).
+    pub replaced: Option<ClassId>,
 }
 
 /// Fits every class of `classes` on top of `base` on the available cores.
@@ -536,24 +539,7 @@ pub fn select(
         let mut ambiguous = Vec::new();
         if let Some(b) = kept {
             let best = &cands[b];
-            for (j, c) in cands.iter().enumerate() {
-                if j == b || !c.credited || c.gain < 0.8 * best.gain {
-                    continue;
-                }
-                let d: Vec<f64> = best
-                    .unit_gain
-                    .iter()
-                    .zip(&c.unit_gain)
-                    .map(|(a, b)| a - b)
-                    .collect();
-                let mut rng = Rng::new(seed ^ 0xA5A5 ^ j as u64);
-                let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
-                    idx.iter().map(|&u| d[u]).sum::<f64>()
-                });
-                if ci.0 <= 0.0 {
-                    ambiguous.push(c.class);
-                }
-            }
+            ambiguous = as_good_as(s, &cands, b, seed);
             current = best.model;
             cur_val = best.val.clone();
             chosen.push(best.class);
@@ -564,11 +550,22 @@ pub fn select(
             kept,
             ambiguous,
             dropped: false,
+            replaced: None,
         });
         if stop {
             break;
         }
     }
+    swap(
+        s,
+        base,
+        classes,
+        &mut current,
+        &mut cur_val,
+        &mut rounds,
+        &mut chosen,
+        seed,
+    );
     backward(
         s,
         base,
@@ -579,6 +576,111 @@ pub fn select(
         seed,
     );
     (current, cur_val, rounds)
+}
+
+/// Credited candidates as good as candidate `b` of a round: at least 80 % of its gain and a
+/// paired (block bootstrap) difference that is not significant.
+fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassId> {
+    let best = &cands[b];
+    let mut out = Vec::new();
+    for (j, c) in cands.iter().enumerate() {
+        if j == b || !c.credited || c.gain < 0.8 * best.gain {
+            continue;
+        }
+        let d: Vec<f64> = best
+            .unit_gain
+            .iter()
+            .zip(&c.unit_gain)
+            .map(|(a, b)| a - b)
+            .collect();
+        let mut rng = Rng::new(seed ^ 0xA5A5 ^ j as u64);
+        let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+            idx.iter().map(|&u| d[u]).sum::<f64>()
+        });
+        if ci.0 <= 0.0 {
+            out.push(c.class);
+        }
+    }
+    out
+}
+
+/// Swap check (with two or more classes selected): each selected class is taken out in turn
+/// and every class that can stand beside the others is fitted in its place; the class is
+/// replaced when another one gains significantly more there (paired block bootstrap). A class
+/// that won its round only through an effect a later class explains — a torque class read
+/// against a disk temperature a thermocouple lag distorted — is then replaced by the class
+/// that explains what is left once the later class is in.
+#[allow(clippy::too_many_arguments)]
+fn swap(
+    s: &Setup,
+    base: &Model,
+    classes: &[ClassId],
+    current: &mut Model,
+    cur_val: &mut Scores,
+    rounds: &mut [Round],
+    chosen: &mut [ClassId],
+    seed: u64,
+) {
+    if chosen.len() < 2 {
+        return;
+    }
+    for i in 0..chosen.len() {
+        let c = chosen[i];
+        let mut without = *current;
+        classfit::remove(c, &mut without, base);
+        let left: Vec<ClassId> = classes
+            .iter()
+            .copied()
+            .filter(|k| {
+                !chosen
+                    .iter()
+                    .any(|o| *o != c && classfit::conflicts(*o, *k))
+            })
+            .collect();
+        let without_val = Scores::of(&without, s.validate, s.chans, s.nunits_v);
+        let round_seed = seed.wrapping_add(0x5A9 + i as u64 * 7919);
+        let cands = round(s, &without, &without_val, &left, round_seed);
+        let (Some(b), Some(own)) = (
+            cands.iter().position(|k| k.credited),
+            cands.iter().find(|k| k.class == c),
+        ) else {
+            continue;
+        };
+        let best = &cands[b];
+        if best.class == c {
+            continue;
+        }
+        let d: Vec<f64> = best
+            .unit_gain
+            .iter()
+            .zip(&own.unit_gain)
+            .map(|(a, b)| a - b)
+            .collect();
+        let mut rng = Rng::new(seed ^ 0x5A95 ^ i as u64);
+        let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+            idx.iter().map(|&u| d[u]).sum::<f64>()
+        });
+        tracing::debug!(
+            "swap {c} → {}: gain {:.1} against {:.1}, difference 95 % CI {:.1}…{:.1}",
+            best.class,
+            best.gain,
+            own.gain,
+            ci.0,
+            ci.1
+        );
+        if ci.0 <= 0.0 {
+            continue;
+        }
+        *current = best.model;
+        *cur_val = best.val.clone();
+        chosen[i] = best.class;
+        let ambiguous = as_good_as(s, &cands, b, round_seed);
+        let r = &mut rounds[i];
+        r.candidates = cands;
+        r.kept = Some(b);
+        r.ambiguous = ambiguous;
+        r.replaced = Some(c);
+    }
 }
 
 /// Backward check: each selected class is removed in turn and the others refitted jointly with
@@ -631,10 +733,17 @@ fn backward(
         aff.sort();
         aff.dedup();
         let v_minus = cur_val.with(&Scores::of(&minus, s.validate, &aff, s.nunits_v), &aff);
+        // The loss is measured on the class's own channels: the others' refit moves their
+        // channels too, and on a channel a large effect dominates (a position sensor's error
+        // 300 times the thermal one) that refit's scatter would swamp the class's loss.
+        let own: Vec<Channel> = affected(c)
+            .into_iter()
+            .filter(|ch| s.chans.contains(ch))
+            .collect();
         let u: Vec<f64> = v_minus
-            .unit_std(s.chans)
+            .unit_std(&own)
             .iter()
-            .zip(&cur_val.unit_std(s.chans))
+            .zip(&cur_val.unit_std(&own))
             .map(|(a, b)| a - b)
             .collect();
         let gain: f64 = u.iter().sum();
@@ -642,13 +751,14 @@ fn backward(
         let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
             idx.iter().map(|&j| u[j]).sum::<f64>()
         });
-        let own: Vec<Channel> = affected(c)
-            .into_iter()
-            .filter(|ch| s.chans.contains(ch))
-            .collect();
         let (z, n) = v_minus.total(&own);
         let tol: f64 = v_minus.unit_tolerance(&own).iter().sum();
         let need = (s.min_gain * (z - n).max(0.0)).max(0.5 * tol).max(0.02 * n);
+        tracing::debug!(
+            "backward {c}: gain {gain:.1} (95 % CI {:.1}…{:.1}), need {need:.1}",
+            ci.0,
+            ci.1
+        );
         if ci.0 <= 0.0 || gain < need {
             *current = minus;
             *cur_val = v_minus;

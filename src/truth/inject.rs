@@ -197,6 +197,17 @@ pub fn range(t: Target) -> MagnitudeRange {
     }
 }
 
+/// Which part of a class's magnitude range an effect is drawn from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Strength {
+    /// Log-uniform over the whole range, barely detectable to large.
+    Full,
+    /// Log-uniform over the upper half (on the log scale), the geometric mean to the top: the
+    /// members of a pair, which test that two detectable effects are both found (an effect below
+    /// the noise is tested by the single-class trials' lowest band).
+    UpperHalf,
+}
+
 /// One injected effect.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Effect {
@@ -220,13 +231,29 @@ impl Effect {
         magnitude: Option<f64>,
         rng: &mut Xoshiro,
     ) -> Effect {
+        Effect::draw_in(target, family, magnitude, Strength::Full, rng)
+    }
+
+    /// [`Effect::draw`] with the magnitude drawn over the `strength` part of the range (the
+    /// same random numbers are taken either way, so the rest of a trial does not change).
+    pub fn draw_in(
+        target: Target,
+        family: Option<Family>,
+        magnitude: Option<f64>,
+        strength: Strength,
+        rng: &mut Xoshiro,
+    ) -> Effect {
         let rg = range(target);
         let family = family
             .filter(|f| rg.families.contains(f))
             .unwrap_or_else(|| rg.families[rng.below(rg.families.len())]);
         let form = Form::draw(family, rng);
         let sign = if rg.signed { rng.sign() } else { 1.0 };
-        let mag_drawn = sign * rng.log_uniform(rg.lo, rg.hi);
+        let lo = match strength {
+            Strength::Full => rg.lo,
+            Strength::UpperHalf => (rg.lo * rg.hi).sqrt(),
+        };
+        let mag_drawn = sign * rng.log_uniform(lo, rg.hi);
         let magnitude = magnitude.unwrap_or(mag_drawn);
         // Where the term is nominal: multipliers and shifts of a variable with no natural zero
         // are anchored at either end; energy effects start at zero energy; the other forms

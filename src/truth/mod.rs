@@ -11,7 +11,7 @@
 //!
 //! A truth ([`Truth`]) is drawn per (seed, index) by [`draw`]: its kind (nominal, one physics
 //! class, one sensor class, a pair of classes, an effect outside every class), the effects' forms
-//! and magnitudes, baseline parameters detuned by up to ±20 %, variants (only `x_to1_req_mm`
+//! and magnitudes (a pair's members from the upper half of their ranges, [`inject::Strength`]), baseline parameters detuned by up to ±20 %, variants (only `x_to1_req_mm`
 //! logged; the validation runs starting on the worn pack), and its magnitude band — the effect size
 //! over the noise, measured by simulating the records with and without the effect, noise-free.
 //! [`records`] then generates the noisy training and validation CSV records.
@@ -28,7 +28,7 @@ use crate::gap::class::ClassId;
 use crate::model::params::Params;
 use experiments::RecordDef;
 use form::Family;
-use inject::{Effect, OutsideKind, Target, PHYSICS_CLASSES, SENSOR_CLASSES};
+use inject::{Effect, OutsideKind, Strength, Target, PHYSICS_CLASSES, SENSOR_CLASSES};
 use physics::Physics;
 use rng::{derive, Xoshiro};
 use sim::Noise;
@@ -358,9 +358,13 @@ pub fn draw(seed: u64, index: usize, nominal: &Params) -> Truth {
             vec![Target::Class(a), Target::Class(b)]
         }
     };
+    let strength = match kind {
+        TruthKind::Pair => Strength::UpperHalf,
+        _ => Strength::Full,
+    };
     let effects: Vec<Effect> = targets
         .iter()
-        .map(|t| Effect::draw(*t, None, None, &mut rng))
+        .map(|t| Effect::draw_in(*t, None, None, strength, &mut rng))
         .collect();
     let (plant, factors) = detune(nominal, DETUNE, &mut rng);
     let has = |c: ClassId| targets.contains(&Target::Class(c));
