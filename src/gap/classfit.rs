@@ -408,17 +408,6 @@ pub fn conflicts(a: ClassId, b: ClassId) -> bool {
     a == b || (slot(a) == 1 && slot(b) == 1)
 }
 
-/// Further starting values of a class's first parameter where its least-squares problem has
-/// several minima: a thermocouple response time fitted from 1 s alone stops at a local minimum
-/// (a two-lag 6 s response landed at 3.1 s, the thermal gap left at 57 %); started from 5 s
-/// and 15 s too, the fit keeps the lowest sum of squares.
-pub fn other_starts(class: ClassId) -> &'static [f64] {
-    match class {
-        ClassId::SensorTemperatureLag => &[5.0, 15.0],
-        _ => &[],
-    }
-}
-
 /// Magnitude of a fitted class term with its unit: the largest change over the training range
 /// of its variable for shapes (relative for multipliers, mm for kiss-point shifts), the member's
 /// parameter otherwise.

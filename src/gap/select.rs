@@ -153,19 +153,7 @@ pub fn fit(
         tol_sse: 1e-6,
         ..LmOptions::default()
     };
-    let mut fit = lsq::levenberg_marquardt(&mut f, n, &specs, opts);
-    // A class whose residual is not convex in its first parameter (a response time) is
-    // started again from each of its other starts; the lowest sum of squares wins.
-    for (c, a, _) in &slices {
-        for &start in classfit::other_starts(*c) {
-            let mut again = specs.clone();
-            again[*a].init = start.clamp(again[*a].lo, again[*a].hi);
-            let other = lsq::levenberg_marquardt(&mut f, n, &again, opts);
-            if other.sse < fit.sse {
-                fit = other;
-            }
-        }
-    }
+    let fit = lsq::levenberg_marquardt(&mut f, n, &specs, opts);
     let model = build(&fit.p).unwrap_or(*base);
     (model, Some(fit))
 }
