@@ -511,23 +511,25 @@ pub fn select(
     max_classes: usize,
     seed: u64,
 ) -> (Model, Scores, Vec<Round>) {
-    let mut current = *base;
-    let mut cur_val = Scores::of(&current, s.validate, s.chans, s.nunits_v);
-    let mut rounds = Vec::new();
-    let mut chosen: Vec<ClassId> = Vec::new();
+    let mut sel = Selection {
+        model: *base,
+        val: Scores::of(base, s.validate, s.chans, s.nunits_v),
+        rounds: Vec::new(),
+        chosen: Vec::new(),
+    };
     for r in 0..max_classes {
         let left: Vec<ClassId> = classes
             .iter()
             .copied()
-            .filter(|c| !chosen.iter().any(|k| classfit::conflicts(*k, *c)))
+            .filter(|c| !sel.chosen.iter().any(|k| classfit::conflicts(*k, *c)))
             .collect();
         if left.is_empty() {
             break;
         }
         let cands = round(
             s,
-            &current,
-            &cur_val,
+            &sel.model,
+            &sel.val,
             &left,
             seed.wrapping_add(r as u64 * 7919),
         );
@@ -536,12 +538,12 @@ pub fn select(
         if let Some(b) = kept {
             let best = &cands[b];
             ambiguous = as_good_as(s, &cands, b, seed);
-            current = best.model;
-            cur_val = best.val.clone();
-            chosen.push(best.class);
+            sel.model = best.model;
+            sel.val = best.val.clone();
+            sel.chosen.push(best.class);
         }
         let stop = kept.is_none();
-        rounds.push(Round {
+        sel.rounds.push(Round {
             candidates: cands,
             kept,
             ambiguous,
@@ -552,26 +554,18 @@ pub fn select(
             break;
         }
     }
-    swap(
-        s,
-        base,
-        classes,
-        &mut current,
-        &mut cur_val,
-        &mut rounds,
-        &mut chosen,
-        seed,
-    );
-    backward(
-        s,
-        base,
-        &mut current,
-        &mut cur_val,
-        &mut rounds,
-        &mut chosen,
-        seed,
-    );
-    (current, cur_val, rounds)
+    swap(s, base, classes, &mut sel, seed);
+    backward(s, base, &mut sel, seed);
+    (sel.model, sel.val, sel.rounds)
+}
+
+/// The selection so far: the model with the kept classes and its validation scores, every
+/// round, and the kept classes in order (`chosen[i]` is the class round `i` kept).
+struct Selection {
+    model: Model,
+    val: Scores,
+    rounds: Vec<Round>,
+    chosen: Vec<ClassId>,
 }
 
 /// Credited candidates as good as candidate `b` of a round: at least 80 % of its gain and a
@@ -606,29 +600,19 @@ fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassI
 /// that won its round only through an effect a later class explains — a torque class read
 /// against a disk temperature a thermocouple lag distorted — is then replaced by the class
 /// that explains what is left once the later class is in.
-#[allow(clippy::too_many_arguments)]
-fn swap(
-    s: &Setup,
-    base: &Model,
-    classes: &[ClassId],
-    current: &mut Model,
-    cur_val: &mut Scores,
-    rounds: &mut [Round],
-    chosen: &mut [ClassId],
-    seed: u64,
-) {
-    if chosen.len() < 2 {
+fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed: u64) {
+    if sel.chosen.len() < 2 {
         return;
     }
-    for i in 0..chosen.len() {
-        let c = chosen[i];
-        let mut without = *current;
+    for i in 0..sel.chosen.len() {
+        let c = sel.chosen[i];
+        let mut without = sel.model;
         classfit::remove(c, &mut without, base);
         let left: Vec<ClassId> = classes
             .iter()
             .copied()
             .filter(|k| {
-                !chosen
+                !sel.chosen
                     .iter()
                     .any(|o| *o != c && classfit::conflicts(*o, *k))
             })
@@ -667,11 +651,11 @@ fn swap(
         if ci.0 <= 0.0 {
             continue;
         }
-        *current = best.model;
-        *cur_val = best.val.clone();
-        chosen[i] = best.class;
+        sel.model = best.model;
+        sel.val = best.val.clone();
+        sel.chosen[i] = best.class;
         let ambiguous = as_good_as(s, &cands, b, round_seed);
-        let r = &mut rounds[i];
+        let r = &mut sel.rounds[i];
         r.candidates = cands;
         r.kept = Some(b);
         r.ambiguous = ambiguous;
@@ -682,15 +666,13 @@ fn swap(
 /// Backward check: each selected class is removed in turn and the others refitted jointly with
 /// the recalibration; the class is dropped when the (c) and (b) criteria of the forward step no
 /// longer hold for it (a class that only explained what a later class explains better).
-fn backward(
-    s: &Setup,
-    base: &Model,
-    current: &mut Model,
-    cur_val: &mut Scores,
-    rounds: &mut [Round],
-    chosen: &mut Vec<ClassId>,
-    seed: u64,
-) {
+fn backward(s: &Setup, base: &Model, sel: &mut Selection, seed: u64) {
+    let Selection {
+        model: current,
+        val: cur_val,
+        rounds,
+        chosen,
+    } = sel;
     for c in chosen.clone() {
         if chosen.len() < 2 {
             return;

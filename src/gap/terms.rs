@@ -443,7 +443,11 @@ mod tests {
             let k = (t / dt) as usize;
             let want = 1.0 - (1.0 + t / 1.0) * (-t / 1.0f64).exp();
             // Two samples' delay of the discrete lags.
-            assert!((y[k + 2] - want).abs() < 2e-3, "t {t}: {} vs {want}", y[k + 2]);
+            assert!(
+                (y[k + 2] - want).abs() < 2e-3,
+                "t {t}: {} vs {want}",
+                y[k + 2]
+            );
         }
         assert_eq!(thermocouple_lag(&v, 2.0, 0.0, dt), lag(&v, 2.0, dt));
     }
