@@ -568,6 +568,21 @@ struct Selection {
     chosen: Vec<ClassId>,
 }
 
+/// 95 % block-bootstrap interval of the validation gain of `a` minus that of `b`, paired over
+/// the validation units.
+fn paired_difference(s: &Setup, a: &Candidate, b: &Candidate, seed: u64) -> (f64, f64) {
+    let d: Vec<f64> = a
+        .unit_gain
+        .iter()
+        .zip(&b.unit_gain)
+        .map(|(x, y)| x - y)
+        .collect();
+    let mut rng = Rng::new(seed);
+    stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+        idx.iter().map(|&u| d[u]).sum::<f64>()
+    })
+}
+
 /// Credited candidates as good as candidate `b` of a round: at least 80 % of its gain and a
 /// paired (block bootstrap) difference that is not significant.
 fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassId> {
@@ -577,16 +592,7 @@ fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassI
         if j == b || !c.credited || c.gain < 0.8 * best.gain {
             continue;
         }
-        let d: Vec<f64> = best
-            .unit_gain
-            .iter()
-            .zip(&c.unit_gain)
-            .map(|(a, b)| a - b)
-            .collect();
-        let mut rng = Rng::new(seed ^ 0xA5A5 ^ j as u64);
-        let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
-            idx.iter().map(|&u| d[u]).sum::<f64>()
-        });
+        let ci = paired_difference(s, best, c, seed ^ 0xA5A5 ^ j as u64);
         if ci.0 <= 0.0 {
             out.push(c.class);
         }
@@ -630,16 +636,7 @@ fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed:
         if best.class == c {
             continue;
         }
-        let d: Vec<f64> = best
-            .unit_gain
-            .iter()
-            .zip(&own.unit_gain)
-            .map(|(a, b)| a - b)
-            .collect();
-        let mut rng = Rng::new(seed ^ 0x5A95 ^ i as u64);
-        let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
-            idx.iter().map(|&u| d[u]).sum::<f64>()
-        });
+        let ci = paired_difference(s, best, own, seed ^ 0x5A95 ^ i as u64);
         tracing::debug!(
             "swap {c} → {}: gain {:.1} against {:.1}, difference 95 % CI {:.1}…{:.1}",
             best.class,
