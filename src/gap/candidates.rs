@@ -338,8 +338,7 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
 }
 
 /// The measured inputs of the replays as the sensor terms say they really were: thermocouple
-/// readings un-lagged (θ + τ·dθ/dt with τ the whole response time, the first-order inverse of
-/// the two lags; derivative over ±1 s) and corrected for gain and offset,
+/// readings un-lagged (θ + τ·dθ/dt, derivative over ±1 s) and corrected for gain and offset,
 /// the friction power and energy from the corrected torque. `None` without sensor terms.
 fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
     if t.temp_lag_s <= 0.0 && t.temp_sensor.is_none() && t.torque_sensor.is_none() {
@@ -464,7 +463,7 @@ fn predict_inner(
             }
             let mut series: Vec<f64> = tr.iter().map(|s| [s.pp1, s.pp2, s.cd][j]).collect();
             if t.temp_lag_s > 0.0 {
-                series = terms::thermocouple_lag(&series, t.temp_lag_s, t.temp_lag_share, m.dt);
+                series = terms::lag(&series, t.temp_lag_s, m.dt);
             }
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {

@@ -210,10 +210,7 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
         ActuatorTransfer => m.terms.transfer = None,
         SensorTorque => m.terms.torque_sensor = None,
         SensorTorqueSkew => m.terms.torque_skew_s = 0.0,
-        SensorTemperatureLag => {
-            m.terms.temp_lag_s = 0.0;
-            m.terms.temp_lag_share = 0.0;
-        }
+        SensorTemperatureLag => m.terms.temp_lag_s = 0.0,
         SensorTemperature => m.terms.temp_sensor = None,
         SensorPosition => m.terms.pos_sensor = None,
         _ => {}
@@ -302,12 +299,13 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             0.2,
             0.01,
         )],
-        // Started at a share inside the range: at 0 the two lags' first-order effect is the
-        // same (their sum), the share's gradient vanishes and the fit would not move it.
-        SensorTemperatureLag => vec![
-            ParamSpec::new("sensor_temperature_lag.tau_s", 1.0, 0.0, 60.0, 1.0),
-            ParamSpec::new("sensor_temperature_lag.second_share", 0.25, 0.0, 0.5, 0.1),
-        ],
+        SensorTemperatureLag => vec![ParamSpec::new(
+            "sensor_temperature_lag.tau_s",
+            1.0,
+            0.0,
+            60.0,
+            1.0,
+        )],
         SensorTemperature => {
             let mut v = vec![ParamSpec::new(
                 "sensor_temperature.offset_c",
@@ -365,10 +363,7 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         ActuatorTransfer => m.terms.transfer = Some(go(v)),
         SensorTorque => m.terms.torque_sensor = Some(go(v)),
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
-        SensorTemperatureLag => {
-            m.terms.temp_lag_s = v[0];
-            m.terms.temp_lag_share = v[1];
-        }
+        SensorTemperatureLag => m.terms.temp_lag_s = v[0],
         SensorTemperature => {
             m.terms.temp_sensor =
                 knots

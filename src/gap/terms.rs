@@ -206,13 +206,8 @@ pub struct Terms {
     pub torque_sensor: Option<GainOffset>,
     /// The torque channel is recorded `torque_skew_s` late (s; negative: early).
     pub torque_skew_s: f64,
-    /// Thermocouple response time (s): the sum of two first-order lags in series, sheath and
-    /// junction, the second `temp_lag_share` of it (0: one lag). Two poles follow a real
-    /// thermocouple's delayed S-shaped step response, which one lag cannot (fitted with one,
-    /// a 8.7 s two-lag response lands at 5.9 s and leaves most of the thermal gap).
+    /// Thermocouple first-order lag (s).
     pub temp_lag_s: f64,
-    /// Share of `temp_lag_s` in the second lag (0…0.5).
-    pub temp_lag_share: f64,
     /// Measured temperature = temp_sensor(temperature).
     pub temp_sensor: Option<Reading>,
     /// Measured position = pos_sensor(position).
@@ -346,13 +341,6 @@ pub fn lag(v: &[f64], tau_s: f64, dt: f64) -> Vec<f64> {
         .collect()
 }
 
-/// A thermocouple's reading of `v`: two first-order lags in series with time constants
-/// `(1 − share)·tau_s` and `share·tau_s`.
-pub fn thermocouple_lag(v: &[f64], tau_s: f64, share: f64, dt: f64) -> Vec<f64> {
-    let first = lag(v, (1.0 - share) * tau_s, dt);
-    lag(&first, share * tau_s, dt)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -429,27 +417,6 @@ mod tests {
         };
         let t = terms.torque(&p.clutch, &EffectSet::nominal(), &c, &Extra::default());
         assert!((t / t0 - (1.0 + s.eval(120.0))).abs() < 1e-12);
-    }
-
-    /// Two equal lags in series answer a unit step with 1 − (1 + t/τ₁)·e^{−t/τ₁} (the
-    /// Erlang-2 distribution function), a share of 0 with one lag's exponential.
-    #[test]
-    fn two_lags_in_series_answer_a_step_with_the_erlang_curve() {
-        let mut v = vec![1.0; 4001];
-        v[0] = 0.0;
-        let dt = 0.001;
-        let y = thermocouple_lag(&v, 2.0, 0.5, dt);
-        for t in [0.5, 1.0, 2.0, 3.5] {
-            let k = (t / dt) as usize;
-            let want = 1.0 - (1.0 + t / 1.0) * (-t / 1.0f64).exp();
-            // Two samples' delay of the discrete lags.
-            assert!(
-                (y[k + 2] - want).abs() < 2e-3,
-                "t {t}: {} vs {want}",
-                y[k + 2]
-            );
-        }
-        assert_eq!(thermocouple_lag(&v, 2.0, 0.0, dt), lag(&v, 2.0, dt));
     }
 
     #[test]
