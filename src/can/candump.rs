@@ -4,6 +4,7 @@
 //! digits for standard ids and 8 for extended ids, uppercase hex data, remote frames as `#R`.
 //! Input also accepts an optional trailing ` R`/` T` (receive/transmit direction) and lower-case
 //! hex; a malformed line is an error naming its line number. CAN FD lines (`##`) are rejected.
+//! [`LogReader::any_format`] also reads candump's screen output ([`super::candump_screen`]).
 
 use super::frame::{CanFrame, FrameError};
 use embedded_can::Frame as _;
@@ -46,6 +47,10 @@ pub enum LineError {
     Data(String),
     #[error("CAN FD frames are not supported")]
     CanFd,
+    #[error("{have} of the {dlc} data bytes the length announces")]
+    Short { have: usize, dlc: usize },
+    #[error("a date-time stamp (candump -t A); log with -t a, -L or -l for seconds")]
+    DateTime,
     #[error("unexpected trailing text '{0}'")]
     Trailing(String),
     #[error("{0}")]
@@ -199,20 +204,54 @@ fn push_line(
     }
 }
 
+/// The time a line without one is stamped with (seconds since the Unix epoch).
+pub type ArrivalClock = Box<dyn FnMut() -> Duration>;
+
 /// Reads records from a candump log, one `Result` per non-empty line.
 pub struct LogReader<R> {
     input: R,
     line_no: usize,
     buf: String,
+    /// `Some`: screen-format lines are read too, stamped by this clock when they carry no time.
+    arrival: Option<ArrivalClock>,
 }
 
 impl<R: BufRead> LogReader<R> {
+    /// Reads `candump -l` / `-L` logs only.
     pub fn new(input: R) -> Self {
         Self {
             input,
             line_no: 0,
             buf: String::new(),
+            arrival: None,
         }
+    }
+
+    /// Reads `candump -l` / `-L` lines and candump's screen output (`candump vcan0`, `-t a`,
+    /// `-t z`, `-x`, `-a`); a screen line without a time is stamped with `arrival()` as it is
+    /// read, so a live pipe (`candump vcan0 | …`) gets the times the frames came through.
+    pub fn any_format(input: R, arrival: ArrivalClock) -> Self {
+        Self {
+            arrival: Some(arrival),
+            ..Self::new(input)
+        }
+    }
+
+    fn parse(&mut self) -> Result<LogRecord, LineError> {
+        let log = parse_line(&self.buf);
+        let Some(arrival) = self.arrival.as_mut() else {
+            return log;
+        };
+        if log.is_ok() || self.buf.contains('#') {
+            return log;
+        }
+        let s = super::candump_screen::parse_screen_line(&self.buf)?;
+        Ok(LogRecord {
+            timestamp: s.timestamp.unwrap_or_else(arrival),
+            iface: s.iface,
+            frame: s.frame,
+            direction: s.direction,
+        })
     }
 }
 
@@ -237,10 +276,8 @@ impl<R: BufRead> Iterator for LogReader<R> {
             if self.buf.trim().is_empty() {
                 continue;
             }
-            return Some(parse_line(&self.buf).map_err(|kind| LogError::Line {
-                line: self.line_no,
-                kind,
-            }));
+            let line = self.line_no;
+            return Some(self.parse().map_err(|kind| LogError::Line { line, kind }));
         }
     }
 }
@@ -335,6 +372,37 @@ mod tests {
         ] {
             assert_eq!(parse_line(line), Err(want), "{line}");
         }
+    }
+
+    #[test]
+    fn any_format_reads_log_and_screen_lines_and_stamps_untimed_ones_on_arrival() {
+        let text = format!(
+            "{SAMPLE}\n  vcan0  130   [1]  07\n (1.000002)  vcan0  131   [0]  \n  vcan0  132  [1]\n"
+        );
+        let mut tick = 0u64;
+        let clock = Box::new(move || {
+            tick += 1;
+            Duration::from_secs(100 + tick)
+        });
+        let items: Vec<_> = LogReader::any_format(text.as_bytes(), clock).collect();
+        let r: Vec<_> = items[..3].iter().map(|i| i.as_ref().unwrap()).collect();
+        assert_eq!(r[0].timestamp, Duration::new(1436509052, 249_713_000));
+        assert_eq!(
+            (r[1].frame.raw_id(), r[1].timestamp),
+            (0x130, Duration::from_secs(101))
+        );
+        assert_eq!(r[2].timestamp, Duration::new(1, 2000));
+        match &items[3] {
+            Err(LogError::Line { line, kind }) => {
+                assert_eq!((*line, kind), (4, &LineError::Short { have: 0, dlc: 1 }))
+            }
+            other => panic!("{other:?}"),
+        }
+        // The strict reader refuses screen lines.
+        assert!(LogReader::new("  vcan0  130   [1]  07\n".as_bytes())
+            .next()
+            .unwrap()
+            .is_err());
     }
 
     #[test]

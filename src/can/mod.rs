@@ -3,12 +3,14 @@
 
 pub mod bus;
 pub mod candump;
+pub mod candump_screen;
 pub mod codec;
 pub mod dbc;
 pub mod decode;
 pub mod e2e;
 pub mod frame;
 pub mod messages;
+pub mod replay;
 pub mod socketcan;
 
 pub use bus::{

@@ -17,9 +17,11 @@ use std::time::{Duration, Instant};
 
 #[derive(Debug, Subcommand)]
 pub enum LogCmd {
-    /// Decode a candump -l log with the DBC, with the E2E verdict of every frame.
+    /// Decode a candump log with the DBC, with the E2E verdict of every frame.
     Decode {
-        /// The candump -l log file (`-` for standard input).
+        /// The log (`-` for standard input): `candump -l` / `-L` lines, or candump's screen
+        /// output (`candump vcan0`, `-t a`, `-x`, `-a`), whose lines without a time are stamped
+        /// as they are read (`candump vcan0 | ddct log decode -`).
         file: PathBuf,
         /// Output format.
         #[arg(long, value_enum, default_value_t = Format::Table)]
@@ -27,6 +29,9 @@ pub enum LogCmd {
         /// Only frames of these messages (names or ids like 0x130); repeatable.
         #[arg(long = "message", short = 'm')]
         messages: Vec<String>,
+        /// No `gap:` notice per message that fell silent (the E2E summary stays).
+        #[arg(long, short = 'q')]
+        quiet: bool,
     },
     /// Cycle-time statistics per message of a candump -l log (p50/p99/min/max intervals).
     Stats {
@@ -55,19 +60,27 @@ pub enum LogCmd {
         #[arg(long)]
         ready_file: Option<PathBuf>,
     },
-    /// Send the frames of a candump -l log on a SocketCAN interface.
+    /// Send the frames of a candump -l log on a SocketCAN interface, at the log's own timing
+    /// (absolute deadlines from the first frame) unless `--max-rate`.
     Replay {
         /// The candump -l log file.
         file: PathBuf,
         /// CAN interface, e.g. vcan0.
         #[arg(long)]
         iface: String,
-        /// Keep the log's relative timing (absolute deadlines from the first frame).
+        /// Play the log's timing this many times faster (0.5: half speed).
+        #[arg(long, default_value_t = 1.0, value_parser = parse_speed, conflicts_with = "max_rate")]
+        speed: f64,
+        /// Ignore the log's timing: send as fast as the interface takes the frames.
         #[arg(long)]
-        realtime: bool,
-        /// Minimum spacing between frames in microseconds when not in real time.
-        #[arg(long, default_value_t = 0)]
+        max_rate: bool,
+        /// With `--max-rate`: at least this many microseconds between frames.
+        #[arg(long, default_value_t = 0, requires = "max_rate")]
         interval_us: u64,
+        /// Play the log this many times; each pass starts one median frame interval after the
+        /// last frame of the one before.
+        #[arg(long = "loop", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        passes: u32,
     },
 }
 
@@ -87,7 +100,8 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             file,
             format,
             messages,
-        } => decode(&file, format, &messages),
+            quiet,
+        } => decode(&file, format, &messages, quiet),
         LogCmd::Stats { file, json } => stats(&file, json),
         LogCmd::Record {
             iface,
@@ -99,9 +113,18 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
         LogCmd::Replay {
             file,
             iface,
-            realtime,
+            speed,
+            max_rate,
             interval_us,
-        } => replay(&file, &iface, realtime, interval_us),
+            passes,
+        } => {
+            let pace = if max_rate {
+                Pace::MaxRate { interval_us }
+            } else {
+                Pace::Log { speed }
+            };
+            replay(&file, &iface, pace, passes)
+        }
     }
 }
 
@@ -129,7 +152,19 @@ fn wanted_filter(messages: &[String]) -> anyhow::Result<Vec<u32>> {
         .collect()
 }
 
-fn decode(file: &PathBuf, format: Format, messages: &[String]) -> anyhow::Result<ExitCode> {
+/// Seconds since the Unix epoch now: the time of a screen line that carries none.
+fn wall_clock() -> Duration {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default()
+}
+
+fn decode(
+    file: &PathBuf,
+    format: Format,
+    messages: &[String],
+    quiet: bool,
+) -> anyhow::Result<ExitCode> {
     let filter = wanted_filter(messages)?;
     let input = open_input(file)?;
     let stdout = std::io::stdout();
@@ -140,7 +175,7 @@ fn decode(file: &PathBuf, format: Format, messages: &[String]) -> anyhow::Result
     if format == Format::Csv {
         writeln!(out, "time_s,iface,id,message,signal,value,unit,e2e")?;
     }
-    for item in LogReader::new(input) {
+    for item in LogReader::any_format(input, Box::new(wall_clock)) {
         let rec = match item {
             Ok(r) => r,
             Err(LogError::Line { line, kind }) => {
@@ -170,7 +205,7 @@ fn decode(file: &PathBuf, format: Format, messages: &[String]) -> anyhow::Result
     out.flush()?;
     let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!("frames by E2E verdict: {}", summary.join(", "));
-    for g in decoder.gaps() {
+    for g in decoder.gaps().iter().filter(|_| !quiet) {
         eprintln!(
             "gap: {} silent from {:.6} to {:.6} s ({} ms)",
             g.message,
@@ -372,12 +407,28 @@ fn record(
     Ok(ExitCode::SUCCESS)
 }
 
-fn replay(
-    file: &PathBuf,
-    iface: &str,
-    realtime: bool,
-    interval_us: u64,
-) -> anyhow::Result<ExitCode> {
+/// `--speed`: a finite factor above zero.
+fn parse_speed(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 && v <= 1e6 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{s}: a factor above 0 and at most 1e6 (use --max-rate to ignore the timing)"
+        ))
+    }
+}
+
+/// How `ddct log replay` spaces the frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Pace {
+    /// The log's own timing, `speed` times faster.
+    Log { speed: f64 },
+    /// As fast as the interface takes them, at least `interval_us` apart.
+    MaxRate { interval_us: u64 },
+}
+
+fn replay(file: &PathBuf, iface: &str, pace: Pace, passes: u32) -> anyhow::Result<ExitCode> {
     let mut records = Vec::new();
     for item in LogReader::new(open_input(file)?) {
         match item {
@@ -387,21 +438,28 @@ fn replay(
         }
     }
     let rt = runtime()?;
+    let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();
     let sent = rt.block_on(async {
         let mut bus = SocketCanBus::open(iface, false)?;
         let start = tokio::time::Instant::now();
-        let t0 = records.first().map(|r| r.timestamp).unwrap_or_default();
         let mut next = start;
-        for r in &records {
-            if realtime {
-                tokio::time::sleep_until(start + r.timestamp.saturating_sub(t0)).await;
-            } else if interval_us > 0 {
-                tokio::time::sleep_until(next).await;
-                next += Duration::from_micros(interval_us);
+        let mut sent = 0usize;
+        let frames = records.iter().cycle().take(records.len() * passes as usize);
+        for (r, at) in frames.zip(ddct::can::replay::schedule(&stamps, passes)) {
+            match pace {
+                Pace::Log { speed } => {
+                    tokio::time::sleep_until(start + at.div_f64(speed)).await;
+                }
+                Pace::MaxRate { interval_us } if interval_us > 0 => {
+                    tokio::time::sleep_until(next).await;
+                    next += Duration::from_micros(interval_us);
+                }
+                Pace::MaxRate { .. } => {}
             }
             bus.send(r.frame).await?;
+            sent += 1;
         }
-        anyhow::Ok(records.len())
+        anyhow::Ok(sent)
     })?;
     eprintln!("sent {sent} frame(s) on {iface}");
     Ok(ExitCode::SUCCESS)

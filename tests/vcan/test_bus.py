@@ -93,32 +93,64 @@ def test_replay_seen_by_candump_and_python_can(ddct, candump, tmp_path):
     assert {line.split()[1] for line in dump_file.read_text().splitlines()} == {IFACE}
 
 
-def test_replay_keeps_timing_only_with_realtime(ddct, tmp_path):
+def replay_span(ddct, log, n, *options) -> list[can.Message]:
+    """Replay `log` with `options` and return the frames python-can saw."""
+    rx = PythonCanReceiver(n, timeout=60)  # bound (listening) once constructed
+    rx.start()
+    lib.run([ddct, "log", "replay", log, "--iface", IFACE, *options], timeout=120)
+    rx.join(60)
+    return rx.msgs
+
+
+def test_replay_keeps_the_log_timing_unless_max_rate(ddct, tmp_path):
     frames = frame_list(reps=1)[:20]
     gap = 0.05
     paced = tmp_path / "paced.log"
     lib.write_candump(paced, frames, dt=gap)
-    slow = tmp_path / "slow.log"  # 19 gaps of 10 s: only --realtime would take minutes
-    lib.write_candump(slow, frames, dt=10.0)
-
-    rx = PythonCanReceiver(len(frames), timeout=60)  # bound (listening) once constructed
-    rx.start()
-    lib.run([ddct, "log", "replay", paced, "--iface", IFACE, "--realtime"], timeout=120)
-    rx.join(60)
-    assert [(m.arbitration_id, bytes(m.data)) for m in rx.msgs] == [(f["id"], f["data"]) for f in frames]
-    span = rx.msgs[-1].timestamp - rx.msgs[0].timestamp
+    sent = [(f["id"], f["data"]) for f in frames]
     want = gap * (len(frames) - 1)
     # generous bounds: the relative timing is kept (not compressed, not wildly stretched)
-    assert want * 0.8 <= span <= want + 5.0, f"--realtime span {span:.3f} s, log span {want:.3f} s"
+    for options, factor in [((), 1.0), (("--speed", "2"), 0.5)]:
+        msgs = replay_span(ddct, paced, len(frames), *options)
+        assert [(m.arbitration_id, bytes(m.data)) for m in msgs] == sent
+        span = msgs[-1].timestamp - msgs[0].timestamp
+        assert want * factor * 0.8 <= span <= want * factor + 5.0, f"{options}: span {span:.3f} s, want {want * factor:.3f} s"
+    # --loop 3: three passes, the second one median interval (50 ms) after the first one's end
+    msgs = replay_span(ddct, paced, 3 * len(frames), "--loop", "3")
+    assert [(m.arbitration_id, bytes(m.data)) for m in msgs] == 3 * sent
+    span = msgs[-1].timestamp - msgs[0].timestamp
+    assert 3 * want * 0.8 <= span <= 3 * want + 2 * gap + 5.0, span
 
-    rx = PythonCanReceiver(len(frames), timeout=60)  # bound (listening) once constructed
-    rx.start()
+    slow = tmp_path / "slow.log"  # 19 gaps of 10 s: at the log's timing it would take minutes
+    lib.write_candump(slow, frames, dt=10.0)
     t0 = time.monotonic()
-    lib.run([ddct, "log", "replay", slow, "--iface", IFACE], timeout=120)
+    msgs = replay_span(ddct, slow, len(frames), "--max-rate")
     took = time.monotonic() - t0
-    rx.join(60)
-    assert len(rx.msgs) == len(frames)
-    assert took < 30.0, f"replay without --realtime took {took:.1f} s for a log spanning 190 s"
+    assert len(msgs) == len(frames)
+    assert took < 30.0, f"replay --max-rate took {took:.1f} s for a log spanning 190 s"
+    bad = lib.run([ddct, "log", "replay", slow, "--iface", IFACE, "--speed", "0"], check=False)
+    assert bad.returncode == 2 and "--speed" in bad.stderr, bad.stderr
+
+
+def test_replay_at_log_timing_loses_no_frame_to_a_recorder(ddct, tmp_path):
+    """3 000 frames at the log's 1 ms spacing, recorded by `ddct log record`: all of them."""
+    frames = frame_list(reps=1)
+    frames = (frames * (3000 // len(frames) + 1))[:3000]
+    log = tmp_path / "dense.log"
+    lib.write_candump(log, frames, dt=0.001)
+    out = tmp_path / "recorded.log"
+    before = can_receivers()
+    with background(
+        [ddct, "log", "record", "--iface", IFACE, "--out", out, "--count", len(frames), "--duration", 120],
+        stdout=open(tmp_path / "record.out", "w"),
+        stderr=open(tmp_path / "record.err", "w"),
+    ) as rec:
+        wait_receivers(before, 1, procs=[rec])
+        lib.run([ddct, "log", "replay", log, "--iface", IFACE], timeout=120)
+        assert rec.wait(150) == 0, (tmp_path / "record.err").read_text()
+    got = read_log(out)
+    print(f"\nreplay at log timing: recorded {len(got)} of {len(frames)} frames")
+    assert got == [(f["id"], f["data"]) for f in frames]
 
 
 def cansend_frames(db) -> list[tuple[int, bytes]]:
@@ -197,6 +229,39 @@ def test_candump_log_decoded_by_ddct(ddct, candump, db, tmp_path):
         want = "ok" if ddct_can.is_protected(msg.name) else "not_protected"
         if r["e2e"] != want:
             problems.append(f"{msg.name} ({fr['case']}): e2e {r['e2e']!r}, expected {want!r}")
+        problems += lib.signal_mismatches(msg, ddct_can.decode(fr["id"], fr["data"]), r["signals"], f" ({fr['case']})")
+    assert not problems, "\n".join(problems)
+
+
+@pytest.mark.parametrize("options", [[], ["-t", "a"], ["-x", "-a"]], ids=["default", "t_a", "x_a"])
+def test_candump_screen_output_piped_into_decode(ddct, candump, db, tmp_path, options):
+    """`candump vcan0 | ddct log decode -`: candump's screen formats, decoded live, agree with
+    cantools frame by frame; lines without a time are stamped as they arrive."""
+    frames = lib.sample_frames()
+    before = can_receivers()
+    shell = f"{candump} {' '.join(options)} -n {len(frames)} {IFACE} | {ddct} log decode - --format json --quiet"
+    t0 = time.time()
+    with background(
+        ["sh", "-c", shell],
+        stdout=open(tmp_path / "decode.json", "w"),
+        stderr=open(tmp_path / "decode.err", "w"),
+    ) as pipe:
+        wait_receivers(before, 1, procs=[pipe])
+        with can.Bus(interface="socketcan", channel=IFACE) as bus:
+            for fr in frames:
+                bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+        assert pipe.wait(60) == 0, (tmp_path / "decode.err").read_text()
+    t1 = time.time()
+    err = (tmp_path / "decode.err").read_text()
+    assert "gap:" not in err and "malformed" not in err, err
+    recs = lib.json_lines((tmp_path / "decode.json").read_text())
+    assert [r["id"] for r in recs] == [f["id"] for f in frames]
+    problems = []
+    for fr, r in zip(frames, recs):
+        msg = db.get_message_by_frame_id(fr["id"])
+        assert r["iface"] == IFACE and r["error"] is None, r
+        # Stamped on arrival (no -t) or by candump (-t a): within the sending window either way.
+        assert t0 - 1.0 <= r["t"] <= t1 + 1.0, (r["t"], t0, t1)
         problems += lib.signal_mismatches(msg, ddct_can.decode(fr["id"], fr["data"]), r["signals"], f" ({fr['case']})")
     assert not problems, "\n".join(problems)
 
