@@ -937,6 +937,8 @@ pub fn diagnose(
     let mut rng = Rng::new(o.seed);
 
     // Phase 1–2: recalibration, noise floors, knots.
+    let t0 = std::time::Instant::now();
+    let phase = |name: &str| tracing::debug!("{name} done ({:.1} s)", t0.elapsed().as_secs_f64());
     context::set_noise(&nominal_model, &mut tr);
     let no_knots = Knots::default();
     let recal = recalibrate(nominal, &chans, &tr, &no_knots, false);
@@ -944,6 +946,7 @@ pub fn diagnose(
     let sigma = context::set_noise(&recal, &mut va);
     context::cache_disk(&recal, &mut tr);
     let kn = knots(&recal, &tr);
+    phase("recalibration");
     let recalibration: Vec<(String, f64, f64)> = select::RECAL
         .iter()
         .filter_map(|(k, _)| {
@@ -984,10 +987,12 @@ pub fn diagnose(
     let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
     let (selected, sel_val, rounds) =
         select::select(&setup, &recal, &classes, o.max_classes, o.seed);
+    phase("selection");
 
     // Phase 4: recalibrations out of range.
     let (after, after_val, recal_findings) =
         recalibration_findings(&setup, &selected, &sel_val, o, &mut rng);
+    phase("recalibration findings");
 
     // Phase 5: what is left above the floor.
     let sc_t = Scores::new(
@@ -997,6 +1002,7 @@ pub fn diagnose(
         context::units(&tr),
     );
     let (outside, blackbox) = outside_library(&setup, &after, &after_val, &sc_t, o);
+    phase("outside the library");
 
     // Phase 6: the verdict.
     let mut findings: Vec<Finding> = Vec::new();

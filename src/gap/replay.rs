@@ -300,7 +300,7 @@ pub fn torque_eq(
     h.clutch_torque(&p.clutch, &m.context(i, k, theta_c[i][k]))
 }
 
-/// Thermal inputs at an interval midpoint (β filled in per state by [`thermal_derivative`]).
+/// Thermal inputs at an interval midpoint (β filled in at the step's start by [`with_beta`]).
 fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
     ThermalInputs {
         p_fric1_w: pw[0],
@@ -311,14 +311,16 @@ fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
     }
 }
 
-fn thermal_derivative(
-    t5: &Thermal5,
+/// `u` with β of both clutches at the state `s` of the step's start, held over the step like
+/// the other inputs (as [`disk_estimate`] does): β is a step function of x_to and θ_c, and the
+/// few mK an RK4 stage moves θ_c would only move where within a 10 ms step it switches.
+fn with_beta(
     p: &Params,
     h: &dyn Hooks,
     s: &Thermal5State,
     ctx: [ClutchContext; 2],
     u: ThermalInputs,
-) -> Thermal5State {
+) -> ThermalInputs {
     let mut c = ctx;
     c[0].theta_c = s.c1;
     c[0].theta_pp = s.pp1;
@@ -326,12 +328,20 @@ fn thermal_derivative(
     c[1].theta_c = s.c2;
     c[1].theta_pp = s.pp2;
     c[1].theta_cd = s.cd;
-    let tin = ThermalInputs {
+    ThermalInputs {
         beta1: h.clutch_beta(&p.clutch, &c[0]),
         beta2: h.clutch_beta(&p.clutch, &c[1]),
         ..u
-    };
-    t5.derivative(s, &tin).axpy(1.0, &h.extra_heat(s, &tin))
+    }
+}
+
+fn thermal_derivative(
+    t5: &Thermal5,
+    h: &dyn Hooks,
+    s: &Thermal5State,
+    u: &ThermalInputs,
+) -> Thermal5State {
+    t5.derivative(s, u).axpy(1.0, &h.extra_heat(s, u))
 }
 
 /// The thermal model (16) simulated over the record from the measured friction power and housing
@@ -350,7 +360,8 @@ pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5St
         let pw = [mid(&m.power[0]), mid(&m.power[1])];
         let u = inputs(pw, mid(&m.th), mid(&m.w_f));
         let ctx = [m.context(0, k, s.c1), m.context(1, k, s.c2)];
-        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, ctx, u);
+        let u = with_beta(p, h, &s, ctx, u);
+        let f = |s: &Thermal5State| thermal_derivative(&t5, h, s, &u);
         s = rk4_step_with(&s, m.dt, f);
     }
     out
@@ -392,7 +403,8 @@ pub fn full_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Replay {
         let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
         let u = inputs(pw, mid(&m.th), mid(&m.w_f));
         let c = [ctx(0, &s, e[0]), ctx(1, &s, e[1])];
-        let f = |s: &Thermal5State| thermal_derivative(&t5, p, h, s, c, u);
+        let u = with_beta(p, h, &s, c, u);
+        let f = |s: &Thermal5State| thermal_derivative(&t5, h, s, &u);
         s = rk4_step_with(&s, m.dt, f);
         e[0] += pw[0] * m.dt;
         e[1] += pw[1] * m.dt;

@@ -478,19 +478,24 @@ fn round(
     let aff_all: Vec<Channel> = s.chans.to_vec();
     let base_train = train_sse(base, s.train, &aff_all, false);
     let threads = s.threads.clamp(1, classes.len().max(1));
-    let mut out: Vec<Candidate> = std::thread::scope(|sc| {
+    // A shared queue, not a fixed share per thread: a thermal class's fit replays the
+    // temperatures and costs several torque classes'.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut out: Vec<(usize, Candidate)> = std::thread::scope(|sc| {
         let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                let base_train = &base_train;
+            .map(|_| {
+                let (base_train, next) = (&base_train, &next);
                 sc.spawn(move || {
-                    classes
-                        .iter()
-                        .enumerate()
-                        .filter(|(i, _)| i % threads == t)
-                        .filter_map(|(i, c)| {
-                            candidate(s, base, base_val, base_train, *c, seed ^ (i as u64 + 1))
-                        })
-                        .collect::<Vec<_>>()
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(c) = classes.get(i) else { break };
+                        let seed = seed ^ (i as u64 + 1);
+                        if let Some(k) = candidate(s, base, base_val, base_train, *c, seed) {
+                            mine.push((i, k));
+                        }
+                    }
+                    mine
                 })
             })
             .collect();
@@ -499,8 +504,9 @@ fn round(
             .flat_map(|h| h.join().unwrap_or_default())
             .collect()
     });
-    out.sort_by(|a, b| b.gain.total_cmp(&a.gain));
-    out
+    // Best gain first; equal gains in the order of `classes`, whichever thread fitted them.
+    out.sort_by(|a, b| b.1.gain.total_cmp(&a.1.gain).then(a.0.cmp(&b.0)));
+    out.into_iter().map(|(_, k)| k).collect()
 }
 
 /// Forward selection of up to `max_classes` classes from `classes`, starting at `base`.
@@ -517,6 +523,7 @@ pub fn select(
         rounds: Vec::new(),
         chosen: Vec::new(),
     };
+    let t0 = std::time::Instant::now();
     for r in 0..max_classes {
         let left: Vec<ClassId> = classes
             .iter()
@@ -543,6 +550,12 @@ pub fn select(
             sel.chosen.push(best.class);
         }
         let stop = kept.is_none();
+        tracing::debug!(
+            "round {r}: {} classes fitted, kept {:?} ({:.1} s)",
+            cands.len(),
+            kept.map(|b| cands[b].class),
+            t0.elapsed().as_secs_f64()
+        );
         sel.rounds.push(Round {
             candidates: cands,
             kept,
@@ -555,7 +568,9 @@ pub fn select(
         }
     }
     swap(s, base, classes, &mut sel, seed);
+    tracing::debug!("swap check done ({:.1} s)", t0.elapsed().as_secs_f64());
     backward(s, base, &mut sel, seed);
+    tracing::debug!("backward check done ({:.1} s)", t0.elapsed().as_secs_f64());
     (sel.model, sel.val, sel.rounds)
 }
 
@@ -600,12 +615,18 @@ fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassI
     out
 }
 
+/// Contenders of the swap check for each kept class: at most this many of its round's runners-up.
+const SWAP_CONTENDERS: usize = 5;
+
 /// Swap check (with two or more classes selected): each selected class is taken out in turn
-/// and every class that can stand beside the others is fitted in its place; the class is
-/// replaced when another one gains significantly more there (paired block bootstrap). A class
-/// that won its round only through an effect a later class explains — a torque class read
-/// against a disk temperature a thermocouple lag distorted — is then replaced by the class
-/// that explains what is left once the later class is in.
+/// and its round's strongest runners-up that can stand beside the others (kept-quality, or a
+/// gain of at least a quarter of the kept class's; at most [`SWAP_CONTENDERS`]) are fitted in
+/// its place beside it; the class is replaced when another one gains significantly more there
+/// (paired block bootstrap). A class that won its round only through an effect a later class
+/// explains — a torque class read against a disk temperature a thermocouple lag distorted — is
+/// then replaced by the class that explains what is left once the later class is in. (Every
+/// class in its place cost a full round per kept class: 4 of the 4.1 minutes of a 30-minute
+/// log's diagnosis.)
 fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed: u64) {
     if sel.chosen.len() < 2 {
         return;
@@ -614,15 +635,18 @@ fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed:
         let c = sel.chosen[i];
         let mut without = sel.model;
         classfit::remove(c, &mut without, base);
-        let left: Vec<ClassId> = classes
-            .iter()
-            .copied()
+        let left: Vec<ClassId> = contenders(&sel.rounds[i], c)
+            .into_iter()
+            .filter(|k| classes.contains(k))
             .filter(|k| {
                 !sel.chosen
                     .iter()
                     .any(|o| *o != c && classfit::conflicts(*o, *k))
             })
             .collect();
+        if left.len() < 2 {
+            continue;
+        }
         let without_val = Scores::of(&without, s.validate, s.chans, s.nunits_v);
         let round_seed = seed.wrapping_add(0x5A9 + i as u64 * 7919);
         let cands = round(s, &without, &without_val, &left, round_seed);
@@ -658,6 +682,22 @@ fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed:
         r.ambiguous = ambiguous;
         r.replaced = Some(c);
     }
+}
+
+/// The kept class `c` of round `r` and the runners-up the swap check fits in its place.
+fn contenders(r: &Round, c: ClassId) -> Vec<ClassId> {
+    let own_gain = r
+        .candidates
+        .iter()
+        .find(|k| k.class == c)
+        .map_or(0.0, |k| k.gain);
+    let runners = r
+        .candidates
+        .iter()
+        .filter(|k| k.class != c && (k.credited || k.gain >= 0.25 * own_gain))
+        .take(SWAP_CONTENDERS)
+        .map(|k| k.class);
+    std::iter::once(c).chain(runners).collect()
 }
 
 /// Backward check: each selected class is removed in turn and the others refitted jointly with
