@@ -625,8 +625,8 @@ const SWAP_CONTENDERS: usize = 5;
 /// (paired block bootstrap). A class that won its round only through an effect a later class
 /// explains — a torque class read against a disk temperature a thermocouple lag distorted — is
 /// then replaced by the class that explains what is left once the later class is in. (Every
-/// class in its place cost a full round per kept class: 4 of the 4.1 minutes of a 30-minute
-/// log's diagnosis.)
+/// class in its place cost a full round per kept class: 75 of the 244 s of a 30-minute log's
+/// diagnosis, `scripts/gap-acceptance` part 3.)
 fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed: u64) {
     if sel.chosen.len() < 2 {
         return;
