@@ -27,6 +27,7 @@ use ddct::daemon::tcu::{
 use ddct::daemon::Periodic;
 use ddct::sim::buslog::{self, Spread};
 use ddct::sim::metrics::{self, Metrics};
+use ddct::sim::verdict::{self, Check};
 use ddct::sim::{self, plots, SimOptions, SimScenario};
 use ddct::tcu::TcuConfig;
 use serde::Serialize;
@@ -64,6 +65,9 @@ pub struct BenchArgs {
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     json: bool,
+    /// Write the verdict (the scenario's `[limits]` checks) as JUnit XML to this file.
+    #[arg(long)]
+    junit: Option<PathBuf>,
 }
 
 fn realtime(prio: Option<i32>) {
@@ -391,6 +395,8 @@ pub struct BenchSummary {
     pub plots: Vec<PathBuf>,
     /// First and last DCT_Sensors frame, relative to the first frame of the log (s).
     pub plant_window: Option<(f64, f64)>,
+    /// The checks of the scenario's `[limits]` on the bus run (`ddct::sim::verdict`).
+    pub verdict: Vec<Check>,
 }
 
 pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
@@ -469,7 +475,26 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         .map(|(t, _)| t.saturating_sub(t0).as_secs_f64())
         .collect();
     let plant_window = sensors.first().zip(sensors.last()).map(|(a, b)| (*a, *b));
+    let timing = timing(&frames, echo.as_deref());
+    let latency_ratio = timing
+        .echo_latency
+        .as_ref()
+        .filter(|e| e.n > 0 && e.p99_us > 0.0 && timing.tcu_latency.n > 0)
+        .map(|e| timing.tcu_latency.p99_us / e.p99_us);
+    // The TCU's reaction to the plant stopping first (an ENG_Status timeout after its last
+    // frame) is the end of the run, not a fault of it.
+    let in_run = Metrics {
+        status_events: bus
+            .status_events
+            .iter()
+            .filter(|e| plant_window.is_none_or(|(_, end)| e.t_s <= end))
+            .copied()
+            .collect(),
+        ..bus.clone()
+    };
+    let verdict = verdict::judge(sc.limits.as_ref(), &in_run, latency_ratio);
     let summary = BenchSummary {
+        verdict,
         plant_window,
         iface,
         scenario: sc.name.clone(),
@@ -478,7 +503,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         bus,
         sim: Some(simm),
         sim_wall_s: Some(sim_wall),
-        timing: timing(&frames, echo.as_deref()),
+        timing,
         plant,
         tcu,
         log,
@@ -488,12 +513,25 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         a.out.join("summary.json"),
         serde_json::to_string_pretty(&summary)?,
     )?;
+    let runs = [(summary.scenario.clone(), summary.verdict.clone())];
     if a.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         print_summary(&summary);
+        println!();
+        print!("{}", verdict::table(&runs));
     }
-    Ok(ExitCode::SUCCESS)
+    eprintln!("bench: summary in {}", a.out.join("summary.json").display());
+    if let Some(path) = &a.junit {
+        std::fs::write(path, verdict::junit("ddct bench", &runs))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if verdict::passed(&summary.verdict) {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("bench: FAIL ({})", summary.scenario);
+        Ok(ExitCode::FAILURE)
+    }
 }
 
 fn f1(v: Option<f64>) -> String {

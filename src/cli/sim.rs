@@ -3,6 +3,7 @@
 use anyhow::Context;
 use clap::Args;
 use ddct::sim::metrics::{self, Metrics};
+use ddct::sim::verdict::{self, Check};
 use ddct::sim::{self, plots, SimOptions, SimScenario};
 use ddct::tcu::TcuConfig;
 use serde::Serialize;
@@ -24,6 +25,9 @@ pub struct SimArgs {
     /// Write per scenario an SVG figure (<name>.svg) and the rows as CSV (<name>.csv) here.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write the verdicts (each scenario's `[limits]` checks) as JUnit XML to this file.
+    #[arg(long)]
+    junit: Option<PathBuf>,
 }
 
 /// One scenario's result.
@@ -42,6 +46,8 @@ pub struct ScenarioSummary {
     pub plot: Option<PathBuf>,
     pub csv: Option<PathBuf>,
     pub metrics: Metrics,
+    /// The checks of the scenario's `[limits]` (docs: `ddct::sim::verdict`).
+    pub verdict: Vec<Check>,
 }
 
 pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
@@ -80,15 +86,37 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
             frames: run.frames.len(),
             plot,
             csv,
+            verdict: verdict::judge(sc.limits.as_ref(), &m, None),
             metrics: m,
         });
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        print_tables(&out);
     }
-    Ok(ExitCode::SUCCESS)
+    let runs: Vec<(String, Vec<Check>)> = out
+        .iter()
+        .map(|s| (s.scenario.clone(), s.verdict.clone()))
+        .collect();
+    if !args.json {
+        print_tables(&out);
+        println!();
+        print!("{}", verdict::table(&runs));
+    }
+    if let Some(path) = &args.junit {
+        std::fs::write(path, verdict::junit("ddct sim", &runs))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    let failed: Vec<&str> = runs
+        .iter()
+        .filter(|(_, c)| !verdict::passed(c))
+        .map(|(n, _)| n.as_str())
+        .collect();
+    if failed.is_empty() {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("FAIL: {}", failed.join(", "));
+        Ok(ExitCode::FAILURE)
+    }
 }
 
 fn opt(v: Option<f64>, prec: usize) -> String {

@@ -16,6 +16,7 @@ pub mod buslog;
 pub mod metrics;
 pub mod plots;
 pub mod scenario;
+pub mod verdict;
 
 pub use scenario::{ScenarioError, SimScenario, TcuOverrides};
 

@@ -16,10 +16,13 @@
 //! initial_temp_c = 40.0    # the TCU's estimate at its start (a TCU that kept it across a restart)
 //! ```
 //!
+//! An optional `[limits]` table holds the run's pass/fail limits ([`super::verdict`]).
+//!
 //! The plant tables `[initial]`, `[housing]`, `[sensors]` and `[inputs]` merge key by key into the
 //! base configuration; `[effects]` and `[[faults]]` replace the base's. Relative file names are
 //! relative to the scenario file.
 
+use super::verdict::Limits;
 use crate::plant::config::{sent_ids, PlantConfig, DEFAULT_TOML};
 use crate::plant::faults::parse_faults;
 use crate::plant::{Mode, PlantError, Scenario};
@@ -133,9 +136,12 @@ pub struct SimScenario {
     /// The plant configuration, with the driver as its built-in scenario.
     pub plant: PlantConfig,
     pub tcu: TcuOverrides,
+    /// Pass/fail limits (`[limits]`), if the scenario sets any.
+    pub limits: Option<Limits>,
 }
 
-const SCENARIO_KEYS: [&str; 11] = [
+const SCENARIO_KEYS: [&str; 12] = [
+    "limits",
     "description",
     "duration_s",
     "plant",
@@ -277,6 +283,23 @@ impl SimScenario {
             })?,
         };
         tcu.validate(path)?;
+        let limits: Option<Limits> = match doc.get("limits") {
+            None => None,
+            Some(v) => Some(v.clone().try_into().map_err(|e: toml::de::Error| {
+                let key = match v {
+                    toml::Value::Table(t) => crate::toml_key::refused_path::<Limits>("limits", t),
+                    _ => "limits".to_string(),
+                };
+                key_err(path, key, e.message().to_string())
+            })?),
+        };
+        if let Some((key, v, hi)) = limits.as_ref().and_then(Limits::invalid) {
+            return Err(key_err(
+                path,
+                format!("limits.{key}"),
+                format!("{v} is outside 0 < limit <= {hi}"),
+            ));
+        }
         let duration_s = match doc.get("duration_s") {
             None => plant.scenario.as_ref().map_or(0.0, |s| s.duration_s),
             Some(toml::Value::Float(f)) => *f,
@@ -305,6 +328,7 @@ impl SimScenario {
             duration_s,
             plant,
             tcu,
+            limits,
         })
     }
 }
