@@ -11,6 +11,7 @@
 //! Each daemon and the recorder run on their own thread, runtime and socket (endpoint).
 //! `ddct bench --analyze LOG` runs the analysis on a candump log recorded elsewhere.
 
+use super::args::{open_can, rt_priority, Iface};
 use super::{runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::Args;
@@ -42,7 +43,7 @@ use tokio::sync::watch;
 pub struct BenchArgs {
     /// CAN interface (e.g. vcan0), or `sim` for the in-process bus.
     #[arg(long, required_unless_present = "analyze")]
-    iface: Option<String>,
+    iface: Option<Iface>,
     /// Scenario (a `ddct sim` scenario file).
     #[arg(long, default_value = "config/scenarios/launch_shift_20s.toml")]
     scenario: PathBuf,
@@ -60,7 +61,7 @@ pub struct BenchArgs {
     analyze: Option<PathBuf>,
     /// Run the plant, TCU, echo and recorder threads under the real-time FIFO scheduler at this
     /// priority (1..=99; needs root; a warning when refused).
-    #[arg(long)]
+    #[arg(long, value_parser = rt_priority)]
     rt_priority: Option<i32>,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
@@ -133,8 +134,7 @@ impl Net {
     fn open_filtered(&self, ids: &[u16]) -> anyhow::Result<AnyBus> {
         Ok(match self {
             Net::Can(i) => {
-                let b = SocketCanBus::open(i, false)
-                    .with_context(|| format!("opening CAN interface {i}"))?;
+                let b = open_can(i)?;
                 if !ids.is_empty() {
                     b.set_filter_ids(ids)?;
                 }
@@ -407,11 +407,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
     let (iface, frames, echo, plant, tcu, log) = match &a.analyze {
         Some(p) => ("log".to_string(), read_log(p)?, None, None, None, p.clone()),
         None => {
-            let iface = a.iface.clone().unwrap_or_default();
-            let net = if iface == "sim" {
-                Net::Sim(InProcessBus::new("sim"))
-            } else {
-                Net::Can(iface.clone())
+            let net = match a.iface.clone() {
+                Some(Iface::Can(name)) => Net::Can(name),
+                _ => Net::Sim(InProcessBus::new("sim")),
             };
             if !(a.echo.is_finite() && a.echo >= 0.0 && a.echo <= 600.0) {
                 bail!("--echo {}: must be 0 ..= 600 seconds", a.echo);

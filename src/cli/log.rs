@@ -1,11 +1,11 @@
 //! `ddct log`: decode, record and replay candump logs.
 
+use super::args::open_can;
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
 use ddct::can::candump::{LogError, LogReader, LogWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
-use ddct::can::socketcan::SocketCanBus;
 use ddct::can::Bus;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -362,7 +362,7 @@ fn record(
     let mut writer = LogWriter::new(BufWriter::new(file));
     let rt = runtime()?;
     let n = rt.block_on(async {
-        let mut bus = SocketCanBus::open(iface, false)?;
+        let mut bus = open_can(iface)?;
         // A recorder the host deschedules for a while must not lose frames: 16 MiB of receive
         // queue (minutes of a 10 ms bus) where the kernel grants it.
         if let Err(e) = bus.set_recv_buffer(RECORD_RCVBUF) {
@@ -440,7 +440,7 @@ fn replay(file: &PathBuf, iface: &str, pace: Pace, passes: u32) -> anyhow::Resul
     let rt = runtime()?;
     let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();
     let sent = rt.block_on(async {
-        let mut bus = SocketCanBus::open(iface, false)?;
+        let mut bus = open_can(iface)?;
         let start = tokio::time::Instant::now();
         let mut next = start;
         let mut sent = 0usize;

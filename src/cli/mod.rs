@@ -1,6 +1,7 @@
 //! Subcommand wiring for the `ddct` binary: each module turns raw arguments into a validated
 //! configuration and calls the library. `anyhow` lives here and nowhere else.
 
+pub mod args;
 pub mod bench;
 pub mod dbc;
 pub mod gap;

@@ -1,9 +1,9 @@
 //! `ddct plant`: the plant daemon (issue 5) — the simulated dual-clutch transmission on a bus.
 
+use super::args::{open_can, Iface, Speed};
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
-use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus, ManualClock};
 use ddct::daemon::plant::{run as run_plant, Lockstep, Pacing, PlantDaemonConfig, PlantReport};
 use ddct::daemon::wall_clock;
@@ -24,7 +24,7 @@ pub enum ModeArg {
 pub struct PlantArgs {
     /// CAN interface (e.g. vcan0), or `sim` for the in-process bus.
     #[arg(long, required_unless_present = "list_effects")]
-    iface: Option<String>,
+    iface: Option<Iface>,
     /// Print the reality-effect library (identifiers, subsystems, equations, parameters with
     /// units, plausible ranges and bounds) as a Markdown table, or JSON with --json, and exit.
     #[arg(long)]
@@ -62,7 +62,7 @@ pub struct PlantArgs {
     /// Run simulated time this many times faster than wall time (`max`: as fast as possible,
     /// only on `--iface sim`, the default there).
     #[arg(long)]
-    speed: Option<String>,
+    speed: Option<Speed>,
     /// Lockstep with a controller: after each cycle wait for its answers (a frame of each
     /// MESSAGE, comma-separated; default TCU_ClutchCmd; e.g. TCU_ClutchCmd,DRV_Pedal with a
     /// scripted driver) before simulating the next, never faster than --speed; makes a bus
@@ -122,7 +122,7 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
             p.input_speed_rpm = rpm;
         }
     }
-    if a.iface.as_deref() == Some("sim") && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
+    if a.iface == Some(Iface::Sim) && cfg.mode == Mode::Vehicle && cfg.scenario.is_none() {
         cfg.scenario = Some(Scenario::builtin());
     }
     if let Some(p) = &a.effects {
@@ -201,21 +201,18 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
         return list_effects(a.json);
     }
     let cfg = build_config(&a)?;
-    let iface = a.iface.clone().unwrap_or_default();
-    let sim = iface == "sim";
-    let speed: Option<f64> = match a.speed.as_deref() {
+    let Some(iface) = a.iface.clone() else {
+        bail!("--iface is required");
+    };
+    let sim = iface.is_sim();
+    let speed: Option<f64> = match a.speed {
         None if sim => None,
         None => Some(1.0),
-        Some("max") if sim => None,
-        Some("max") => bail!("--speed max needs --iface sim (a real bus runs in scaled real time)"),
-        Some(s) => {
-            let k: f64 = s
-                .parse()
-                .ok()
-                .filter(|k: &f64| k.is_finite() && *k > 0.0 && *k <= 1000.0)
-                .with_context(|| format!("--speed {s}: must be a number in (0, 1000] or `max`"))?;
-            Some(k)
+        Some(Speed::Max) if sim => None,
+        Some(Speed::Max) => {
+            bail!("--speed max needs --iface sim (a real bus runs in scaled real time)")
         }
+        Some(Speed::Factor(k)) => Some(k),
     };
     let mut duration = match a.duration {
         Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
@@ -278,8 +275,7 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             };
             anyhow::Ok(run_plant(ep, shutdown_signal(), c).await?)
         } else {
-            let bus = SocketCanBus::open(&iface, false)
-                .with_context(|| format!("opening CAN interface {iface}"))?;
+            let bus = open_can(&iface.to_string())?;
             let c = PlantDaemonConfig {
                 plant: cfg,
                 pacing: Pacing::RealTime {

@@ -1,9 +1,9 @@
 //! `ddct tcu`: the TCU daemon (issue 6).
 
+use super::args::{open_can, rt_priority, Iface};
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
-use ddct::can::socketcan::SocketCanBus;
 use ddct::can::{EndpointConfig, InProcessBus};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
 use ddct::daemon::tcu::{
@@ -21,7 +21,7 @@ pub struct TcuArgs {
     /// CAN interface (e.g. vcan0), or `sim`: an in-process bus with the plant daemon (built-in
     /// driver) alongside in the same process, in real time.
     #[arg(long)]
-    iface: String,
+    iface: Iface,
     /// TCU calibration (its `params` names the physical parameter file).
     #[arg(long, default_value = "config/tcu.toml")]
     config: PathBuf,
@@ -37,7 +37,7 @@ pub struct TcuArgs {
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Run under the real-time FIFO scheduler at this priority (1..=99; needs root).
-    #[arg(long)]
+    #[arg(long, value_parser = rt_priority)]
     rt_priority: Option<i32>,
     /// The TCU's time: `monotonic` (a real-time bench; the daemon's own stalls are not counted
     /// against the senders) or `bus` (a lockstep bench, the plant run with `--lockstep`: the
@@ -78,10 +78,10 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
         Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
         None => None,
     };
-    if a.clock == ClockArg::Bus && a.iface == "sim" {
+    if a.clock == ClockArg::Bus && a.iface.is_sim() {
         bail!("--clock bus is for a lockstep bench on a CAN interface (`--iface sim` runs in real time)");
     }
-    if a.scenario.is_some() && a.iface != "sim" {
+    if a.scenario.is_some() && !a.iface.is_sim() {
         bail!("--scenario is for --iface sim (on a real bus the driver is on the bus)");
     }
     if let Some(p) = a.rt_priority {
@@ -89,7 +89,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     }
     let rt = runtime()?;
     let report: TcuReport = rt.block_on(async {
-        if a.iface == "sim" {
+        if a.iface.is_sim() {
             let bus = InProcessBus::new("sim");
             let plant = PlantConfig {
                 scenario: Some(match &a.scenario {
@@ -141,8 +141,7 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
             eprint!("{}", p.summary());
             anyhow::Ok(t?)
         } else {
-            let bus = SocketCanBus::open(&a.iface, false)
-                .with_context(|| format!("opening CAN interface {}", a.iface))?;
+            let bus = open_can(&a.iface.to_string())?;
             bus.set_filter_ids(&INPUT_IDS)?;
             let c = TcuDaemonConfig {
                 tcu: cfg,

@@ -383,8 +383,14 @@ impl<B: Bus> Shell<B> {
 /// 10 ms loop (measured: 60 s of `ddct bench` went from a dozen spurious input timeouts to none).
 /// The loops block on the bus or a timer every cycle, so they leave the CPU to the kernel.
 pub fn set_realtime_priority(priority: i32) -> std::io::Result<()> {
+    if !(1..=99).contains(&priority) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("real-time priority {priority} is outside 1..=99"),
+        ));
+    }
     let param = libc::sched_param {
-        sched_priority: priority.clamp(1, 99),
+        sched_priority: priority,
     };
     // SAFETY: plain syscall on the calling thread (pid 0) with a valid parameter struct.
     let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };

@@ -1,0 +1,128 @@
+//! Argument types parsed at the boundary (clap `value_parser`s): the bus a daemon runs on, the
+//! pace of a simulation, a real-time priority; and opening a CAN interface with a hint on how to
+//! get one when it does not exist.
+
+use ddct::can::socketcan::SocketCanBus;
+use std::fmt;
+use std::str::FromStr;
+
+/// `--iface`: a SocketCAN interface, or `sim` for the in-process bus.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Iface {
+    /// The in-process bus (no CAN needed).
+    Sim,
+    /// A SocketCAN interface such as vcan0.
+    Can(String),
+}
+
+impl Iface {
+    pub fn is_sim(&self) -> bool {
+        matches!(self, Iface::Sim)
+    }
+}
+
+impl FromStr for Iface {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "sim" {
+            return Ok(Iface::Sim);
+        }
+        // Linux interface names: 1..=15 bytes (IFNAMSIZ − 1), no '/', ':' or whitespace.
+        let ok = !s.is_empty()
+            && s.len() <= 15
+            && s.bytes()
+                .all(|b| b.is_ascii_graphic() && b != b'/' && b != b':');
+        if ok {
+            Ok(Iface::Can(s.to_string()))
+        } else {
+            Err(format!(
+                "{s:?} is not a network interface name (1 to 15 characters, no '/', ':' or \
+                 spaces), nor `sim` for the in-process bus"
+            ))
+        }
+    }
+}
+
+impl fmt::Display for Iface {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Iface::Sim => f.write_str("sim"),
+            Iface::Can(s) => f.write_str(s),
+        }
+    }
+}
+
+/// `--speed` of a simulation: a factor of real time, or `max` (as fast as the host computes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Speed {
+    Max,
+    Factor(f64),
+}
+
+impl FromStr for Speed {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "max" {
+            return Ok(Speed::Max);
+        }
+        match s.parse::<f64>() {
+            Ok(k) if k > 0.0 && k <= 1000.0 => Ok(Speed::Factor(k)),
+            _ => Err(format!("{s}: a factor of real time in (0, 1000], or `max`")),
+        }
+    }
+}
+
+/// `--rt-priority`: SCHED_FIFO priorities are 1..=99; anything else is refused, not clamped.
+pub fn rt_priority(s: &str) -> Result<i32, String> {
+    match s.parse::<i32>() {
+        Ok(p) if (1..=99).contains(&p) => Ok(p),
+        _ => Err(format!("{s}: a SCHED_FIFO priority in 1..=99")),
+    }
+}
+
+/// Opens a SocketCAN interface; when it does not exist, says how to get one.
+pub fn open_can(iface: &str) -> anyhow::Result<SocketCanBus> {
+    SocketCanBus::open(iface, false).map_err(|e| {
+        let missing = std::error::Error::source(&e)
+            .and_then(|s| s.downcast_ref::<std::io::Error>())
+            .and_then(std::io::Error::raw_os_error)
+            == Some(libc::ENODEV);
+        if missing {
+            anyhow::anyhow!(
+                "CAN interface {iface} does not exist. Create a virtual one (as root): `ip link \
+                 add dev {iface} type vcan && ip link set up {iface}` (needs the vcan module), \
+                 or run the command inside `scripts/vcan-run` (User-Mode Linux with vcan0 up), \
+                 or use `--iface sim` for the in-process bus where the command has it"
+            )
+        } else {
+            anyhow::Error::new(e).context(format!("opening CAN interface {iface}"))
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ifaces_parse_to_sim_or_a_valid_name() {
+        assert_eq!("sim".parse::<Iface>(), Ok(Iface::Sim));
+        assert_eq!("vcan0".parse::<Iface>(), Ok(Iface::Can("vcan0".into())));
+        for bad in ["", "a/b", "can 0", "x:1", "sixteen_chars_xx"] {
+            assert!(bad.parse::<Iface>().is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn speeds_and_priorities_are_checked_not_clamped() {
+        assert_eq!("max".parse::<Speed>(), Ok(Speed::Max));
+        assert_eq!("2.5".parse::<Speed>(), Ok(Speed::Factor(2.5)));
+        for bad in ["0", "-1", "nan", "inf", "1001", "fast"] {
+            assert!(bad.parse::<Speed>().is_err(), "{bad}");
+        }
+        assert_eq!(rt_priority("50"), Ok(50));
+        for bad in ["0", "100", "-5", "x"] {
+            assert!(rt_priority(bad).is_err(), "{bad}");
+        }
+    }
+}
