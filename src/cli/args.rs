@@ -80,6 +80,16 @@ pub fn rt_priority(s: &str) -> Result<i32, String> {
     }
 }
 
+/// The TCU calibration of `--config`, or the built-in `config/tcu.toml` (with the built-in
+/// `config/params.toml`) without one: the commands work from any directory.
+pub fn tcu_config(path: Option<&std::path::Path>) -> anyhow::Result<ddct::tcu::TcuConfig> {
+    use anyhow::Context as _;
+    match path {
+        Some(p) => ddct::tcu::TcuConfig::load(p).context("loading the TCU calibration"),
+        None => Ok(ddct::tcu::TcuConfig::default()),
+    }
+}
+
 /// Opens a SocketCAN interface; when it does not exist, says how to get one.
 pub fn open_can(iface: &str) -> anyhow::Result<SocketCanBus> {
     SocketCanBus::open(iface, false).map_err(|e| {

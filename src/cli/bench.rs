@@ -44,12 +44,14 @@ pub struct BenchArgs {
     /// CAN interface (e.g. vcan0), or `sim` for the in-process bus.
     #[arg(long, required_unless_present = "analyze")]
     iface: Option<Iface>,
-    /// Scenario (a `ddct sim` scenario file).
-    #[arg(long, default_value = "config/scenarios/launch_shift_20s.toml")]
-    scenario: PathBuf,
-    /// TCU calibration.
-    #[arg(long, default_value = "config/tcu.toml")]
-    config: PathBuf,
+    /// Scenario (a `ddct sim` scenario file; default: the built-in
+    /// config/scenarios/launch_shift_20s.toml).
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// TCU calibration (its `params` names the physical parameter file; default: the built-in
+    /// config/tcu.toml with config/params.toml, so no working directory is needed).
+    #[arg(long)]
+    config: Option<PathBuf>,
     /// Output folder: bench.log (candump -l of the run), echo.log, figures, summary.json.
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
@@ -70,6 +72,9 @@ pub struct BenchArgs {
     #[arg(long)]
     junit: Option<PathBuf>,
 }
+
+/// The default run (`--scenario` omitted): built in, so `ddct bench` works from any directory.
+const DEFAULT_SCENARIO: &str = include_str!("../../config/scenarios/launch_shift_20s.toml");
 
 fn realtime(prio: Option<i32>) {
     if let Some(p) = prio {
@@ -400,8 +405,14 @@ pub struct BenchSummary {
 }
 
 pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
-    let cfg = TcuConfig::load(&a.config).context("loading the TCU calibration")?;
-    let sc = SimScenario::load(&a.scenario)?;
+    let cfg = super::args::tcu_config(a.config.as_deref())?;
+    let sc = match &a.scenario {
+        Some(p) => SimScenario::load(p)?,
+        None => SimScenario::from_toml_str(
+            Path::new("config/scenarios/launch_shift_20s.toml"),
+            DEFAULT_SCENARIO,
+        )?,
+    };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut plots = Vec::new();
     let (iface, frames, echo, plant, tcu, log) = match &a.analyze {

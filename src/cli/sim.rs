@@ -5,7 +5,6 @@ use clap::Args;
 use ddct::sim::metrics::{self, Metrics};
 use ddct::sim::verdict::{self, Check};
 use ddct::sim::{self, plots, SimOptions, SimScenario};
-use ddct::tcu::TcuConfig;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -16,9 +15,10 @@ pub struct SimArgs {
     /// Scenario file(s) (config/scenarios/*.toml); repeatable, run one after the other.
     #[arg(long, required = true)]
     scenario: Vec<PathBuf>,
-    /// TCU calibration.
-    #[arg(long, default_value = "config/tcu.toml")]
-    config: PathBuf,
+    /// TCU calibration (its `params` names the physical parameter file; default: the built-in
+    /// config/tcu.toml with config/params.toml, so no working directory is needed).
+    #[arg(long)]
+    config: Option<PathBuf>,
     /// Print the summary with every metric as JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -51,7 +51,7 @@ pub struct ScenarioSummary {
 }
 
 pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
-    let cfg = TcuConfig::load(&args.config).context("loading the TCU calibration")?;
+    let cfg = super::args::tcu_config(args.config.as_deref())?;
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -10,7 +10,6 @@ use ddct::daemon::tcu::{
     run as run_tcu, set_realtime_priority, TcuClock, TcuDaemonConfig, TcuReport, INPUT_IDS,
 };
 use ddct::plant::{PlantConfig, Scenario};
-use ddct::tcu::TcuConfig;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -22,9 +21,10 @@ pub struct TcuArgs {
     /// driver) alongside in the same process, in real time.
     #[arg(long)]
     iface: Iface,
-    /// TCU calibration (its `params` names the physical parameter file).
-    #[arg(long, default_value = "config/tcu.toml")]
-    config: PathBuf,
+    /// TCU calibration (its `params` names the physical parameter file; default: the built-in
+    /// config/tcu.toml with config/params.toml, so no working directory is needed).
+    #[arg(long)]
+    config: Option<PathBuf>,
     /// Record every frame sent and received into this candump -l log.
     #[arg(long)]
     log: Option<PathBuf>,
@@ -72,7 +72,7 @@ impl From<ClockArg> for TcuClock {
 }
 
 pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
-    let cfg = TcuConfig::load(&a.config)?;
+    let cfg = super::args::tcu_config(a.config.as_deref())?;
     let duration = match a.duration {
         Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
         Some(d) => bail!("--duration {d}: must be a positive number of seconds"),

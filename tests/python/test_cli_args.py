@@ -31,3 +31,12 @@ def test_out_of_range_arguments_are_usage_errors(ddct, cmd, flag):
     r = lib.run([ddct, *cmd], check=False, timeout=30)
     assert r.returncode == 2, (r.returncode, r.stderr)
     assert f"invalid value" in r.stderr and flag in r.stderr, r.stderr
+
+
+def test_commands_work_outside_the_repository(ddct, tmp_path):
+    """The built-in calibration and scenario: no config/ in the working directory needed."""
+    r = lib.run([ddct, "sim", "--scenario", lib.REPO / "config" / "scenarios" / "launch_50.toml"], cwd=tmp_path)
+    assert "launch_50" in r.stdout and "PASS" in r.stdout, r.stdout
+    r = lib.run([ddct, "tcu", "--iface", "sim", "--duration", "1"], cwd=tmp_path, timeout=60)
+    r = lib.run([ddct, "sim", "--scenario", "nope.toml"], cwd=tmp_path, check=False)
+    assert r.returncode == 1 and "cannot read scenario nope.toml" in r.stderr, r.stderr
