@@ -89,6 +89,33 @@ impl SocketCanBus {
         Ok(usize::try_from(got).unwrap_or(0))
     }
 
+    /// Frames the kernel dropped because this socket's receive queue was full, since it was
+    /// opened (`SO_MEMINFO`'s `SK_MEMINFO_DROPS`, the socket's `sk_drops`).
+    pub fn kernel_drops(&self) -> Result<u64, BusError> {
+        // asm-generic/socket.h (the same on x86, arm and riscv); libc has the offsets only.
+        const SO_MEMINFO: libc::c_int = 55;
+        let mut info = [0u32; libc::SK_MEMINFO_DROPS as usize + 1];
+        let mut len = libc::socklen_t::try_from(std::mem::size_of_val(&info)).unwrap_or(0);
+        // SAFETY: `info` is a writable buffer of `len` bytes that outlives the call; the
+        // descriptor is open for the lifetime of `self.socket`.
+        let rc = unsafe {
+            libc::getsockopt(
+                self.socket.as_raw_fd(),
+                libc::SOL_SOCKET,
+                SO_MEMINFO,
+                info.as_mut_ptr().cast(),
+                &mut len,
+            )
+        };
+        if rc != 0 {
+            return Err(BusError::Io {
+                iface: self.iface.clone(),
+                source: io::Error::last_os_error(),
+            });
+        }
+        Ok(u64::from(info[libc::SK_MEMINFO_DROPS as usize]))
+    }
+
     fn convert(&self, frame: socketcan::CanFrame, ts: SystemTime) -> Result<Received, BusError> {
         if let socketcan::CanFrame::Error(e) = &frame {
             return Err(BusError::ErrorFrame {

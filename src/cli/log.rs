@@ -41,7 +41,8 @@ pub enum LogCmd {
         #[arg(long)]
         json: bool,
     },
-    /// Record every frame of a SocketCAN interface into a candump -l log.
+    /// Record every frame of a SocketCAN interface into a candump -l log; at exit, the frames
+    /// per id and those the kernel dropped because the receive queue was full.
     Record {
         /// CAN interface, e.g. vcan0.
         #[arg(long)]
@@ -361,7 +362,7 @@ fn record(
     let file = File::create(out).with_context(|| format!("{}", out.display()))?;
     let mut writer = LogWriter::new(BufWriter::new(file));
     let rt = runtime()?;
-    let n = rt.block_on(async {
+    let (n, per_id, drops) = rt.block_on(async {
         let mut bus = open_can(iface)?;
         // A recorder the host deschedules for a while must not lose frames: 16 MiB of receive
         // queue (minutes of a 10 ms bus) where the kernel grants it.
@@ -373,6 +374,7 @@ fn record(
         announce_ready(ready_file)?;
         tokio::pin!(stop);
         let mut n = 0u64;
+        let mut per_id: BTreeMap<u32, u64> = BTreeMap::new();
         let mut last_flush = Instant::now();
         loop {
             if count.is_some_and(|c| n >= c) {
@@ -390,6 +392,7 @@ fn record(
                     let rx = rx?;
                     writer.write_frame(rx.timestamp, iface, &rx.frame, None)?;
                     n += 1;
+                    *per_id.entry(rx.frame.raw_id()).or_default() += 1;
                     if last_flush.elapsed() > Duration::from_millis(200) {
                         writer.flush()?;
                         last_flush = Instant::now();
@@ -401,9 +404,18 @@ fn record(
             }
         }
         writer.flush()?;
-        anyhow::Ok(n)
+        let drops = bus.kernel_drops();
+        anyhow::Ok((n, per_id, drops))
     })?;
     eprintln!("recorded {n} frame(s) from {iface} into {}", out.display());
+    for (id, k) in &per_id {
+        let name = ddct::can::messages::message_def(*id).map_or("-", |d| d.name);
+        eprintln!("  {id:03X} {name:<16} {k}");
+    }
+    match drops {
+        Ok(d) => eprintln!("dropped by the kernel (receive queue full): {d}"),
+        Err(e) => eprintln!("dropped by the kernel: unknown ({e})"),
+    }
     Ok(ExitCode::SUCCESS)
 }
 

@@ -3,6 +3,7 @@ python-can. Run through scripts/vcan-run."""
 
 from __future__ import annotations
 
+import re
 import socket
 import threading
 import time
@@ -151,6 +152,12 @@ def test_replay_at_log_timing_loses_no_frame_to_a_recorder(ddct, tmp_path):
     got = read_log(out)
     print(f"\nreplay at log timing: recorded {len(got)} of {len(frames)} frames")
     assert got == [(f["id"], f["data"]) for f in frames]
+    # The recorder's own account: frames per id and the kernel's drops on its socket.
+    err = (tmp_path / "record.err").read_text()
+    assert "dropped by the kernel (receive queue full): 0" in err, err
+    for fid in {f["id"] for f in frames}:
+        want = sum(1 for f in frames if f["id"] == fid)
+        assert re.search(rf"^  {fid:03X} \S+ +{want}$", err, re.M), (hex(fid), want, err)
 
 
 def cansend_frames(db) -> list[tuple[int, bytes]]:
