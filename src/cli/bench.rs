@@ -427,7 +427,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             }
             let echo = if a.echo > 0.0 {
                 eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
-                let e = echo_run(&net, a.echo, a.rt_priority)?;
+                let pb = super::spinner(format!("bare frame echo, {} s", a.echo));
+                let e = echo_run(&net, a.echo, a.rt_priority);
+                pb.finish_and_clear();
+                let e = e?;
                 write_log(&a.out.join("echo.log"), &net.name(), &e)?;
                 Some(e)
             } else {
@@ -439,8 +442,13 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
                 sc.duration_s,
                 sc.name
             );
+            // The spinner's ticker thread first: threads started after `realtime` inherit
+            // SCHED_FIFO.
+            let pb = super::spinner(format!("{}, {} s in real time", sc.name, sc.duration_s));
             realtime(a.rt_priority);
-            let r = bench_run(&net, &sc, &cfg, a.rt_priority)?;
+            let r = bench_run(&net, &sc, &cfg, a.rt_priority);
+            pb.finish_and_clear();
+            let r = r?;
             let log = a.out.join("bench.log");
             write_log(&log, &net.name(), &r.frames)?;
             (net.name(), r.frames, echo, Some(r.plant), Some(r.tcu), log)

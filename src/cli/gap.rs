@@ -16,7 +16,6 @@ use ddct::model::Params;
 use ddct::truth::form::Family;
 use ddct::truth::inject::{OutsideKind, Target};
 use ddct::truth::{self, CaseSpec, Variants};
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -255,7 +254,10 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
         ..IdentifyOptions::default()
     };
     let t0 = Instant::now();
-    let id = identify(&train, &val, &p0, &opts)?;
+    let pb = super::spinner("identifying the parameters");
+    let id = identify(&train, &val, &p0, &opts);
+    pb.finish_and_clear();
+    let id = id?;
     let secs = t0.elapsed().as_secs_f64();
     let text = format!(
         "# Identified by `ddct identify` from {} (validation: {}).\n{}",
@@ -367,7 +369,10 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         seed: a.seed,
         ..DiagnoseOptions::default()
     };
-    let d = diagnose(&train, &val, &p, &opts)?;
+    let pb = super::spinner("diagnosing: recalibration, class fits, selection");
+    let d = diagnose(&train, &val, &p, &opts);
+    pb.finish_and_clear();
+    let d = d?;
     let t_all = t0.elapsed().as_secs_f64();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let write = |name: &str, text: &str| -> anyhow::Result<()> {
@@ -444,23 +449,6 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn progress(done: usize, total: usize, started: Instant, correct: usize) {
-    let w = 30;
-    let filled = (done * w).checked_div(total).unwrap_or(w);
-    let el = started.elapsed().as_secs_f64();
-    let eta = if done > 0 {
-        el / done as f64 * (total - done) as f64
-    } else {
-        f64::NAN
-    };
-    eprint!(
-        "\r[{}{}] {done}/{total} trials, {correct} correct, {el:.0} s elapsed, ~{eta:.0} s left ",
-        "=".repeat(filled),
-        " ".repeat(w - filled)
-    );
-    let _ = std::io::stderr().flush();
-}
-
 fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
     if a.trials == 0 {
         bail!("--trials must be at least 1");
@@ -471,15 +459,15 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .clamp(1, 64);
     let started = Instant::now();
-    let done = std::sync::Mutex::new((0usize, 0usize));
-    progress(0, a.trials, started, 0);
+    let correct = std::sync::atomic::AtomicUsize::new(0);
+    let pb = super::bar(a.trials as u64, "trials");
     let results = blind::run(a.seed, a.trials, threads, &p, &|r: &TrialResult| {
-        let mut d = done.lock().unwrap_or_else(|e| e.into_inner());
-        d.0 += 1;
-        d.1 += usize::from(r.correct);
-        progress(d.0, a.trials, started, d.1);
+        let c = correct.fetch_add(usize::from(r.correct), std::sync::atomic::Ordering::Relaxed)
+            + usize::from(r.correct);
+        pb.inc(1);
+        pb.set_message(format!(", {c} correct"));
     });
-    eprintln!();
+    pb.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     let summary = blind::summarize(&results);
     let mut text = blind::render_text(&results, &summary);

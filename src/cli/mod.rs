@@ -17,8 +17,11 @@ use anyhow::Context as _;
 pub fn init_tracing(filter: &str) {
     let filter = tracing_subscriber::EnvFilter::try_new(filter)
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    use std::io::IsTerminal as _;
+    // Colour only for a terminal: a piped or redirected stderr gets plain text.
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr)
         .try_init();
 }
@@ -65,4 +68,29 @@ pub fn announce_ready(path: Option<&std::path::Path>) -> anyhow::Result<()> {
     std::fs::write(&tmp, format!("{}\n", std::process::id()))
         .and_then(|()| std::fs::rename(&tmp, path))
         .with_context(|| format!("--ready-file {}", path.display()))
+}
+
+/// A spinner with the elapsed time for a step that takes longer than a few seconds (`msg` says
+/// what runs); drawn on stderr only when it is a terminal (indicatif hides it otherwise).
+pub fn spinner(msg: impl Into<std::borrow::Cow<'static, str>>) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new_spinner().with_message(msg);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    pb
+}
+
+/// A bar over `len` steps of `unit` with the elapsed time and the time left; terminal only.
+pub fn bar(len: u64, unit: &str) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new(len);
+    let template =
+        format!("[{{bar:30}}] {{pos}}/{{len}} {unit}{{msg}}, {{elapsed}} elapsed, ~{{eta}} left");
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(&template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb
 }
