@@ -10,6 +10,7 @@ pub mod decode;
 pub mod e2e;
 pub mod frame;
 pub mod messages;
+pub mod monitor;
 pub mod replay;
 pub mod socketcan;
 

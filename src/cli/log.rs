@@ -33,6 +33,20 @@ pub enum LogCmd {
         #[arg(long, short = 'q')]
         quiet: bool,
     },
+    /// A live view of the bus: per message the latest decoded values (states, gears and fault
+    /// codes by name), frames, rate, age of the last frame and E2E errors; redrawn four times a
+    /// second on a terminal, printed once at the end otherwise.
+    Monitor {
+        /// CAN interface to listen on, e.g. vcan0.
+        #[arg(long, conflicts_with = "input", required_unless_present = "input")]
+        iface: Option<String>,
+        /// A candump log or candump's screen output instead of an interface (`-`: standard
+        /// input, e.g. `candump vcan0 | ddct log monitor -`).
+        input: Option<PathBuf>,
+        /// Stop after this many seconds (default: until SIGINT/SIGTERM or the end of the input).
+        #[arg(long)]
+        duration: Option<f64>,
+    },
     /// Cycle-time statistics per message of a candump -l log (p50/p99/min/max intervals).
     Stats {
         /// The candump -l log file.
@@ -104,6 +118,11 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             quiet,
         } => decode(&file, format, &messages, quiet),
         LogCmd::Stats { file, json } => stats(&file, json),
+        LogCmd::Monitor {
+            iface,
+            input,
+            duration,
+        } => monitor(iface.as_deref(), input.as_ref(), duration),
         LogCmd::Record {
             iface,
             out,
@@ -342,6 +361,97 @@ fn json_line(d: &DecodedFrame) -> String {
         "error": d.error.as_ref().map(|e| e.to_string()),
     })
     .to_string()
+}
+
+/// Redraw period of `ddct log monitor` on a terminal.
+const MONITOR_REDRAW: Duration = Duration::from_millis(250);
+
+/// Draws the monitor: on a terminal over the previous drawing, else appended.
+fn draw(text: &str, tty: bool) {
+    if tty {
+        eprint!("\x1b[H\x1b[2J");
+        print!("{text}");
+        let _ = std::io::stdout().flush();
+    } else {
+        println!("{text}");
+    }
+}
+
+fn monitor(
+    iface: Option<&str>,
+    input: Option<&PathBuf>,
+    duration: Option<f64>,
+) -> anyhow::Result<ExitCode> {
+    use std::io::IsTerminal as _;
+    let limit = match duration {
+        Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
+        Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
+        None => None,
+    };
+    let tty = std::io::stdout().is_terminal();
+    let mut decoder = LogDecoder::default();
+    let mut mon = ddct::can::monitor::Monitor::default();
+    let started = Instant::now();
+    let mut last_draw = Instant::now();
+    let mut now = Duration::ZERO;
+    if let Some(file) = input {
+        for item in LogReader::any_format(open_input(file)?, Box::new(wall_clock)) {
+            match item {
+                Ok(r) => {
+                    now = r.timestamp;
+                    mon.push(&decoder.decode(&r));
+                }
+                Err(LogError::Line { line, kind }) => {
+                    eprintln!("{}:{line}: {kind}", file.display())
+                }
+                Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+            }
+            if tty && last_draw.elapsed() >= MONITOR_REDRAW {
+                draw(&mon.render(now), tty);
+                last_draw = Instant::now();
+            }
+            if limit.is_some_and(|l| started.elapsed() >= l) {
+                break;
+            }
+        }
+        draw(&mon.render(now), tty);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let iface = iface.unwrap_or_default();
+    let rt = runtime()?;
+    rt.block_on(async {
+        let mut bus = open_can(iface)?;
+        let stop = shutdown_signal();
+        tokio::pin!(stop);
+        let deadline = async {
+            match limit {
+                Some(l) => tokio::time::sleep(l).await,
+                None => std::future::pending().await,
+            }
+        };
+        tokio::pin!(deadline);
+        let mut tick = tokio::time::interval(MONITOR_REDRAW);
+        loop {
+            tokio::select! {
+                rx = bus.recv() => {
+                    let rx = rx?;
+                    let rec = ddct::can::candump::LogRecord {
+                        timestamp: rx.timestamp,
+                        iface: iface.to_string(),
+                        frame: rx.frame,
+                        direction: None,
+                    };
+                    mon.push(&decoder.decode(&rec));
+                }
+                _ = tick.tick(), if tty => draw(&mon.render(wall_clock()), tty),
+                _ = &mut deadline => break,
+                _ = &mut stop => break,
+            }
+        }
+        anyhow::Ok(())
+    })?;
+    draw(&mon.render(wall_clock()), tty);
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Receive queue asked for by `ddct log record` (bytes).

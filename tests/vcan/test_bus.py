@@ -273,6 +273,38 @@ def test_candump_screen_output_piped_into_decode(ddct, candump, db, tmp_path, op
     assert not problems, "\n".join(problems)
 
 
+@pytest.mark.parametrize("source", ["iface", "candump_pipe"])
+def test_monitor_shows_every_message_with_counts_and_e2e_errors(ddct, candump, db, tmp_path, source):
+    """`ddct log monitor --iface vcan0` and `candump vcan0 | ddct log monitor -`: every message
+    sent appears with its frame count and latest values by name; a corrupted CRC is counted."""
+    frames = frame_list(reps=3)
+    bad = dict(frames[0])
+    bad["data"] = bad["data"][:7] + bytes([bad["data"][7] ^ 0xFF])
+    sent = frames + [bad]
+    before = can_receivers()
+    if source == "iface":
+        cmd = [ddct, "log", "monitor", "--iface", IFACE, "--duration", "8"]
+    else:
+        cmd = ["sh", "-c", f"{candump} -n {len(sent)} {IFACE} | {ddct} log monitor -"]
+    with background(cmd, stdout=open(tmp_path / "mon.txt", "w"), stderr=open(tmp_path / "mon.err", "w")) as mon:
+        wait_receivers(before, 1, procs=[mon])
+        with can.Bus(interface="socketcan", channel=IFACE) as bus:
+            for fr in sent:
+                bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+        assert mon.wait(60) == 0, (tmp_path / "mon.err").read_text()
+    text = (tmp_path / "mon.txt").read_text()
+    counts: dict[int, int] = {}
+    for fr in sent:
+        counts[fr["id"]] = counts.get(fr["id"], 0) + 1
+    for fid, n in counts.items():
+        name = db.get_message_by_frame_id(fid).name
+        assert re.search(rf"^{fid:03X} +{name} +{n} ", text, re.M), (name, n, text)
+    bad_name = db.get_message_by_frame_id(bad["id"]).name
+    line = next(l for l in text.splitlines() if re.match(rf"{bad['id']:03X} +{bad_name} ", l))
+    assert "bad_crc 1" in line, line
+    assert "TcuState=" in text, text
+
+
 @pytest.mark.parametrize("daemon", ["tcu", "record"])
 def test_ready_file_means_listening(ddct, daemon, tmp_path):
     """`--ready-file`: once the file exists (holding the daemon's pid) a frame sent at once is
