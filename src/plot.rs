@@ -67,6 +67,10 @@ pub struct Series {
     pub color: Option<String>,
     pub style: Style,
     pub width: f64,
+    /// A step in x larger than this leaves the line open (a dropout is not drawn across).
+    pub max_gap: Option<f64>,
+    /// Drawn as a staircase (held until the next point): states and gears.
+    pub steps: bool,
 }
 
 impl Series {
@@ -78,7 +82,19 @@ impl Series {
             color: None,
             style: Style::Solid,
             width: 1.8,
+            max_gap: None,
+            steps: false,
         }
+    }
+    /// Leaves the line open over x steps larger than `gap`.
+    pub fn max_gap(mut self, gap: f64) -> Self {
+        self.max_gap = Some(gap);
+        self
+    }
+    /// Draws the series as a staircase.
+    pub fn steps(mut self) -> Self {
+        self.steps = true;
+        self
     }
     pub fn color(mut self, c: impl Into<String>) -> Self {
         self.color = Some(c.into());
@@ -105,6 +121,10 @@ pub struct Panel {
     /// Legend title, e.g. "θ_c".
     pub legend_title: String,
     pub legend_pos: LegendPos,
+    /// Named y ticks (a lane per value: states, gears) instead of numbers.
+    pub y_labels: Vec<(f64, String)>,
+    /// Vertical event markers at x with a label (fault codes).
+    pub markers: Vec<(f64, String)>,
 }
 
 impl Panel {
@@ -123,7 +143,19 @@ impl Panel {
             legend: true,
             legend_title: String::new(),
             legend_pos: LegendPos::TopLeft,
+            y_labels: Vec::new(),
+            markers: Vec::new(),
         }
+    }
+    /// Named y ticks: one lane per `(value, name)`.
+    pub fn y_labels(mut self, labels: Vec<(f64, String)>) -> Self {
+        self.y_labels = labels;
+        self
+    }
+    /// Adds a vertical event marker.
+    pub fn marker(&mut self, x: f64, label: impl Into<String>) -> &mut Self {
+        self.markers.push((x, label.into()));
+        self
     }
     pub fn add(&mut self, s: Series) -> &mut Self {
         self.series.push(s);
@@ -292,6 +324,106 @@ fn data_range(p: &Panel, x: bool) -> (f64, f64) {
     ((lo / step).floor() * step, (hi / step).ceil() * step)
 }
 
+/// The runs of `pts` between x steps larger than `gap`.
+fn split_at_gaps(pts: &[(f64, f64)], gap: Option<f64>) -> Vec<&[(f64, f64)]> {
+    let Some(gap) = gap else {
+        return vec![pts];
+    };
+    let mut out = Vec::new();
+    let mut start = 0;
+    for k in 1..pts.len() {
+        if pts[k].0 - pts[k - 1].0 > gap {
+            out.push(&pts[start..k]);
+            start = k;
+        }
+    }
+    out.push(&pts[start..]);
+    out
+}
+
+/// Ramer–Douglas–Peucker in screen space: the points a polyline needs to stay within `tol`
+/// pixels of the original (a smooth curve of thousands of samples needs a few hundred).
+fn simplify(pts: &[(f64, f64)], tol: f64) -> Vec<(f64, f64)> {
+    if pts.len() < 3 {
+        return pts.to_vec();
+    }
+    let mut keep = vec![false; pts.len()];
+    keep[0] = true;
+    keep[pts.len() - 1] = true;
+    let mut stack = vec![(0usize, pts.len() - 1)];
+    while let Some((a, b)) = stack.pop() {
+        let (p, q) = (pts[a], pts[b]);
+        let (dx, dy) = (q.0 - p.0, q.1 - p.1);
+        let len = dx.hypot(dy);
+        let dist = |r: (f64, f64)| {
+            if len == 0.0 {
+                (r.0 - p.0).hypot(r.1 - p.1)
+            } else {
+                ((r.0 - p.0) * dy - (r.1 - p.1) * dx).abs() / len
+            }
+        };
+        let far = (a + 1..b)
+            .map(|k| (k, dist(pts[k])))
+            .max_by(|x, y| x.1.total_cmp(&y.1));
+        if let Some((k, d)) = far {
+            if d > tol {
+                keep[k] = true;
+                stack.push((a, k));
+                stack.push((k, b));
+            }
+        }
+    }
+    pts.iter()
+        .zip(keep)
+        .filter_map(|(p, k)| k.then_some(*p))
+        .collect()
+}
+
+/// A staircase through `pts`: each value held until the next point.
+fn staircase(pts: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(pts.len() * 2);
+    for (k, &p) in pts.iter().enumerate() {
+        if k > 0 && pts[k - 1].1 != p.1 {
+            out.push((p.0, pts[k - 1].1));
+        }
+        if k == 0 || k + 1 == pts.len() || pts[k - 1].1 != p.1 {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// Screen points reduced to at most four per half-pixel column (first, lowest, highest, last,
+/// in x order): the drawn line is the same, the file a fraction of the size.
+fn decimate(pts: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::with_capacity(pts.len().min(4096));
+    let mut k = 0;
+    while k < pts.len() {
+        let col = (pts[k].0 * 2.0).floor();
+        let mut j = k;
+        while j + 1 < pts.len() && (pts[j + 1].0 * 2.0).floor() == col {
+            j += 1;
+        }
+        let bucket = &pts[k..=j];
+        let lo = bucket
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1));
+        let hi = bucket
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1 .1.total_cmp(&b.1 .1));
+        let mut keep = vec![0, bucket.len() - 1];
+        keep.extend(lo.map(|x| x.0));
+        keep.extend(hi.map(|x| x.0));
+        keep.sort_unstable();
+        keep.dedup();
+        out.extend(keep.into_iter().map(|i| bucket[i]));
+        k = j + 1;
+    }
+    out
+}
+
 fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
     let (ml, mr, mt, mb) = (70.0, 20.0, 34.0, 52.0);
     let (px, py, pw, ph) = (x0 + ml, y0 + mt, w - ml - mr, h - mt - mb);
@@ -322,15 +454,36 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             fmt_tick(t, xstep)
         );
     }
-    for &t in &yt {
-        let y = sy(t);
+    let y_ticks: Vec<(f64, String)> = if p.y_labels.is_empty() {
+        yt.iter().map(|&t| (t, fmt_tick(t, ystep))).collect()
+    } else {
+        p.y_labels.clone()
+    };
+    for (t, label) in &y_ticks {
+        let y = sy(*t);
         let _ = writeln!(
             s,
             r##"<line x1="{px:.2}" y1="{y:.2}" x2="{:.2}" y2="{y:.2}" stroke="#e4e4e4"/><text x="{:.2}" y="{:.2}" font-size="11" text-anchor="end">{}</text>"##,
             px + pw,
             px - 6.0,
             y + 4.0,
-            fmt_tick(t, ystep)
+            esc(label)
+        );
+    }
+    for (t, label) in &p.markers {
+        let x = sx(*t);
+        if x < px || x > px + pw {
+            continue;
+        }
+        let _ = writeln!(
+            s,
+            r##"<line x1="{x:.1}" y1="{py:.1}" x2="{x:.1}" y2="{:.1}" stroke="#c00" stroke-width="1.2"/><text x="{:.1}" y="{:.1}" font-size="10" fill="#c00" transform="rotate(-90 {:.1} {:.1})" text-anchor="end">{}</text>"##,
+            py + ph,
+            x - 3.0,
+            py + 4.0,
+            x - 3.0,
+            py + 4.0,
+            esc(label)
         );
     }
     let _ = writeln!(
@@ -364,13 +517,14 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             .color
             .clone()
             .unwrap_or_else(|| PALETTE[k % PALETTE.len()].to_string());
-        let pts: Vec<(f64, f64)> = ser
+        let raw: Vec<(f64, f64)> = ser
             .points
             .iter()
+            .copied()
             .filter(|(a, b)| a.is_finite() && b.is_finite())
-            .map(|&(a, b)| (sx(a), sy(b)))
             .collect();
         if ser.style == Style::Markers {
+            let pts: Vec<(f64, f64)> = raw.iter().map(|&(a, b)| (sx(a), sy(b))).collect();
             for (a, b) in &pts {
                 let _ = writeln!(
                     s,
@@ -380,8 +534,16 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             continue;
         }
         let mut d = String::new();
-        for (i, (a, b)) in pts.iter().enumerate() {
-            let _ = write!(d, "{}{a:.2},{b:.2} ", if i == 0 { "M" } else { "L" });
+        for run in split_at_gaps(&raw, ser.max_gap) {
+            let run = if ser.steps {
+                staircase(run)
+            } else {
+                run.to_vec()
+            };
+            let screen: Vec<(f64, f64)> = run.iter().map(|&(a, b)| (sx(a), sy(b))).collect();
+            for (i, (a, b)) in simplify(&decimate(&screen), 0.3).iter().enumerate() {
+                let _ = write!(d, "{}{a:.1},{b:.1} ", if i == 0 { "M" } else { "L" });
+            }
         }
         let dash = match ser.style {
             Style::Dashed => r#" stroke-dasharray="7,4""#,
@@ -457,6 +619,40 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn dropouts_split_lines_and_states_draw_as_stairs() {
+        let pts = [(0.0, 1.0), (0.01, 1.0), (0.2, 2.0), (0.21, 2.0)];
+        let runs = split_at_gaps(&pts, Some(0.05));
+        assert_eq!(runs, vec![&pts[..2], &pts[2..]]);
+        assert_eq!(split_at_gaps(&pts, None).len(), 1);
+        let st = staircase(&[(0.0, 1.0), (1.0, 1.0), (2.0, 3.0), (3.0, 3.0)]);
+        assert_eq!(st, vec![(0.0, 1.0), (2.0, 1.0), (2.0, 3.0), (3.0, 3.0)]);
+    }
+
+    #[test]
+    fn simplified_lines_stay_within_the_tolerance() {
+        // A sine of 5 000 screen points: far fewer kept, none of the dropped further than 0.3 px
+        // from the kept polyline.
+        let pts: Vec<(f64, f64)> = (0..5000)
+            .map(|k| {
+                let x = k as f64 * 0.12;
+                (x, 100.0 + 80.0 * (x / 40.0).sin())
+            })
+            .collect();
+        let kept = simplify(&decimate(&pts), 0.3);
+        assert!(kept.len() < 300, "{}", kept.len());
+        for p in &pts {
+            let seg = kept
+                .windows(2)
+                .find(|w| w[0].0 <= p.0 && p.0 <= w[1].0)
+                .unwrap();
+            let (dx, dy) = (seg[1].0 - seg[0].0, seg[1].1 - seg[0].1);
+            let d = ((p.0 - seg[0].0) * dy - (p.1 - seg[0].1) * dx).abs() / dx.hypot(dy);
+            assert!(d <= 0.3 + 1e-9, "{p:?}: {d} px off");
+        }
+    }
+
     use super::*;
 
     #[test]

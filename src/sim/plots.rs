@@ -1,13 +1,42 @@
 //! SVG figures of a run (with `crate::plot`): engine and clutch speeds with the TCU's references,
 //! clutch torque reference (TCU_Estimates) against the actual torque (BENCH_Torque), bearing
 //! position request against the measured position, estimated clutch temperatures against
-//! SIM_Truth, vehicle acceleration and speed, and the TCU state.
+//! SIM_Truth, vehicle acceleration, speed and pedal, and the TCU state and the active gear as
+//! labelled lanes. Fault codes are marked where they appear; a dropout of the bus (no row for
+//! more than [`MAX_GAP_S`]) leaves the lines open.
 
 use super::Row;
+use crate::can::messages::{FaultCode, GearActive, TcuState};
 use crate::plot::{Figure, Panel, Series, Style, PALETTE};
 
+/// Rows further apart than this (five 10 ms cycles) are a dropout, not drawn across.
+pub const MAX_GAP_S: f64 = 0.05;
+
 fn series(rows: &[Row], name: &str, f: impl Fn(&Row) -> f64) -> Series {
-    Series::line(name, rows.iter().map(|r| (r.t_s, f(r))).collect())
+    Series::line(name, rows.iter().map(|r| (r.t_s, f(r))).collect()).max_gap(MAX_GAP_S)
+}
+
+/// The times a fault code appears (a change to a code other than None), with its name.
+fn fault_events(rows: &[Row]) -> Vec<(f64, String)> {
+    let mut last = FaultCode::None;
+    let mut out = Vec::new();
+    for r in rows {
+        if r.fault != last && r.fault != FaultCode::None {
+            out.push((r.t_s, r.fault.label().to_string()));
+        }
+        last = r.fault;
+    }
+    out
+}
+
+/// A lane panel: one named row per value.
+fn lanes(title: &str, labels: Vec<(f64, String)>) -> Panel {
+    let n = labels.len() as f64;
+    let mut p = Panel::new(title, "t (s)", "")
+        .y_labels(labels)
+        .y_range(-0.5, n - 0.5);
+    p.legend = false;
+    p
 }
 
 /// Adds a series unless it is zero throughout (e.g. the TCU's internal references on a recorded
@@ -97,23 +126,49 @@ pub fn run_figure(title: &str, rows: &[Row]) -> String {
     let mut acc = Panel::new("Vehicle acceleration", "t (s)", "a (m/s²)");
     acc.add(series(rows, "a (BENCH_Vehicle)", |r| r.accel_mps2).color(c(0)));
 
-    let mut v = Panel::new(
-        "Vehicle speed, pedal, gear, TCU state",
-        "t (s)",
-        "v (km/h), pedal (%)",
-    );
+    let mut v = Panel::new("Vehicle speed and pedal", "t (s)", "v (km/h), pedal (%)");
     v.add(series(rows, "v (km/h)", |r| r.v_kmh).color(c(0)));
     v.add(
         series(rows, "pedal (%)", |r| r.pedal_pct)
             .color(c(4))
             .style(Style::Dashed),
     );
-    v.add(series(rows, "gear ×10", |r| f64::from(r.gear_active) * 10.0).color(c(3)));
-    v.add(
-        series(rows, "TcuState ×10", |r| f64::from(r.state as u8) * 10.0)
-            .color(c(6))
-            .style(Style::Dotted),
+
+    let state_index = |s: TcuState| TcuState::ALL.iter().position(|x| *x == s).unwrap_or(0) as f64;
+    let mut state = lanes(
+        "TCU state (fault codes marked)",
+        TcuState::ALL
+            .iter()
+            .map(|s| (state_index(*s), s.label().to_string()))
+            .collect(),
     );
+    state.add(
+        series(rows, "TcuState", |r| state_index(r.state))
+            .steps()
+            .color(c(6)),
+    );
+    let gear_index = |g: u8| {
+        GearActive::ALL
+            .iter()
+            .position(|x| *x as u8 == g)
+            .unwrap_or(0) as f64
+    };
+    let mut gear = lanes(
+        "Active gear",
+        GearActive::ALL
+            .iter()
+            .map(|g| (gear_index(*g as u8), g.label().to_string()))
+            .collect(),
+    );
+    gear.add(
+        series(rows, "gear", |r| gear_index(r.gear_active))
+            .steps()
+            .color(c(3)),
+    );
+    for (t, name) in fault_events(rows) {
+        state.marker(t, name.clone());
+        speeds.marker(t, name);
+    }
 
     Figure::new(title, 2)
         .panel(speeds)
@@ -122,6 +177,8 @@ pub fn run_figure(title: &str, rows: &[Row]) -> String {
         .panel(temps)
         .panel(acc)
         .panel(v)
+        .panel(state)
+        .panel(gear)
         .to_svg()
 }
 
