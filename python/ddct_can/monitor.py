@@ -1,0 +1,127 @@
+"""A bus monitor: the latest decoded value of every DBC message, E2E-checked, from a background
+thread, and waits on them.
+
+    with Monitor(bus) as mon:
+        assert mon.wait_state("Drive", timeout=4.0)
+        slip = mon["ENG_Status"]["EngSpeed"] - mon["DCT_Sensors"]["InShaft1Speed"]
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import Counter
+from typing import Callable, Optional
+
+import can
+
+from .dbc import choice, label, load_dbc
+from .e2e import NOT_PROTECTED, OK, E2EChecker
+
+
+class Monitor:
+    """Receives from ``bus`` in a background thread. Each frame of a DBC message is E2E-checked
+    (CRC and alive counter, ``E2EChecker``); a frame with a bad length or CRC is counted in
+    ``e2e_errors`` and not decoded, a counter out of sequence is counted and still decoded.
+    ``frames`` counts the decoded frames per message name."""
+
+    def __init__(self, bus: can.BusABC):
+        self.bus = bus
+        self.frames: Counter = Counter()
+        self.e2e_errors: Counter = Counter()  # (message name, verdict) -> count
+        self._by_id = {m.frame_id: m for m in load_dbc().messages}
+        self._latest: dict[str, dict] = {}
+        self._checker = E2EChecker()
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._error: Optional[BaseException] = None
+
+    def start(self) -> "Monitor":
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="ddct-monitor", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        if self._error is not None:
+            raise RuntimeError(f"the monitor's receiver failed: {self._error!r}") from self._error
+
+    def __enter__(self) -> "Monitor":
+        return self.start()
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            self.stop()
+        except RuntimeError:
+            if exc_type is None:
+                raise
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                msg = self.bus.recv(timeout=0.05)
+                if msg is not None:
+                    self.feed(msg.arbitration_id, bytes(msg.data), msg.is_extended_id)
+        except BaseException as e:  # noqa: BLE001 - reported by stop() and the waits
+            self._error = e
+            with self._cond:
+                self._cond.notify_all()
+
+    def feed(self, frame_id: int, data: bytes, extended: bool = False) -> None:
+        """Take one frame (the receiver thread calls this; a test may too)."""
+        m = self._by_id.get(frame_id)
+        if extended or m is None:
+            return
+        verdict = self._checker.check(frame_id, data)
+        if verdict not in (OK, NOT_PROTECTED):
+            self.e2e_errors[(m.name, verdict)] += 1
+            if len(data) != m.length or verdict == "bad_crc":
+                return
+        values = m.decode(data, decode_choices=False)
+        with self._cond:
+            self._latest[m.name] = values
+            self.frames[m.name] += 1
+            self._cond.notify_all()
+
+    def __getitem__(self, name: str) -> dict:
+        """The latest signals of a message (raw numbers for value tables); KeyError if none yet."""
+        with self._cond:
+            if name not in self._latest:
+                raise KeyError(f"no {name} frame received yet")
+            return dict(self._latest[name])
+
+    def get(self, name: str, default=None):
+        with self._cond:
+            v = self._latest.get(name)
+            return default if v is None else dict(v)
+
+    def tcu_state(self) -> Optional[str]:
+        """The TCU's latest TcuState by name (None before the first TCU_Status)."""
+        status = self.get("TCU_Status")
+        return None if status is None else label("TCU_Status", "TcuState", status["TcuState"])
+
+    def wait(self, predicate: Callable[["Monitor"], bool], timeout: float) -> bool:
+        """Whether ``predicate(self)`` became true (checked after every decoded frame) within
+        ``timeout`` s."""
+        end = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                if self._error is not None:
+                    raise RuntimeError(f"the monitor's receiver failed: {self._error!r}") from self._error
+                if predicate(self):
+                    return True
+                left = end - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(min(left, 0.1))
+
+    def wait_state(self, state: str, timeout: float) -> bool:
+        """Whether TCU_Status reported TcuState ``state`` (a name of its value table) within
+        ``timeout`` s."""
+        raw = choice("TCU_Status", "TcuState", state)
+        return self.wait(lambda m: m._latest.get("TCU_Status", {}).get("TcuState") == raw, timeout)
