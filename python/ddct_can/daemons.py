@@ -43,12 +43,12 @@ def find_ddct(ddct: Optional[PathLike] = None) -> Path:
 class Daemon:
     """One running daemon: its process, its output files and ready file."""
 
-    def __init__(self, name: str, cmd: list, workdir: Path, cwd: Optional[PathLike]):
+    def __init__(self, name: str, cmd: list, workdir: Path, cwd: Optional[PathLike], prefix: str = ""):
         self.name = name
         self.cmd = cmd
-        self.ready = workdir / f"{name}.ready"
-        self.stdout_path = workdir / f"{name}.json"
-        self.stderr_path = workdir / f"{name}.stderr"
+        self.ready = workdir / f"{prefix}{name}.ready"
+        self.stdout_path = workdir / f"{prefix}{name}.json"
+        self.stderr_path = workdir / f"{prefix}{name}.stderr"
         self.ready.unlink(missing_ok=True)
         with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
             self.proc = subprocess.Popen(cmd + ["--ready-file", str(self.ready)], stdout=out, stderr=err,
@@ -106,8 +106,10 @@ class Bench:
     ``ddct``: the binary (default $DDCT_BIN, then PATH). ``tcu_config``/``plant_config``: their
     configuration files (default: the TCU's ``config/tcu.toml`` relative to ``cwd``, the plant's
     built-in one). ``tcu_args``/``plant_args``: further flags (e.g. ``["--faults", F]``).
-    ``workdir``: where the daemons' reports, stderr and ready files go (default: a temporary
-    directory, removed on exit unless ``keep=True``). ``cwd``: the daemons' working directory.
+    ``workdir``: where the daemons' reports (``PREFIXtcu.json``, ``PREFIXplant.json``), stderr
+    and ready files go (default: a temporary directory, removed on exit unless ``keep=True``).
+    ``cwd``: the daemons' working directory. A plant given ``--duration`` may exit by itself
+    (``wait_plant()``); stopping then only checks its exit status.
     """
 
     def __init__(
@@ -123,6 +125,7 @@ class Bench:
         ready_timeout: float = 30.0,
         stop_timeout: float = 30.0,
         keep: bool = False,
+        prefix: str = "",
     ):
         self.iface = iface
         self.ddct = find_ddct(ddct)
@@ -138,6 +141,7 @@ class Bench:
         self.ready_timeout = ready_timeout
         self.stop_timeout = stop_timeout
         self.keep = keep
+        self.prefix = prefix
         self.tcu: Optional[Daemon] = None
         self.plant: Optional[Daemon] = None
         self.tcu_report: Optional[dict] = None
@@ -158,14 +162,19 @@ class Bench:
         if self.plant_config is not None:
             plant += ["--config", str(self.plant_config)]
         try:
-            self.tcu = Daemon("tcu", tcu + self.tcu_args, self.workdir, self.cwd)
+            self.tcu = Daemon("tcu", tcu + self.tcu_args, self.workdir, self.cwd, self.prefix)
             self.tcu.wait_ready(self.ready_timeout)
-            self.plant = Daemon("plant", plant + self.plant_args, self.workdir, self.cwd)
+            self.plant = Daemon("plant", plant + self.plant_args, self.workdir, self.cwd, self.prefix)
             self.plant.wait_ready(self.ready_timeout)
         except BaseException:
             self._stop_all()
             raise
         return self
+
+    def wait_plant(self, timeout: float) -> int:
+        """Wait for a plant run with ``--duration`` to exit by itself; its exit status."""
+        assert self.plant is not None, "the bench is not started"
+        return self.plant.proc.wait(timeout=timeout)
 
     def check_running(self) -> None:
         """Raise BenchError when a daemon has exited."""

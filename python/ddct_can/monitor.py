@@ -2,8 +2,9 @@
 thread, and waits on them.
 
     with Monitor(bus) as mon:
-        assert mon.wait_state("Drive", timeout=4.0)
-        slip = mon["ENG_Status"]["EngSpeed"] - mon["DCT_Sensors"]["InShaft1Speed"]
+        seen = mon.wait_state("Drive", timeout=4.0)   # every message's latest values then
+        assert seen, f"the TCU is in {mon.tcu_state()}"
+        slip = seen["ENG_Status"]["EngSpeed"] - seen["DCT_Sensors"]["InShaft1Speed"]
 """
 
 from __future__ import annotations
@@ -11,11 +12,11 @@ from __future__ import annotations
 import threading
 import time
 from collections import Counter
-from typing import Callable, Optional
+from typing import Callable, Iterable, Optional
 
 import can
 
-from .dbc import choice, label, load_dbc
+from .dbc import choice, label, load_dbc, message
 from .e2e import NOT_PROTECTED, OK, E2EChecker
 
 
@@ -23,10 +24,18 @@ class Monitor:
     """Receives from ``bus`` in a background thread. Each frame of a DBC message is E2E-checked
     (CRC and alive counter, ``E2EChecker``); a frame with a bad length or CRC is counted in
     ``e2e_errors`` and not decoded, a counter out of sequence is counted and still decoded.
-    ``frames`` counts the decoded frames per message name."""
+    ``frames`` counts the decoded frames per message name.
 
-    def __init__(self, bus: can.BusABC):
+    ``messages``: only these (names); the monitor then sets kernel filters on ``bus`` for their
+    IDs (``bus.set_filters``: this applies to everything that receives on that bus object), so
+    that a small machine (a single-CPU User-Mode Linux guest) does not spend itself decoding
+    frames nobody reads. Default: every message of the DBC, no filter."""
+
+    def __init__(self, bus: can.BusABC, messages: Optional[Iterable[str]] = None):
         self.bus = bus
+        if messages is not None:
+            wanted = [message(m) for m in messages]
+            bus.set_filters([{"can_id": m.frame_id, "can_mask": 0x7FF, "extended": False} for m in wanted])
         self.frames: Counter = Counter()
         self.e2e_errors: Counter = Counter()  # (message name, verdict) -> count
         self._by_id = {m.frame_id: m for m in load_dbc().messages}
@@ -105,23 +114,29 @@ class Monitor:
         status = self.get("TCU_Status")
         return None if status is None else label("TCU_Status", "TcuState", status["TcuState"])
 
-    def wait(self, predicate: Callable[["Monitor"], bool], timeout: float) -> bool:
-        """Whether ``predicate(self)`` became true (checked after every decoded frame) within
-        ``timeout`` s."""
+    def snapshot(self) -> dict:
+        """{message name: latest signals} of every message seen so far."""
+        with self._cond:
+            return {k: dict(v) for k, v in self._latest.items()}
+
+    def wait(self, predicate: Callable[["Monitor"], bool], timeout: float) -> Optional[dict]:
+        """Wait until ``predicate(self)`` holds (checked after every decoded frame), at most
+        ``timeout`` s: the ``snapshot()`` taken at that frame (so the values of one moment), or
+        None when the time ran out."""
         end = time.monotonic() + timeout
         with self._cond:
             while True:
                 if self._error is not None:
                     raise RuntimeError(f"the monitor's receiver failed: {self._error!r}") from self._error
                 if predicate(self):
-                    return True
+                    return self.snapshot()
                 left = end - time.monotonic()
                 if left <= 0:
-                    return False
+                    return None
                 self._cond.wait(min(left, 0.1))
 
-    def wait_state(self, state: str, timeout: float) -> bool:
-        """Whether TCU_Status reported TcuState ``state`` (a name of its value table) within
-        ``timeout`` s."""
+    def wait_state(self, state: str, timeout: float) -> Optional[dict]:
+        """Wait until TCU_Status reports TcuState ``state`` (a name of its value table), at most
+        ``timeout`` s: the snapshot at that frame, or None."""
         raw = choice("TCU_Status", "TcuState", state)
         return self.wait(lambda m: m._latest.get("TCU_Status", {}).get("TcuState") == raw, timeout)

@@ -140,3 +140,15 @@ def test_monitor_decodes_checks_and_waits(buses):
         assert not mon.wait_state("SafeState", timeout=0.2)  # the bad frame was not taken
     assert mon.frames["TCU_Status"] == 3
     assert dict(mon.e2e_errors) == {("TCU_Status", "bad_crc"): 1}
+
+
+def test_monitor_with_messages_filters_the_rest(buses):
+    tx, rx = buses
+    eng = ddct_can.encode("ENG_Status", {"EngSpeed": 1000.0, "EngTorqueAct": 0.0}, counter=0)
+    temps = ddct_can.encode("BENCH_Temps", {"PressurePlate1Temp": 80.0, "PressurePlate2Temp": 80.0, "CentralDiskTemp": 80.0})
+    with Monitor(rx, ["ENG_Status"]) as mon:
+        for name, data in (("BENCH_Temps", temps), ("ENG_Status", eng)):
+            tx.send(can.Message(arbitration_id=ddct_can.frame_id(name), data=data, is_extended_id=False))
+        seen = mon.wait(lambda m: m.frames["ENG_Status"] == 1, timeout=2.0)
+    assert seen == {"ENG_Status": {"EngSpeed": 1000.0, "EngTorqueAct": 0.0, "AliveCounter": 0, "Crc": eng[7]}}
+    assert "BENCH_Temps" not in mon.frames

@@ -46,13 +46,14 @@ def test_crc_matches_crccheck():
 
 def test_drv_pedal_frame_by_hand():
     """DRV_Pedal AccelPedal 50 % (raw 500, bits 0-9), BrakeSwitch 0 (bit 10), GearLever D (raw 3,
-    bits 11-13), counter 3 (bits 52-55); CRC over 0x10 0x01 (ID 0x110 little-endian) + bytes 0-6."""
+    bits 11-13), counter 3 (bits 52-55); CRC over the frame ID (two bytes, little-endian) + bytes 0-6."""
     data = ddct_can.encode("DRV_Pedal", {"AccelPedal": 50.0, "BrakeSwitch": 0, "GearLever": "D"}, counter=3)
+    fid = ddct_can.frame_id("DRV_Pedal")
     word = 500 | (0 << 10) | (3 << 11) | (3 << 52)
     body = word.to_bytes(8, "little")[:7]
     assert data[:7] == body
-    assert data[7] == ddct_can.crc8_sae_j1850(bytes([0x10, 0x01]) + body)
-    assert ddct_can.check(0x110, data) == ddct_can.OK
+    assert data[7] == ddct_can.crc8_sae_j1850(fid.to_bytes(2, "little") + body)
+    assert ddct_can.check(fid, data) == ddct_can.OK
 
 
 def test_round_trip_every_message_min_mid_max():
@@ -82,7 +83,8 @@ def test_check_verdicts():
             bad[i] ^= 1 << b
             assert ddct_can.check(fid, bytes(bad)) == ddct_can.BAD_CRC
     assert ddct_can.check(fid, good[:7]) == ddct_can.BAD_LENGTH
-    assert ddct_can.check(0x7FF, good) == ddct_can.UNKNOWN_ID
+    unknown = max(m.frame_id for m in ddct_can.load_dbc().messages) + 1
+    assert ddct_can.check(unknown, good) == ddct_can.UNKNOWN_ID
 
 
 def test_e2e_checker_sequence():
@@ -102,8 +104,8 @@ def test_choice_and_label_from_the_value_tables():
 
 
 def test_candump_line_round_trip():
-    line = ddct_can.candump_line(1_700_000_000.25, "vcan0", 0x110, b"\x01\x02")
-    assert line == "(1700000000.250000) vcan0 110#0102"
-    assert ddct_can.parse_candump_line(line) == (1_700_000_000.25, "vcan0", 0x110, False, b"\x01\x02")
+    line = ddct_can.candump_line(1_700_000_000.25, "vcan0", 0x7A5, b"\x01\x02")
+    assert line == "(1700000000.250000) vcan0 7A5#0102"
+    assert ddct_can.parse_candump_line(line) == (1_700_000_000.25, "vcan0", 0x7A5, False, b"\x01\x02")
     with pytest.raises(ValueError):
-        ddct_can.parse_candump_line("vcan0 110#0102")
+        ddct_can.parse_candump_line("vcan0 7A5#0102")

@@ -20,7 +20,7 @@ from pathlib import Path
 assert Path(ddct_can.__file__).resolve().is_relative_to(Path(sys.prefix).resolve()), ddct_can.__file__
 assert ddct_can.DBC_PATH.is_file()
 data = ddct_can.encode("DRV_Pedal", {"AccelPedal": 50.0, "BrakeSwitch": 0, "GearLever": "D"}, counter=3)
-assert ddct_can.check(0x110, data) == "ok", data.hex()
+assert ddct_can.check(ddct_can.frame_id("DRV_Pedal"), data) == "ok", data.hex()
 eps = [e.value for e in md.entry_points(group="pytest11") if e.name == "ddct_can"]
 assert eps == ["ddct_can.pytest_plugin"], eps
 print("ok", ddct_can.__file__, data.hex(), md.version("python-can"), md.version("cantools"))
