@@ -39,7 +39,9 @@ class Monitor:
         self.frames: Counter = Counter()
         self.e2e_errors: Counter = Counter()  # (message name, verdict) -> count
         self._by_id = {m.frame_id: m for m in load_dbc().messages}
-        self._latest: dict[str, dict] = {}
+        self._by_name = {m.name: m for m in self._by_id.values()}
+        self._latest: dict[str, bytes] = {}
+        self._cache: dict[str, tuple] = {}
         self._checker = E2EChecker()
         self._cond = threading.Condition()
         self._stop = threading.Event()
@@ -91,23 +93,29 @@ class Monitor:
             self.e2e_errors[(m.name, verdict)] += 1
             if len(data) != m.length or verdict == "bad_crc":
                 return
-        values = m.decode(data, decode_choices=False)
         with self._cond:
-            self._latest[m.name] = values
+            self._latest[m.name] = data  # decoded when asked for (most frames never are)
             self.frames[m.name] += 1
             self._cond.notify_all()
+
+    def _decoded(self, name: str) -> dict:
+        data = self._latest[name]
+        hit = self._cache.get(name)
+        if hit is None or hit[0] is not data:
+            hit = (data, self._by_name[name].decode(data, decode_choices=False))
+            self._cache[name] = hit
+        return hit[1]
 
     def __getitem__(self, name: str) -> dict:
         """The latest signals of a message (raw numbers for value tables); KeyError if none yet."""
         with self._cond:
             if name not in self._latest:
                 raise KeyError(f"no {name} frame received yet")
-            return dict(self._latest[name])
+            return dict(self._decoded(name))
 
     def get(self, name: str, default=None):
         with self._cond:
-            v = self._latest.get(name)
-            return default if v is None else dict(v)
+            return dict(self._decoded(name)) if name in self._latest else default
 
     def tcu_state(self) -> Optional[str]:
         """The TCU's latest TcuState by name (None before the first TCU_Status)."""
@@ -117,7 +125,7 @@ class Monitor:
     def snapshot(self) -> dict:
         """{message name: latest signals} of every message seen so far."""
         with self._cond:
-            return {k: dict(v) for k, v in self._latest.items()}
+            return {k: dict(self._decoded(k)) for k in self._latest}
 
     def wait(self, predicate: Callable[["Monitor"], bool], timeout: float) -> Optional[dict]:
         """Wait until ``predicate(self)`` holds (checked after every decoded frame), at most
@@ -139,4 +147,4 @@ class Monitor:
         """Wait until TCU_Status reports TcuState ``state`` (a name of its value table), at most
         ``timeout`` s: the snapshot at that frame, or None."""
         raw = choice("TCU_Status", "TcuState", state)
-        return self.wait(lambda m: m._latest.get("TCU_Status", {}).get("TcuState") == raw, timeout)
+        return self.wait(lambda m: "TCU_Status" in m._latest and m._decoded("TCU_Status")["TcuState"] == raw, timeout)

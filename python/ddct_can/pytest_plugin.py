@@ -10,7 +10,8 @@ Fixtures:
     ddct_driver    a Driver on ddct_bus, sending (lever N, brake held)
     ddct_bench     the plant and TCU daemons (Bench), started after the monitor and the driver,
                    stopped and checked at teardown; the TCU's config is --ddct-tcu-config, else
-                   config/tcu.toml under the rootdir when it exists
+                   config/tcu.toml under the rootdir or the invocation directory (the daemons
+                   then run there), else the TCU's default
 
 A missing binary or interface fails the test (it never skips).
 """
@@ -96,8 +97,11 @@ def ddct_bench(pytestconfig, ddct_bin, ddct_iface, ddct_monitor, ddct_driver, tm
     from .daemons import Bench
 
     cfg = pytestconfig.getoption("ddct_tcu_config")
-    if cfg is None and (pytestconfig.rootpath / "config" / "tcu.toml").is_file():
-        cfg = pytestconfig.rootpath / "config" / "tcu.toml"
-    with Bench(ddct_iface, ddct=ddct_bin, tcu_config=cfg, workdir=tmp_path / "bench",
-               cwd=pytestconfig.rootpath) as bench:
+    cwd = Path(pytestconfig.invocation_params.dir)
+    if cfg is None:
+        for base in (pytestconfig.rootpath, cwd):
+            if (base / "config" / "tcu.toml").is_file():
+                cfg, cwd = base / "config" / "tcu.toml", base
+                break
+    with Bench(ddct_iface, ddct=ddct_bin, tcu_config=cfg, workdir=tmp_path / "bench", cwd=cwd) as bench:
         yield bench
