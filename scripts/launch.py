@@ -24,7 +24,8 @@ contract: lever N, then D at 0.5 s, brake held until the launch at 1.0 s, then t
 `shifts` program releases the pedal and brakes for the last 4 s. The plant runs without a built-in
 driver (it reads DRV_Pedal), the TCU with config/tcu.toml. `ddct log record` records the bus with
 kernel receive timestamps. Everything about the frames comes from dbc/ddct.dbc (cantools, through
-scripts/ddct_can.py): no ID, scale or offset is written here.
+the ddct_can package in python/, which also sends the driver's frames (`Driver`) and runs the
+daemons (`Bench`)): no ID, scale or offset is written here.
 
 Run it inside scripts/vcan-run where the host has no vcan0.
 """
@@ -41,8 +42,12 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import ddct_can  # noqa: E402
+try:
+    import ddct_can
+    from ddct_can import Bench, Driver
+except ModuleNotFoundError as e:  # python/ddct_can, installed into .venv by scripts/setup
+    raise ImportError(f"the ddct_can package is not installed in {sys.executable}: run scripts/setup "
+                      "(it does pip install -e ./python)") from e
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -52,22 +57,10 @@ LAUNCH_S = 1.0
 CYCLE_S = 0.01
 
 
-def choice(message: str, signal_name: str, label: str) -> int:
-    """Raw value of a value-table entry, from the DBC."""
-    sig = ddct_can.message(message).get_signal_by_name(signal_name)
-    for raw, name in sig.choices.items():
-        if str(name) == label:
-            return int(raw)
-    raise KeyError(f"{message}.{signal_name} has no value {label!r}")
-
-
-def label(message: str, signal_name: str, raw: int) -> str:
-    sig = ddct_can.message(message).get_signal_by_name(signal_name)
-    return str(sig.choices.get(int(raw), raw)) if sig.choices else str(raw)
-
-
-def frame_id(name: str) -> int:
-    return ddct_can.message(name).frame_id
+# From the DBC, through the package.
+choice = ddct_can.choice
+label = ddct_can.label
+frame_id = ddct_can.frame_id
 
 
 # ---------------------------------------------------------------------------------------------
@@ -93,9 +86,8 @@ def play_driver_lockstep(bus, plant, program: str, pedal: float, seconds: float,
     """Answers each DCT_Sensors frame (cycle n, bus time n·10 ms) with DRV_Pedal until the plant
     exits (the lockstep plant waits for the answer); returns the number of frames sent. `spoof`
     (from_s, to_s): a second node also answers in that window with SPOOF (not counted)."""
-    import can
-
-    fid, sensors = frame_id("DRV_Pedal"), frame_id("DCT_Sensors")
+    sensors = frame_id("DCT_Sensors")
+    driver = Driver(bus, cycle_s=CYCLE_S)
     n = 0
     while True:
         msg = bus.recv(timeout=0.5)
@@ -106,34 +98,17 @@ def play_driver_lockstep(bus, plant, program: str, pedal: float, seconds: float,
         if msg.arbitration_id != sensors or msg.is_extended_id:
             continue
         t = min(n * CYCLE_S, seconds)
-        data = ddct_can.encode("DRV_Pedal", driver_sample(program, pedal, seconds, t), counter=n)
-        bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+        driver.send(driver_sample(program, pedal, seconds, t))  # counter n
         if spoof is not None and spoof[0] <= t < spoof[1]:
-            data = ddct_can.encode("DRV_Pedal", SPOOF, counter=n + SPOOF_COUNTER_AHEAD)
-            bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+            driver.send(SPOOF, counter=n + SPOOF_COUNTER_AHEAD)
         n += 1
 
 
 def play_driver(bus, program: str, pedal: float, seconds: float) -> int:
-    """Sends DRV_Pedal every 10 ms on absolute deadlines; returns the number of frames sent."""
-    import can
-
-    fid = frame_id("DRV_Pedal")
-    start = time.monotonic()
-    n = 0
-    while True:
-        t = n * CYCLE_S
-        if t > seconds:
-            return n
-        delay = start + t - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        data = ddct_can.encode("DRV_Pedal", driver_sample(program, pedal, seconds, t), counter=n)
-        try:
-            bus.send(can.Message(arbitration_id=fid, data=data, is_extended_id=False))
-        except can.CanError:
-            pass  # a full transmit queue drops one frame; the TCU's E2E sees a skipped counter
-        n += 1
+    """Sends DRV_Pedal every 10 ms on absolute deadlines; returns the number of frames sent. A
+    frame the full transmit queue refuses is dropped (the TCU's E2E sees a skipped counter)."""
+    driver = Driver(bus, cycle_s=CYCLE_S)
+    return driver.play(seconds, lambda t: driver_sample(program, pedal, seconds, t))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -439,13 +414,9 @@ def run_bench(
     log = out / f"{name}.log"
     if log.exists():
         log.unlink()
-    procs = []
-    tcu_json = out / f"{name}_tcu.json"
-    plant_json = out / f"{name}_plant.json"
     # In lockstep the run takes as long as the host lets it: the recorder stops with the rest.
-    rec_ready, tcu_ready = out / f"{name}_record.ready", out / f"{name}_tcu.ready"
-    for r in (rec_ready, tcu_ready):
-        r.unlink(missing_ok=True)
+    rec_ready = out / f"{name}_record.ready"
+    rec_ready.unlink(missing_ok=True)
     rec_cmd = [str(ddct), "log", "record", "--iface", iface, "--out", str(log), "--ready-file", str(rec_ready)]
     if not lockstep:
         rec_cmd += ["--duration", str(seconds + 3.0)]
@@ -455,8 +426,7 @@ def run_bench(
         stderr=subprocess.PIPE,
         text=True,
     )
-    procs.append(rec)
-    tcu = plant = bus = None
+    bench = bus = None
     try:
         wait_ready(rec, rec_ready, "the recorder")
         if lockstep:
@@ -468,64 +438,51 @@ def run_bench(
                 can_filters=[{"can_id": frame_id("DCT_Sensors"), "can_mask": 0x7FF, "extended": False}],
             )
         if daemons:
-            tcu_cmd = [str(ddct), "tcu", "--iface", iface, "--config", str(REPO / "config" / "tcu.toml"), "--json",
-                       "--ready-file", str(tcu_ready)]
-            if lockstep:
-                tcu_cmd += ["--clock", "bus"]
-            tcu = subprocess.Popen(
-                tcu_cmd,
-                stdout=open(tcu_json, "w"),
-                stderr=subprocess.PIPE,
-                text=True,
-                cwd=REPO,
-            )
-            procs.append(tcu)
-            wait_ready(tcu, tcu_ready, "the TCU")
-            cmd = [str(ddct), "plant", "--iface", iface, "--json"]
+            # The TCU first, the plant once the TCU listens (ddct_can.Bench; reports, stderr and
+            # ready files in `out` as NAME_tcu.json, NAME_plant.json, ...).
+            plant_args = []
             if lockstep:
                 # The TCU's last frame of a computation (TCU_Estimates) and the driver's answer.
-                cmd += ["--duration", str(seconds), "--lockstep", "TCU_Estimates,DRV_Pedal", "--lockstep-timeout", "20"]
+                plant_args += ["--duration", str(seconds), "--lockstep", "TCU_Estimates,DRV_Pedal",
+                               "--lockstep-timeout", "20"]
             else:
-                cmd += ["--duration", str(seconds + 0.5)]
+                plant_args += ["--duration", str(seconds + 0.5)]
             if faults is not None:
-                cmd += ["--faults", str(faults)]
-            plant = subprocess.Popen(cmd, stdout=open(plant_json, "w"), stderr=subprocess.PIPE, text=True, cwd=REPO)
-            procs.append(plant)
+                plant_args += ["--faults", str(faults)]
+            bench = Bench(iface, ddct=ddct, tcu_config=REPO / "config" / "tcu.toml",
+                          tcu_args=["--clock", "bus"] if lockstep else [], plant_args=plant_args,
+                          workdir=out, cwd=REPO, keep=True, prefix=f"{name}_")
+            bench.start()
         plant_start = time.time()
         try:
             if lockstep:
-                n = play_driver_lockstep(bus, plant, program, pedal, seconds, spoof)
+                n = play_driver_lockstep(bus, bench.plant.proc if bench else None, program, pedal, seconds, spoof)
             else:
                 bus = can.Bus(interface="socketcan", channel=iface, receive_own_messages=False)
                 n = play_driver(bus, program, pedal, seconds)
         finally:
             if bus is not None:
                 bus.shutdown()
-        plant_err = tcu_err = ""
-        if plant is not None:
-            _, plant_err = plant.communicate(timeout=600 if lockstep else 30)
-        if tcu is not None:
-            tcu.send_signal(signal.SIGTERM)
-            _, tcu_err = tcu.communicate(timeout=30)
+        if bench is not None:
+            # The plant stops at its --duration; then both are stopped and their exit checked.
+            bench.wait_plant(timeout=600 if lockstep else 30)
+            bench.stop()
         rec.send_signal(signal.SIGTERM)
         rec.communicate(timeout=30)
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
+        if bench is not None and bench.tcu is not None:
+            for d in (bench.plant, bench.tcu):
+                if d is not None and d.proc.poll() is None:
+                    d.proc.kill()
+                    d.proc.wait()
+        if rec.poll() is None:
+            rec.kill()
+            rec.wait()
     records = ddct_can.read_candump(log)
-    return Run(log, records, read_json(tcu_json), plant_err, tcu_err, n, plant_start, read_json(plant_json), lockstep)
-
-
-def read_json(p: Path):
-    """A daemon's --json exit report, or None when it wrote none."""
-    if not (p.exists() and p.stat().st_size):
-        return None
-    try:
-        return json.loads(p.read_text())
-    except json.JSONDecodeError:
-        return None
+    if bench is None:
+        return Run(log, records, None, "", "", n, plant_start, None, lockstep)
+    return Run(log, records, bench.tcu_report, bench.plant.stderr(), bench.tcu.stderr(), n, plant_start,
+               bench.plant_report, lockstep)
 
 
 def fmt(v, p=2):

@@ -15,7 +15,7 @@ The plant must run in rig mode on the same interface with the profile's dyno spe
 (`ddct plant --iface vcan0 --mode rig --config config/plant_rig.toml --input-speed RPM`), started
 after this script listens; with --spawn-plant DDCT the script starts it itself, with the right
 arguments, once its own socket and candump listen. Everything about the frames comes from
-dbc/ddct.dbc through scripts/ddct_can.py (cantools): no CAN id, scale or offset here.
+dbc/ddct.dbc through the ddct_can package (python/, cantools): no CAN id, scale or offset here.
 
 Timing. The plant sends its frames every 10 ms of simulated time and reads its inputs at the
 start of each cycle. The script counts the plant's ENG_Status frames (a kernel filter gives it
@@ -53,10 +53,8 @@ import tomllib
 from bisect import bisect_right
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import can  # noqa: E402
-import ddct_can  # noqa: E402
+import can
+import ddct_can
 
 REPO = Path(__file__).resolve().parent.parent
 

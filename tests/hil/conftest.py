@@ -1,6 +1,8 @@
 """Fixtures of the HIL suite: the plant and TCU daemons over vcan0 with the driver played from
-python (scripts/launch.py). Needs an up vcan0: run it through scripts/vcan-run (which sets
-DDCT_REQUIRE_VCAN=1, so a missing vcan0 or binary fails instead of skipping)."""
+python (scripts/launch.py, built on the ddct_can package in python/, whose pytest fixtures
+ddct_bench, ddct_driver, ddct_monitor are available here too). Needs an up vcan0: run it through
+scripts/vcan-run (which sets DDCT_REQUIRE_VCAN=1, so a missing vcan0 or binary fails instead of
+skipping)."""
 
 from __future__ import annotations
 
@@ -27,6 +29,17 @@ def vcan0():
 @pytest.fixture(scope="session")
 def ddct(vcan0):
     return lib.ddct_bin(may_skip=True)
+
+
+# The package's fixtures (ddct_can.pytest_plugin) on the same interface and binary.
+@pytest.fixture(scope="session")
+def ddct_iface(vcan0):
+    return vcan0
+
+
+@pytest.fixture(scope="session")
+def ddct_bin(ddct):
+    return ddct
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -19,9 +19,12 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "scripts"))
 
-import ddct_can  # noqa: E402
+try:
+    import ddct_can
+except ModuleNotFoundError as e:  # the package python/ddct_can, installed into .venv by scripts/setup
+    raise ImportError(f"the ddct_can package is not installed in {sys.executable}: run scripts/setup "
+                      "(it does pip install -e ./python)") from e
 
 DDCT_TIMEOUT_S = 300
 

@@ -1,4 +1,4 @@
-"""scripts/ddct_can.py against the contract (DESIGN.md §3) and against independent tools."""
+"""The ddct_can package (python/ddct_can) against the contract (DESIGN.md §3) and against independent tools."""
 
 from __future__ import annotations
 
@@ -160,7 +160,7 @@ def test_written_log_is_read_by_python_can_and_cantools(tmp_path: Path):
 
 def test_no_literal_can_ids_in_python(db):
     # The contract lives in the DBC only (TEAM.md): no frame ID literal in the python sources.
-    sources = [lib.REPO / "scripts" / "ddct_can.py", *sorted((lib.REPO / "tests").rglob("*.py"))]
+    sources = [*sorted((lib.REPO / "python").rglob("*.py")), *sorted((lib.REPO / "tests").rglob("*.py"))]
     sources += sorted((lib.REPO / "scripts").glob("*.py"))
     ids = {m.frame_id for m in db.messages}
     for path in set(sources):

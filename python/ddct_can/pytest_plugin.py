@@ -1,0 +1,107 @@
+"""pytest fixtures for benches on ddct's CAN bus (registered through the ``pytest11`` entry point,
+so installing the package makes them available to any test).
+
+Fixtures:
+    ddct_bin       the ddct binary (--ddct-bin, else $DDCT_BIN, else ddct on PATH)
+    ddct_iface     the CAN interface (--ddct-iface, else $DDCT_IFACE, else vcan0); it must exist,
+                   be a CAN interface and be up
+    ddct_bus       a python-can socketcan bus on it
+    ddct_monitor   a Monitor on ddct_bus, running
+    ddct_driver    a Driver on ddct_bus, sending (lever N, brake held)
+    ddct_bench     the plant and TCU daemons (Bench), started after the monitor and the driver,
+                   stopped and checked at teardown; the TCU's config is --ddct-tcu-config, else
+                   config/tcu.toml under the rootdir or the invocation directory (the daemons
+                   then run there), else the TCU's default
+
+A missing binary or interface fails the test (it never skips).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ARPHRD_CAN = 280
+IFF_UP = 0x1
+
+
+def pytest_addoption(parser):
+    g = parser.getgroup("ddct_can", "ddct CAN bench")
+    g.addoption("--ddct-bin", default=None, help="the ddct binary (default $DDCT_BIN, then PATH)")
+    g.addoption("--ddct-iface", default=None, help="CAN interface of the bench (default $DDCT_IFACE or vcan0)")
+    g.addoption("--ddct-tcu-config", default=None, help="the TCU's config (default config/tcu.toml under the rootdir)")
+
+
+def interface_problem(iface: str):
+    """Why ``iface`` cannot carry a bench (None when it can)."""
+    sysfs = Path("/sys/class/net") / iface
+    if not sysfs.exists():
+        return f"{iface} does not exist"
+    if int((sysfs / "type").read_text()) != ARPHRD_CAN:
+        return f"{iface} is not a CAN interface"
+    if not int((sysfs / "flags").read_text(), 16) & IFF_UP:
+        return f"{iface} is down"
+    return None
+
+
+@pytest.fixture(scope="session")
+def ddct_bin(pytestconfig) -> Path:
+    from .daemons import BenchError, find_ddct
+
+    try:
+        return find_ddct(pytestconfig.getoption("ddct_bin"))
+    except BenchError as e:
+        pytest.fail(str(e), pytrace=False)
+
+
+@pytest.fixture(scope="session")
+def ddct_iface(pytestconfig) -> str:
+    iface = pytestconfig.getoption("ddct_iface") or os.environ.get("DDCT_IFACE") or "vcan0"
+    why = interface_problem(iface)
+    if why:
+        pytest.fail(f"{why} (a bench needs an up CAN interface, e.g. vcan0 inside scripts/vcan-run)", pytrace=False)
+    return iface
+
+
+@pytest.fixture
+def ddct_bus(ddct_iface):
+    import can
+
+    bus = can.Bus(interface="socketcan", channel=ddct_iface, receive_own_messages=False)
+    try:
+        yield bus
+    finally:
+        bus.shutdown()
+
+
+@pytest.fixture
+def ddct_monitor(ddct_bus):
+    from .monitor import Monitor
+
+    with Monitor(ddct_bus) as mon:
+        yield mon
+
+
+@pytest.fixture
+def ddct_driver(ddct_bus):
+    from .driver import Driver
+
+    with Driver(ddct_bus) as driver:
+        yield driver
+
+
+@pytest.fixture
+def ddct_bench(pytestconfig, ddct_bin, ddct_iface, ddct_monitor, ddct_driver, tmp_path):
+    from .daemons import Bench
+
+    cfg = pytestconfig.getoption("ddct_tcu_config")
+    cwd = Path(pytestconfig.invocation_params.dir)
+    if cfg is None:
+        for base in (pytestconfig.rootpath, cwd):
+            if (base / "config" / "tcu.toml").is_file():
+                cfg, cwd = base / "config" / "tcu.toml", base
+                break
+    with Bench(ddct_iface, ddct=ddct_bin, tcu_config=cfg, workdir=tmp_path / "bench", cwd=cwd) as bench:
+        yield bench
