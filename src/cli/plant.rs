@@ -35,9 +35,11 @@ pub struct PlantArgs {
     /// Operating mode (default: the config's).
     #[arg(long, value_enum)]
     mode: Option<ModeArg>,
-    /// Vehicle mode: built-in driver scenario (pedal, brake, lever, grade over time); the plant
-    /// then sends DRV_Pedal. Without it the driver is DRV_Pedal on the bus (on `--iface sim` the
-    /// built-in config/scenarios/driver_launch.toml).
+    /// Vehicle mode: the driver (pedal, brake, lever, grade over time), from a driver scenario
+    /// (config/scenarios/driver_*.toml) or a `ddct sim` scenario (which also brings its plant
+    /// configuration: initial state, effects, faults); the plant then sends DRV_Pedal. Without it
+    /// the driver is DRV_Pedal on the bus (on `--iface sim` the built-in
+    /// config/scenarios/driver_launch.toml).
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Rig mode: built-in x_to profile (config/rig/*.toml) instead of TCU_ClutchCmd from the bus.
@@ -85,9 +87,24 @@ pub struct PlantArgs {
 }
 
 fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
-    let mut cfg = match &a.config {
-        Some(p) => PlantConfig::load(p)?,
-        None => PlantConfig::default(),
+    // A sim scenario (`ddct sim`'s format) carries its plant configuration and driver.
+    let sim_scenario = match &a.scenario {
+        Some(p) if ddct::sim::scenario::is_sim_scenario(p)? => {
+            if a.config.is_some() {
+                bail!(
+                    "--scenario {}: a sim scenario carries its plant configuration (its `plant` \
+                     key names the base); drop --config",
+                    p.display()
+                );
+            }
+            Some(ddct::sim::SimScenario::load(p)?)
+        }
+        _ => None,
+    };
+    let mut cfg = match (&sim_scenario, &a.config) {
+        (Some(sc), _) => sc.plant.clone(),
+        (None, Some(p)) => PlantConfig::load(p)?,
+        (None, None) => PlantConfig::default(),
     };
     if let Some(m) = a.mode {
         cfg.mode = match m {
@@ -102,7 +119,9 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
         if cfg.mode != Mode::Vehicle {
             bail!("--scenario is for vehicle mode (the rig takes --rig-profile)");
         }
-        cfg.scenario = Some(Scenario::load(p)?);
+        if sim_scenario.is_none() {
+            cfg.scenario = Some(Scenario::load(p)?);
+        }
     }
     if let Some(p) = &a.rig_profile {
         if cfg.mode != Mode::Rig {

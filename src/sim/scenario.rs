@@ -18,6 +18,10 @@
 //!
 //! An optional `[limits]` table holds the run's pass/fail limits ([`super::verdict`]).
 //!
+//! One format for every command: a driver scenario alone (`t_s`, `pedal_pct`, … at the top) is
+//! read as a sim scenario with the built-in plant, and `ddct plant --scenario` takes a sim
+//! scenario too (its plant configuration and driver).
+//!
 //! The plant tables `[initial]`, `[housing]`, `[sensors]` and `[inputs]` merge key by key into the
 //! base configuration; `[effects]` and `[[faults]]` replace the base's. Relative file names are
 //! relative to the scenario file.
@@ -155,6 +159,23 @@ const SCENARIO_KEYS: [&str; 12] = [
     "faults",
 ];
 
+/// Whether a parsed scenario is a driver scenario (`t_s` at the top, no `driver`).
+fn is_driver_file(doc: &toml::Table) -> bool {
+    doc.contains_key("t_s") && !doc.contains_key("driver")
+}
+
+/// Whether the scenario file at `path` is a sim scenario (it has a `driver`), as opposed to a
+/// driver scenario; `Ok(false)` for a file that does not parse (its loader then says why).
+pub fn is_sim_scenario(path: &Path) -> Result<bool, ScenarioError> {
+    let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    Ok(text
+        .parse::<toml::Table>()
+        .is_ok_and(|doc| doc.contains_key("driver")))
+}
+
 impl SimScenario {
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
@@ -180,6 +201,18 @@ impl SimScenario {
                     path: path.to_path_buf(),
                     message: e.to_string().trim().replace('\n', " "),
                 })?;
+        // A driver scenario (`t_s`, `pedal_pct`, … at the top: the format `ddct plant --scenario`
+        // reads too) is a sim scenario with the built-in plant and that driver.
+        let doc = if is_driver_file(&doc) {
+            let mut wrapped = toml::Table::new();
+            if let Some(d) = doc.get("description") {
+                wrapped.insert("description".into(), d.clone());
+            }
+            wrapped.insert("driver".into(), toml::Value::Table(doc));
+            wrapped
+        } else {
+            doc
+        };
         for k in doc.keys() {
             if !SCENARIO_KEYS.contains(&k.as_str()) {
                 return Err(key_err(
@@ -335,6 +368,25 @@ impl SimScenario {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_driver_scenario_is_a_sim_scenario_with_the_built_in_plant() {
+        let text = "description = \"d\"\nt_s = [0.0, 2.0]\npedal_pct = [0.0, 30.0]\n\
+                    brake = [1.0, 0.0]\nlever = [\"N\", \"D\"]\n";
+        let s = SimScenario::from_toml_str(Path::new("x/driver_d.toml"), text).unwrap();
+        assert_eq!(s.description, "d");
+        assert_eq!(s.duration_s, 2.0);
+        assert_eq!(s.plant.scenario.as_ref().map(|d| d.duration_s), Some(2.0));
+        assert_eq!(s.plant.initial, PlantConfig::default().initial);
+        // A bad value still names the file's own line and key.
+        let bad = text.replace("[0.0, 30.0]", "[0.0, 300.0]");
+        let e = SimScenario::from_toml_str(Path::new("x/driver_d.toml"), &bad).unwrap_err();
+        let msg = crate::error_chain::chain(&e);
+        assert!(
+            msg.contains("x/driver_d.toml") && msg.contains("pedal_pct"),
+            "{msg}"
+        );
+    }
     use super::*;
 
     const TEXT: &str = r#"

@@ -3,6 +3,9 @@ real-time priority or speed is refused (exit status 2, clap's usage error) inste
 
 from __future__ import annotations
 
+import json
+import re
+
 import pytest
 
 import ddct_testlib as lib
@@ -40,3 +43,21 @@ def test_commands_work_outside_the_repository(ddct, tmp_path):
     r = lib.run([ddct, "tcu", "--iface", "sim", "--duration", "1"], cwd=tmp_path, timeout=60)
     r = lib.run([ddct, "sim", "--scenario", "nope.toml"], cwd=tmp_path, check=False)
     assert r.returncode == 1 and "cannot read scenario nope.toml" in r.stderr, r.stderr
+
+
+def test_one_scenario_format_for_sim_and_plant(ddct, tmp_path):
+    """`ddct sim` runs a driver scenario (built-in plant); `ddct plant` runs a sim scenario (its
+    plant configuration and driver); a sim scenario beside --config is refused naming both."""
+    scen = lib.REPO / "config" / "scenarios"
+    r = lib.run([ddct, "sim", "--scenario", scen / "driver_launch.toml"])
+    assert re.search(r"^driver_launch +\d+ ", r.stdout, re.M), r.stdout
+    # The plant plays launch_50's driver (50 % pedal from 1 s), not its built-in 30 % launch.
+    log = tmp_path / "plant.log"
+    lib.run([ddct, "plant", "--iface", "sim", "--scenario", scen / "launch_50.toml", "--duration", "3", "--log", log])
+    pedal = [
+        json.loads(l)["signals"]["AccelPedal"]
+        for l in lib.run([ddct, "log", "decode", log, "--format", "json", "-m", "DRV_Pedal"]).stdout.splitlines()
+    ]
+    assert pedal and max(pedal) == 50.0, sorted(set(pedal))
+    r = lib.run([ddct, "plant", "--iface", "sim", "--scenario", scen / "launch_50.toml", "--config", lib.REPO / "config" / "plant.toml"], check=False)
+    assert r.returncode == 1 and "a sim scenario carries its plant configuration" in r.stderr, r.stderr
