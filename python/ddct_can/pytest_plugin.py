@@ -6,7 +6,10 @@ Fixtures:
     ddct_iface     the CAN interface (--ddct-iface, else $DDCT_IFACE, else vcan0); it must exist,
                    be a CAN interface and be up
     ddct_bus       a python-can socketcan bus on it
-    ddct_monitor   a Monitor on ddct_bus, running
+    ddct_monitor   a Monitor on ddct_bus, running; on the whole bus, or only on the messages a
+                   test names with ``@pytest.mark.ddct_monitor(messages=[...])`` (kernel-filtered:
+                   a single-CPU guest cannot decode the whole bus in python without starving the
+                   daemons)
     ddct_driver    a Driver on ddct_bus, sending (lever N, brake held)
     ddct_bench     the plant and TCU daemons (Bench), started after the monitor and the driver,
                    stopped and checked at teardown; the TCU's config is --ddct-tcu-config, else
@@ -25,6 +28,12 @@ import pytest
 
 ARPHRD_CAN = 280
 IFF_UP = 0x1
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "ddct_monitor(messages): the messages the ddct_monitor fixture watches (default: all)"
+    )
 
 
 def pytest_addoption(parser):
@@ -77,10 +86,12 @@ def ddct_bus(ddct_iface):
 
 
 @pytest.fixture
-def ddct_monitor(ddct_bus):
+def ddct_monitor(request, ddct_bus):
     from .monitor import Monitor
 
-    with Monitor(ddct_bus) as mon:
+    mark = request.node.get_closest_marker("ddct_monitor")
+    messages = mark.kwargs.get("messages") if mark else None
+    with Monitor(ddct_bus, messages) as mon:
         yield mon
 
 
