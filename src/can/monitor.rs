@@ -3,6 +3,7 @@
 //! second, the E2E errors by kind and the age of the last frame. Pure: frames go in with their
 //! time, a snapshot comes out as text; the shell reads the bus or stdin and redraws.
 
+use super::codec::DecodedSignal;
 use super::decode::{DecodedFrame, E2eVerdict};
 use std::collections::{BTreeMap, VecDeque};
 use std::fmt::Write as _;
@@ -16,8 +17,8 @@ struct Entry {
     /// Arrival times within the last second (for the rate).
     recent: VecDeque<Duration>,
     last: Duration,
-    /// Latest values: `name=value unit`.
-    values: String,
+    /// The latest frame's signals (formatted only when drawn: the bus is faster than the screen).
+    signals: Vec<DecodedSignal>,
     /// E2E failures by kind (`bad_crc`, `counter_jump`, …).
     e2e_errors: BTreeMap<&'static str, u64>,
     /// Frames the strict decode refused (DLC, range, value table).
@@ -51,18 +52,8 @@ impl Monitor {
             *e.e2e_errors.entry(err.kind()).or_default() += 1;
         }
         e.decode_errors += u64::from(d.error.is_some());
-        e.values.clear();
-        for s in &d.signals {
-            let unit = s.signal.unit;
-            let sep = if unit.is_empty() { "" } else { " " };
-            let _ = write!(
-                e.values,
-                "{}={}{sep}{unit}{}  ",
-                s.signal.name,
-                s.display_value(),
-                if s.in_range { "" } else { "(!)" }
-            );
-        }
+        e.signals.clear();
+        e.signals.extend_from_slice(&d.signals);
     }
 
     /// Frames of `id` within the last second before `now` (frames per second).
@@ -105,8 +96,21 @@ impl Monitor {
                     errors.join(", ")
                 }
             );
-            if !e.values.is_empty() {
-                let _ = writeln!(s, "      {}", e.values.trim_end());
+            if !e.signals.is_empty() {
+                s.push_str("     ");
+                for sig in &e.signals {
+                    let unit = sig.signal.unit;
+                    let sep = if unit.is_empty() { "" } else { " " };
+                    let flag = if sig.in_range { "" } else { "(!)" };
+                    let _ = write!(
+                        s,
+                        " {}={}{sep}{unit}{flag} ",
+                        sig.signal.name,
+                        sig.display_value()
+                    );
+                }
+                s.truncate(s.trim_end().len());
+                s.push('\n');
             }
         }
         s
