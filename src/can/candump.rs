@@ -83,12 +83,8 @@ fn parse_hex_u32(s: &str) -> Option<u32> {
         .try_fold(0u32, |acc, c| Some(acc << 4 | u32::from(hex_val(c)?)))
 }
 
-/// Parses one line of a candump log.
-pub fn parse_line(line: &str) -> Result<LogRecord, LineError> {
-    let line = line.trim_end_matches(['\r', '\n']);
-    let rest = line.strip_prefix('(').ok_or(LineError::Timestamp)?;
-    let close = rest.find(')').ok_or(LineError::Timestamp)?;
-    let ts = &rest[..close];
+/// The `seconds.micros` inside a candump time column's parentheses (`-l`, `-L`, `-t a`).
+pub(crate) fn parse_timestamp(ts: &str) -> Result<Duration, LineError> {
     let (secs, micros) = ts.split_once('.').ok_or(LineError::Timestamp)?;
     if secs.is_empty() || secs.len() > 20 || !secs.bytes().all(|b| b.is_ascii_digit()) {
         return Err(LineError::Timestamp);
@@ -98,7 +94,15 @@ pub fn parse_line(line: &str) -> Result<LogRecord, LineError> {
     }
     let secs: u64 = secs.parse().map_err(|_| LineError::Timestamp)?;
     let micros: u32 = micros.parse().map_err(|_| LineError::Micros)?;
-    let timestamp = Duration::new(secs, micros * 1000);
+    Ok(Duration::new(secs, micros * 1000))
+}
+
+/// Parses one line of a candump log.
+pub fn parse_line(line: &str) -> Result<LogRecord, LineError> {
+    let line = line.trim_end_matches(['\r', '\n']);
+    let rest = line.strip_prefix('(').ok_or(LineError::Timestamp)?;
+    let close = rest.find(')').ok_or(LineError::Timestamp)?;
+    let timestamp = parse_timestamp(&rest[..close])?;
 
     let mut fields = rest[close + 1..].split_ascii_whitespace();
     let iface = fields.next().ok_or(LineError::Iface)?;

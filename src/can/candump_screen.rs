@@ -26,19 +26,10 @@ fn hex_byte(t: &str) -> Option<u8> {
 
 /// `seconds.micros` inside the parentheses of `-t a` / `-t z`.
 fn parse_time(t: &str) -> Result<Duration, LineError> {
-    let (secs, micros) = t.split_once('.').ok_or(LineError::Timestamp)?;
     if t.contains(['-', ':', ' ']) {
         return Err(LineError::DateTime);
     }
-    if secs.is_empty() || secs.len() > 20 || !secs.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(LineError::Timestamp);
-    }
-    if micros.len() != 6 || !micros.bytes().all(|b| b.is_ascii_digit()) {
-        return Err(LineError::Micros);
-    }
-    let secs: u64 = secs.parse().map_err(|_| LineError::Timestamp)?;
-    let micros: u32 = micros.parse().map_err(|_| LineError::Micros)?;
-    Ok(Duration::new(secs, micros * 1000))
+    super::candump::parse_timestamp(t)
 }
 
 /// Parses one line of candump's screen output.

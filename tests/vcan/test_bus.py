@@ -55,6 +55,13 @@ class PythonCanReceiver(threading.Thread):
             self.bus.shutdown()
 
 
+def send_frames(frames: list[dict]) -> None:
+    """Send `frames` ({"id", "data"}) on vcan0 with python-can, in order."""
+    with can.Bus(interface="socketcan", channel=IFACE) as bus:
+        for fr in frames:
+            bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+
+
 def read_log(path: Path) -> list[tuple[int, bytes]]:
     return [(fid, data) for (_, _, fid, _, data) in ddct_can.read_candump(path)]
 
@@ -220,9 +227,7 @@ def test_candump_log_decoded_by_ddct(ddct, candump, db, tmp_path):
         stderr=open(tmp_path / "candump.err", "w"),
     ) as dump:
         wait_receivers(before, 1, procs=[dump])
-        with can.Bus(interface="socketcan", channel=IFACE) as bus:
-            for fr in frames:
-                bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+        send_frames(frames)
         assert dump.wait(60) == 0
     logs = sorted(tmp_path.glob("candump-*.log"))
     assert len(logs) == 1, list(tmp_path.iterdir())
@@ -254,9 +259,7 @@ def test_candump_screen_output_piped_into_decode(ddct, candump, db, tmp_path, op
         stderr=open(tmp_path / "decode.err", "w"),
     ) as pipe:
         wait_receivers(before, 1, procs=[pipe])
-        with can.Bus(interface="socketcan", channel=IFACE) as bus:
-            for fr in frames:
-                bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+        send_frames(frames)
         assert pipe.wait(60) == 0, (tmp_path / "decode.err").read_text()
     t1 = time.time()
     err = (tmp_path / "decode.err").read_text()
@@ -288,9 +291,7 @@ def test_monitor_shows_every_message_with_counts_and_e2e_errors(ddct, candump, d
         cmd = ["sh", "-c", f"{candump} -n {len(sent)} {IFACE} | {ddct} log monitor -"]
     with background(cmd, stdout=open(tmp_path / "mon.txt", "w"), stderr=open(tmp_path / "mon.err", "w")) as mon:
         wait_receivers(before, 1, procs=[mon])
-        with can.Bus(interface="socketcan", channel=IFACE) as bus:
-            for fr in sent:
-                bus.send(can.Message(arbitration_id=fr["id"], data=fr["data"], is_extended_id=False), timeout=5)
+        send_frames(sent)
         assert mon.wait(60) == 0, (tmp_path / "mon.err").read_text()
     text = (tmp_path / "mon.txt").read_text()
     counts: dict[int, int] = {}
