@@ -937,8 +937,8 @@ pub fn diagnose(
     let mut rng = Rng::new(o.seed);
 
     // Phase 1–2: recalibration, noise floors, knots.
-    let t0 = std::time::Instant::now();
-    let phase = |name: &str| tracing::debug!("{name} done ({:.1} s)", t0.elapsed().as_secs_f64());
+    // No clock in the core: the subscriber stamps each line with its time.
+    let phase = |name: &str| tracing::debug!("{name} done");
     context::set_noise(&nominal_model, &mut tr);
     let no_knots = Knots::default();
     let recal = recalibrate(nominal, &chans, &tr, &no_knots, false);

@@ -523,7 +523,6 @@ pub fn select(
         rounds: Vec::new(),
         chosen: Vec::new(),
     };
-    let t0 = std::time::Instant::now();
     for r in 0..max_classes {
         let left: Vec<ClassId> = classes
             .iter()
@@ -551,10 +550,9 @@ pub fn select(
         }
         let stop = kept.is_none();
         tracing::debug!(
-            "round {r}: {} classes fitted, kept {:?} ({:.1} s)",
+            "round {r}: {} classes fitted, kept {:?}",
             cands.len(),
-            kept.map(|b| cands[b].class),
-            t0.elapsed().as_secs_f64()
+            kept.map(|b| cands[b].class)
         );
         sel.rounds.push(Round {
             candidates: cands,
@@ -568,9 +566,9 @@ pub fn select(
         }
     }
     swap(s, base, classes, &mut sel, seed);
-    tracing::debug!("swap check done ({:.1} s)", t0.elapsed().as_secs_f64());
+    tracing::debug!("swap check done");
     backward(s, base, &mut sel, seed);
-    tracing::debug!("backward check done ({:.1} s)", t0.elapsed().as_secs_f64());
+    tracing::debug!("backward check done");
     (sel.model, sel.val, sel.rounds)
 }
 
