@@ -13,7 +13,7 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use super::replay::{self, Measured};
+use super::replay::{self, Measured, Shared};
 use super::terms::{self, Extra, Terms, X_REF_MM};
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
 use crate::model::params::{ClutchParams, Params};
@@ -158,6 +158,9 @@ pub const ENGINE_WINDOW: usize = 10;
 pub struct Samples {
     /// Per channel (indexed like [`Channel::ALL`]).
     pub idx: Vec<Vec<usize>>,
+    /// Step of the temperature samples (every `temp_stride`-th sample): the thermal replay
+    /// steps by it.
+    pub temp_stride: usize,
 }
 
 impl Samples {
@@ -199,7 +202,10 @@ impl Samples {
                 })
                 .collect();
         }
-        Samples { idx }
+        Samples {
+            idx,
+            temp_stride: temp_stride.max(1),
+        }
     }
 
     pub fn get(&self, c: Channel) -> &[usize] {
@@ -345,10 +351,11 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         return None;
     }
     let mut c = m.clone();
-    let fix_temp = |v: &mut Vec<f64>| {
+    let fix_temp = |v: &Shared| -> Shared {
+        let mut v = v.to_vec();
         if t.temp_lag_s > 0.0 {
             let half = ((1.0 / m.dt).round() as usize).max(1);
-            let d = replay::derivative(v, m.dt, half);
+            let d = replay::derivative(&v, m.dt, half);
             for (x, dx) in v.iter_mut().zip(&d) {
                 *x += t.temp_lag_s * dx;
             }
@@ -358,22 +365,27 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
                 *x = g.invert(*x);
             }
         }
+        v.into()
     };
-    fix_temp(&mut c.pp[0]);
-    fix_temp(&mut c.pp[1]);
-    fix_temp(&mut c.cd);
+    if t.temp_lag_s > 0.0 || t.temp_sensor.is_some() {
+        c.pp = [fix_temp(&m.pp[0]), fix_temp(&m.pp[1])];
+        c.cd = fix_temp(&m.cd);
+    }
     if let Some(g) = &t.torque_sensor {
         for i in 0..2 {
+            let power: Vec<f64> = (0..m.n)
+                .map(|k| g.invert(m.torque[i][k], 0.0) * m.slip[i][k])
+                .collect();
             let mut e = m.e_cum[i].first().copied().unwrap_or(0.0);
+            let mut e_cum = Vec::with_capacity(m.n);
             for k in 0..m.n {
-                c.power[i][k] = g.invert(m.torque[i][k], 0.0) * m.slip[i][k];
-            }
-            for k in 0..m.n {
-                c.e_cum[i][k] = e;
+                e_cum.push(e);
                 if k + 1 < m.n {
-                    e += 0.5 * (c.power[i][k] + c.power[i][k + 1]) * m.dt;
+                    e += 0.5 * (power[k] + power[k + 1]) * m.dt;
                 }
             }
+            c.power[i] = power.into();
+            c.e_cum[i] = e_cum.into();
         }
     }
     Some(c)
@@ -455,7 +467,9 @@ fn predict_inner(
         }
     }
     if (0..3).any(|j| want(Channel::Temp(j))) {
-        let tr = replay::thermal_replay(p, &h, m);
+        // The temperatures are read at every `stride`-th sample: the replay steps by it.
+        let stride = s.temp_stride;
+        let tr = replay::thermal_replay_every(p, &h, m, stride);
         for j in 0..3 {
             let c = Channel::Temp(j);
             if !want(c) {
@@ -463,13 +477,15 @@ fn predict_inner(
             }
             let mut series: Vec<f64> = tr.iter().map(|s| [s.pp1, s.pp2, s.cd][j]).collect();
             if t.temp_lag_s > 0.0 {
-                series = terms::lag(&series, t.temp_lag_s, m.dt);
+                series = terms::lag(&series, t.temp_lag_s, stride as f64 * m.dt);
             }
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {
+                debug_assert_eq!(k % stride, 0, "a temperature sample off the replay's grid");
+                let x = series[k / stride];
                 v[k] = match &t.temp_sensor {
-                    Some(g) => g.apply(series[k]),
-                    None => series[k],
+                    Some(g) => g.apply(x),
+                    None => x,
                 };
             }
             y[c.index()] = v;

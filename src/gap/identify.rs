@@ -483,7 +483,7 @@ fn torque_fit(p: &Params, initial: &Params, ms: &[Measured], keys_v: &[&'static 
             let mut j = 0;
             for (m, disk) in ms.iter().zip(&disks) {
                 for i in 0..2 {
-                    for &k in &m.torque_idx[i] {
+                    for &k in m.torque_idx[i].iter() {
                         r[j] = m.torque[i][k] - replay::torque_eq(&q, &Nominal, m, disk, i, k);
                         j += 1;
                     }
@@ -508,7 +508,7 @@ pub fn joint_residuals(q: &Params, ms: &[Measured], dec: usize) -> Vec<f64> {
         }
         let disk = replay::disk_estimate(q, &Nominal, m);
         for i in 0..2 {
-            for &k in &m.torque_idx[i] {
+            for &k in m.torque_idx[i].iter() {
                 r.push(m.torque[i][k] - replay::torque_eq(q, &Nominal, m, &disk, i, k));
             }
         }
@@ -570,7 +570,7 @@ fn joint_fit(
                 }
                 let disk = replay::disk_estimate(&q, &Nominal, m);
                 for i in 0..2 {
-                    for &k in &m.torque_idx[i] {
+                    for &k in m.torque_idx[i].iter() {
                         r[j] = wq
                             * keep[j]
                             * (m.torque[i][k] - replay::torque_eq(&q, &Nominal, m, &disk, i, k));

@@ -324,21 +324,26 @@ pub fn variable(v: Variable, p: &ClutchParams, c: &TorqueContext, x: &Extra) -> 
     }
 }
 
-/// First-order lag of a sampled series (time constant `tau_s`, step `dt`), starting at the first
-/// sample.
+/// First-order lag τ·ẏ = x − y of a sampled series (time constant `tau_s`, step `dt`), starting
+/// at the first sample: the exact solution for an input linear between samples (first-order
+/// hold), so that the lag of a series sampled every 10 ms and of the same series every 0.3 s
+/// agree wherever the input is linear in between — the thermal replay steps by the temperature
+/// samples' stride.
 pub fn lag(v: &[f64], tau_s: f64, dt: f64) -> Vec<f64> {
     if tau_s <= 0.0 || v.is_empty() {
         return v.to_vec();
     }
-    let a = 1.0 - (-dt / tau_s).exp();
+    let e = (-dt / tau_s).exp();
     let mut y = v[0];
-    v.iter()
-        .map(|&x| {
-            let out = y;
-            y += a * (x - y);
-            out
-        })
-        .collect()
+    let mut out = Vec::with_capacity(v.len());
+    out.push(y);
+    for w in v.windows(2) {
+        // x(t) = x0 + s·t: y(dt) = x1 − s·τ + (y0 − x0 + s·τ)·e^{−dt/τ}.
+        let s_tau = (w[1] - w[0]) / dt * tau_s;
+        y = w[1] - s_tau + (y - w[0] + s_tau) * e;
+        out.push(y);
+    }
+    out
 }
 
 #[cfg(test)]
@@ -421,12 +426,48 @@ mod tests {
 
     #[test]
     fn lag_step_response_is_exponential() {
-        let v = vec![1.0; 1001];
-        let mut v = v;
+        let (tau, h) = (2.0f64, 0.01);
+        let mut v = vec![1.0; 1001];
         v[0] = 0.0;
-        let y = lag(&v, 2.0, 0.01);
-        // y(t) = 1 − e^{−t/τ}, sampled one step late.
-        let t = 1.0;
-        assert!((y[101] - (1.0 - (-t / 2.0f64).exp())).abs() < 1e-9);
+        let y = lag(&v, tau, h);
+        // The input rises linearly over the first step, then holds: for t ≥ h,
+        // y(t) = 1 − (τ/h)·(e^{h/τ} − 1)·e^{−t/τ}.
+        for k in [1, 101, 1000] {
+            let t = k as f64 * h;
+            let exact = 1.0 - tau / h * ((h / tau).exp() - 1.0) * (-t / tau).exp();
+            assert!((y[k] - exact).abs() < 1e-12, "k {k}: {} vs {exact}", y[k]);
+        }
+    }
+
+    /// The lag of a series and of the same series sampled 30 times less often agree at the
+    /// common samples when the input is linear between the coarse samples (the thermal
+    /// replay's stride); and a ramp is followed τ behind.
+    #[test]
+    fn lag_is_the_same_on_a_coarser_grid_and_follows_a_ramp_tau_behind() {
+        let (tau, h) = (3.0, 0.01);
+        // Piecewise linear with kinks every 0.3 s.
+        let coarse: Vec<f64> = (0..200).map(|j| ((j * 7919) % 13) as f64).collect();
+        let fine: Vec<f64> = (0..(coarse.len() - 1) * 30 + 1)
+            .map(|k| {
+                let (j, f) = (k / 30, (k % 30) as f64 / 30.0);
+                if f == 0.0 {
+                    coarse[j]
+                } else {
+                    coarse[j] + f * (coarse[j + 1] - coarse[j])
+                }
+            })
+            .collect();
+        let (yf, yc) = (lag(&fine, tau, h), lag(&coarse, tau, 30.0 * h));
+        for (j, c) in yc.iter().enumerate() {
+            assert!(
+                (yf[30 * j] - c).abs() < 1e-9,
+                "sample {j}: {} vs {c}",
+                yf[30 * j]
+            );
+        }
+        let ramp: Vec<f64> = (0..3001).map(|k| k as f64 * h).collect();
+        let y = lag(&ramp, tau, h);
+        // y(t) = t − τ·(1 − e^{−t/τ}): τ behind once the start has faded.
+        assert!((ramp[3000] - y[3000] - tau * (1.0 - (-30.0 / tau).exp())).abs() < 1e-9);
     }
 }
