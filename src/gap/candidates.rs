@@ -361,8 +361,9 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
             }
         }
         if let Some(g) = &t.temp_sensor {
+            let inv = g.inverse();
             for x in v.iter_mut() {
-                *x = g.invert(*x);
+                *x = inv.eval(*x);
             }
         }
         v.into()

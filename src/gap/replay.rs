@@ -244,6 +244,9 @@ pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
     let mut out = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
     let s0 = m.thermal_at(0);
     let mut c = [s0.c1, s0.c2];
+    // e^{−λ·dt} of the last λ per clutch: λ changes only when β does (a clutch closing or
+    // opening), so the exponential is taken a few times per engagement, not per sample.
+    let mut decay = [(f64::NAN, 0.0); 2];
     for k in 0..m.n {
         out[0].push(c[0]);
         out[1].push(c[1]);
@@ -284,8 +287,11 @@ pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
                 + a.alpha7_k_per_j * pw[i]
                 + ex;
             c[i] = if lam * m.dt > 1e-9 {
+                if decay[i].0 != lam {
+                    decay[i] = (lam, (-lam * m.dt).exp());
+                }
                 let inf = g / lam;
-                inf + (c[i] - inf) * (-lam * m.dt).exp()
+                inf + (c[i] - inf) * decay[i].1
             } else {
                 c[i] + (g - lam * c[i]) * m.dt
             };

@@ -7,7 +7,7 @@
 //! [`EffectSet`](crate::model::effects::EffectSet) and act through `model::effects`.
 
 use super::class::Variable;
-use super::shape::Shape;
+use super::shape::{Shape, KNOTS};
 use crate::model::clutch;
 use crate::model::effects::{self, EffectSet, TorqueContext};
 use crate::model::params::{ClutchParams, ThermalParams5};
@@ -55,21 +55,64 @@ impl Reading {
         v + self.offset + self.shape.eval(v)
     }
 
-    /// The temperature that `apply` maps to `measured`: Newton on the piecewise-linear map,
-    /// exact once on the right segment (a reading that falls with the temperature is not a
-    /// thermocouple: its slope is held ≥ 0.1).
+    /// The temperature that `apply` maps to `measured` (see [`ReadingInverse`]).
     pub fn invert(&self, measured: f64) -> f64 {
-        let mut v = measured - self.offset - self.shape.eval(measured);
+        self.inverse().eval(measured)
+    }
+
+    /// The inverse map, prepared once for a series of readings.
+    pub fn inverse(&self) -> ReadingInverse {
+        let z = self.shape.z;
+        let y = z.map(|v| self.apply(v));
+        let slope: [f64; KNOTS - 1] =
+            std::array::from_fn(|i| (y[i + 1] - y[i]) / (z[i + 1] - z[i]).max(1e-300));
+        ReadingInverse {
+            reading: *self,
+            y,
+            slope,
+            monotone: slope.iter().all(|s| *s >= 0.1),
+        }
+    }
+}
+
+/// The inverse of a thermocouple reading `apply` (piecewise linear, so its inverse is too):
+/// exact on the segment whose image holds the reading; a reading that falls with the
+/// temperature (a segment slope below 0.1) is not a thermocouple and is inverted by Newton with
+/// the slope held ≥ 0.1.
+#[derive(Debug, Clone, Copy)]
+pub struct ReadingInverse {
+    reading: Reading,
+    /// Images of the knots.
+    y: [f64; KNOTS],
+    /// Slope of the map on each segment (the end ones extrapolated).
+    slope: [f64; KNOTS - 1],
+    monotone: bool,
+}
+
+impl ReadingInverse {
+    #[inline]
+    pub fn eval(&self, measured: f64) -> f64 {
+        if self.monotone {
+            let mut seg = 0;
+            while seg < KNOTS - 2 && measured > self.y[seg + 1] {
+                seg += 1;
+            }
+            return self.reading.shape.z[seg] + (measured - self.y[seg]) / self.slope[seg];
+        }
+        let (r, s) = (&self.reading, &self.reading.shape);
+        let mut v = measured - r.offset - s.eval(measured);
         for _ in 0..6 {
-            let r = self.apply(v) - measured;
-            if r.abs() < 1e-9 {
+            let e = r.apply(v) - measured;
+            if e.abs() < 1e-9 {
                 break;
             }
-            v -= r / (1.0 + self.shape.slope(v)).max(0.1);
+            v -= e / (1.0 + s.slope(v)).max(0.1);
         }
         v
     }
+}
 
+impl Reading {
     /// Largest |reading error| over `[lo, hi]` (at the ends and the knots inside).
     pub fn largest_error(&self, lo: f64, hi: f64) -> f64 {
         self.shape
@@ -378,7 +421,7 @@ mod tests {
             },
         };
         for v in [0.0, 25.0, 100.0, 119.0, 121.0, 200.0, 280.0] {
-            assert!((bent.invert(bent.apply(v)) - v).abs() < 1e-6, "{v}");
+            assert!((bent.invert(bent.apply(v)) - v).abs() < 1e-9, "{v}");
         }
         // The largest |error| over 20…150 °C equals the maximum over a fine grid (piecewise
         // linear: it sits at an end or a knot).
