@@ -378,6 +378,8 @@ class Run:
     plant_start_wall: float
     plant_report: dict | None = None
     lockstep: bool = False
+    # Time from the TCU's SIGTERM to its exit, measured by the harness (ms).
+    tcu_stop_ms: float | None = None
 
 
 def wait_ready(proc, ready: Path, what: str, timeout: float = 60.0) -> None:
@@ -481,8 +483,9 @@ def run_bench(
     records = ddct_can.read_candump(log)
     if bench is None:
         return Run(log, records, None, "", "", n, plant_start, None, lockstep)
+    stop_s = bench.tcu.stop_s
     return Run(log, records, bench.tcu_report, bench.plant.stderr(), bench.tcu.stderr(), n, plant_start,
-               bench.plant_report, lockstep)
+               bench.plant_report, lockstep, None if stop_s is None else stop_s * 1e3)
 
 
 def fmt(v, p=2):

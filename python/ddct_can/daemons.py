@@ -54,6 +54,7 @@ class Daemon:
             self.proc = subprocess.Popen(cmd + ["--ready-file", str(self.ready)], stdout=out, stderr=err,
                                          stdin=subprocess.DEVNULL, cwd=cwd)
         self.returncode: Optional[int] = None
+        self.stop_s: Optional[float] = None
 
     def stderr(self) -> str:
         try:
@@ -83,11 +84,14 @@ class Daemon:
             time.sleep(0.01)
 
     def stop(self, timeout: float) -> Optional[str]:
-        """SIGTERM, wait; a problem as text (killed, nonzero status, no report) or None."""
+        """SIGTERM, wait; a problem as text (killed, nonzero status, no report) or None. The time
+        from SIGTERM to the exit is kept in ``stop_s`` (None when it had already exited)."""
         if self.proc.poll() is None:
+            t0 = time.monotonic()
             self.proc.send_signal(signal.SIGTERM)
             try:
                 self.proc.wait(timeout=timeout)
+                self.stop_s = time.monotonic() - t0
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
@@ -144,6 +148,7 @@ class Bench:
         self.prefix = prefix
         self.tcu: Optional[Daemon] = None
         self.plant: Optional[Daemon] = None
+        self.restarts = 0
         self.tcu_report: Optional[dict] = None
         self.plant_report: Optional[dict] = None
         self._tmp: Optional[tempfile.TemporaryDirectory] = None
@@ -170,6 +175,31 @@ class Bench:
             self._stop_all()
             raise
         return self
+
+    def _daemon(self, which: str) -> Daemon:
+        d = {"tcu": self.tcu, "plant": self.plant}.get(which)
+        if d is None:
+            raise BenchError(f"no running bench daemon {which!r} (\"tcu\" or \"plant\"; start() the bench first)")
+        return d
+
+    def kill(self, which: str) -> None:
+        """SIGKILL the ``"tcu"`` or the ``"plant"`` (a crash: no exit report)."""
+        d = self._daemon(which)
+        if d.proc.poll() is None:
+            d.proc.kill()
+            d.proc.wait()
+
+    def restart(self, which: str) -> None:
+        """Start the ``"tcu"`` or the ``"plant"`` again with the same command once it has exited
+        (after ``kill()``), and wait until it listens. The new process's report, stderr and ready
+        file are named ``PREFIXrestartN_tcu.json`` and so on."""
+        d = self._daemon(which)
+        if d.proc.poll() is None:
+            raise BenchError(f"the {which} is still running: kill() it first")
+        self.restarts += 1
+        new = Daemon(which, d.cmd, self.workdir, self.cwd, f"{self.prefix}restart{self.restarts}_")
+        setattr(self, which, new)
+        new.wait_ready(self.ready_timeout)
 
     def wait_plant(self, timeout: float) -> int:
         """Wait for a plant run with ``--duration`` to exit by itself; its exit status."""

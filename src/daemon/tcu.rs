@@ -125,6 +125,11 @@ pub struct TcuReport {
     pub compute_p50_us: Option<f64>,
     pub compute_p99_us: Option<f64>,
     pub compute_max_us: Option<f64>,
+    /// Time between the ends of consecutive computations' sends, i.e. the period of the TCU's
+    /// frames on the bus as the daemon sent them (µs; nominal one cycle). A flood or a stall
+    /// that makes the TCU miss cycles shows here.
+    pub send_gap_p99_us: Option<f64>,
+    pub send_gap_max_us: Option<f64>,
     pub frames_sent: u64,
     pub send_errors: u64,
     pub frames_received: u64,
@@ -145,7 +150,7 @@ impl TcuReport {
             "tcu on {} ({:?} clock): stopped by {} after {:.3} s (core time {:.3} s)\n\
              computations {} (sync {} fallback {}, coalesced syncs {}) overruns {} deadline_misses {} timer lateness p99 {} us max {} us\n\
              stalls {} (total {:.3} s, longest {:.3} s)\n\
-             compute p50 {} us p99 {} us max {} us\n\
+             compute p50 {} us p99 {} us max {} us; frames every p99 {} us max {} us\n\
              frames sent {} (errors {}) received {} (errors {}); safe-state entries {}; final {:?} / {:?}\n",
             self.iface,
             self.clock,
@@ -166,6 +171,8 @@ impl TcuReport {
             f(self.compute_p50_us),
             f(self.compute_p99_us),
             f(self.compute_max_us),
+            f(self.send_gap_p99_us),
+            f(self.send_gap_max_us),
             self.frames_sent,
             self.send_errors,
             self.frames_received,
@@ -195,6 +202,9 @@ struct Shell<B: Bus> {
     fallback: u64,
     overruns: u64,
     compute_us: Vec<u32>,
+    /// Gaps between the ends of consecutive computations' sends (µs).
+    send_gap_us: Vec<u32>,
+    last_sent: Option<Instant>,
     last_sync: Option<Instant>,
     /// Time of the last frame received.
     last_at: Duration,
@@ -342,6 +352,13 @@ impl<B: Bus> Shell<B> {
             self.send(f).await?;
             slowest_send = slowest_send.max(ts.elapsed());
         }
+        let sent = Instant::now();
+        if let Some(prev) = self.last_sent.replace(sent) {
+            if self.send_gap_us.len() < 1 << 20 {
+                let gap = sent.saturating_duration_since(prev).as_micros();
+                self.send_gap_us.push(gap.min(u128::from(u32::MAX)) as u32);
+            }
+        }
         let took = t0.elapsed();
         if took > 5 * CYCLE {
             tracing::warn!(
@@ -423,6 +440,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         fallback: 0,
         overruns: 0,
         compute_us: Vec::new(),
+        send_gap_us: Vec::new(),
+        last_sent: None,
         last_sync: None,
         last_at: Duration::ZERO,
         deadline: Duration::ZERO,
@@ -499,6 +518,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         compute_p50_us: percentile(&shell.compute_us, 0.5),
         compute_p99_us: percentile(&shell.compute_us, 0.99),
         compute_max_us: percentile(&shell.compute_us, 1.0),
+        send_gap_p99_us: percentile(&shell.send_gap_us, 0.99),
+        send_gap_max_us: percentile(&shell.send_gap_us, 1.0),
         frames_sent: shell.link.sent,
         send_errors: shell.link.send_errors,
         frames_received: shell.link.received,
