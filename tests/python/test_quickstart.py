@@ -53,3 +53,15 @@ def test_readme_quick_start_from_a_fresh_clone(tmp_path):
     ddct = lib.REPO / "target" / "release" / "ddct"
     r = sh(f"{ddct} sim --scenario {clone}/config/scenarios/launch_50.toml", elsewhere, env, timeout=120)
     assert r.returncode == 0 and "PASS" in r.stdout, r.stdout[-3000:]
+    # `cargo install --path .` as the README says (into a temporary root, reusing this checkout's
+    # build), then `ddct` from PATH in another directory.
+    assert "`cargo install --path .` puts it on the `PATH`" in readme.replace("\n", " ")
+    root = tmp_path / "cargo-root"
+    r = sh(f"cargo install --locked --path . --root {root}", lib.REPO, env, timeout=900)
+    assert r.returncode == 0, r.stdout[-3000:]
+    path_env = {**env, "PATH": f"{root / 'bin'}:{env['PATH']}"}
+    r = sh(f"command -v ddct && ddct --version && ddct sim --scenario {clone}/config/scenarios/launch_50.toml",
+           elsewhere, path_env, timeout=120)
+    assert r.returncode == 0, r.stdout[-3000:]
+    assert r.stdout.splitlines()[0] == str(root / "bin" / "ddct"), r.stdout[:500]
+    assert "PASS" in r.stdout, r.stdout[-3000:]
