@@ -698,9 +698,76 @@ fn contenders(r: &Round, c: ClassId) -> Vec<ClassId> {
     std::iter::once(c).chain(runners).collect()
 }
 
+/// The selected classes but `c` refitted jointly with the recalibration of every selected
+/// class's subsystem, from `base` (the backward check's model without `c`).
+fn refit_without(
+    s: &Setup,
+    base: &Model,
+    current: &Model,
+    chosen: &[ClassId],
+    c: ClassId,
+) -> Model {
+    let others: Vec<ClassId> = chosen.iter().copied().filter(|k| *k != c).collect();
+    let mut b = *current;
+    for k in chosen {
+        classfit::remove(*k, &mut b, base);
+    }
+    let mut groups: Vec<Subsystem> = chosen.iter().map(|k| classfit::group(*k)).collect();
+    groups.sort();
+    groups.dedup();
+    let recal: Vec<&'static str> = groups.iter().flat_map(|g| recal_keys(*g)).collect();
+    let mut chans: Vec<Channel> = chosen
+        .iter()
+        .flat_map(|k| classfit::channels(*k))
+        .filter(|ch| s.chans.contains(ch))
+        .collect();
+    chans.sort();
+    chans.dedup();
+    let job = Job {
+        classes: others,
+        form: classfit::Form::Flexible,
+        recal,
+        chans,
+        wide: false,
+        cached_disk: false,
+        max_iter: 25,
+    };
+    fit_model(&b, s, &job)
+}
+
+/// [`refit_without`] for every selected class at once, on the available cores.
+fn refits_without(s: &Setup, base: &Model, current: &Model, chosen: &[ClassId]) -> Vec<Model> {
+    let threads = s.threads.clamp(1, chosen.len().max(1));
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut out: Vec<(usize, Model)> = std::thread::scope(|sc| {
+        let handles: Vec<_> = (0..threads)
+            .map(|_| {
+                let next = &next;
+                sc.spawn(move || {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(c) = chosen.get(i) else { break };
+                        mine.push((i, refit_without(s, base, current, chosen, *c)));
+                    }
+                    mine
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .collect()
+    });
+    out.sort_by_key(|(i, _)| *i);
+    out.into_iter().map(|(_, m)| m).collect()
+}
+
 /// Backward check: each selected class is removed in turn and the others refitted jointly with
 /// the recalibration; the class is dropped when the (c) and (b) criteria of the forward step no
-/// longer hold for it (a class that only explained what a later class explains better).
+/// longer hold for it (a class that only explained what a later class explains better). The
+/// refits of the selection as it stands are computed together on the available cores; once a
+/// class is dropped, the later ones are refitted on what is left.
 fn backward(s: &Setup, base: &Model, sel: &mut Selection, seed: u64) {
     let Selection {
         model: current,
@@ -708,36 +775,20 @@ fn backward(s: &Setup, base: &Model, sel: &mut Selection, seed: u64) {
         rounds,
         chosen,
     } = sel;
-    for c in chosen.clone() {
+    if chosen.len() < 2 {
+        return;
+    }
+    let first_pass = refits_without(s, base, current, chosen);
+    let mut dropped_any = false;
+    for (i, c) in chosen.clone().into_iter().enumerate() {
         if chosen.len() < 2 {
             return;
         }
-        let others: Vec<ClassId> = chosen.iter().copied().filter(|k| *k != c).collect();
-        let mut b = *current;
-        for k in chosen.iter() {
-            classfit::remove(*k, &mut b, base);
-        }
-        let mut groups: Vec<Subsystem> = chosen.iter().map(|k| classfit::group(*k)).collect();
-        groups.sort();
-        groups.dedup();
-        let recal: Vec<&'static str> = groups.iter().flat_map(|g| recal_keys(*g)).collect();
-        let mut chans: Vec<Channel> = chosen
-            .iter()
-            .flat_map(|k| classfit::channels(*k))
-            .filter(|ch| s.chans.contains(ch))
-            .collect();
-        chans.sort();
-        chans.dedup();
-        let job = Job {
-            classes: others,
-            form: classfit::Form::Flexible,
-            recal,
-            chans,
-            wide: false,
-            cached_disk: false,
-            max_iter: 25,
+        let minus = if dropped_any {
+            refit_without(s, base, current, chosen, c)
+        } else {
+            first_pass[i]
         };
-        let minus = fit_model(&b, s, &job);
         let mut aff: Vec<Channel> = chosen
             .iter()
             .flat_map(|k| affected(*k))
@@ -773,6 +824,7 @@ fn backward(s: &Setup, base: &Model, sel: &mut Selection, seed: u64) {
             ci.1
         );
         if ci.0 <= 0.0 || gain < need {
+            dropped_any = true;
             *current = minus;
             *cur_val = v_minus;
             chosen.retain(|k| *k != c);
