@@ -97,6 +97,28 @@ pub enum LogCmd {
         #[arg(long = "loop", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
         passes: u32,
     },
+    /// Plot chosen signals of a candump log over time (an SVG; speeds and other numbers share a
+    /// panel per unit, states and gears as labelled lanes, fault codes marked, dropouts left
+    /// open), optionally overlaid (dashed) on the lockstep simulation of the scenario the run
+    /// played. Time counts from the plant's first DCT_Sensors frame in both.
+    Plot {
+        /// The log: candump `-l`/`-L` lines or candump's screen output.
+        file: PathBuf,
+        /// Signals to draw, `Signal` or `Message.Signal`; repeatable (default: engine and input
+        /// shaft speeds, clutch 1 torque and its reference, clutch 1 position and its request,
+        /// TCU state and gear).
+        #[arg(long = "signal", short = 's')]
+        signals: Vec<String>,
+        /// Overlay the lockstep simulation of this scenario (e.g. the one `ddct bench` ran).
+        #[arg(long)]
+        sim: Option<PathBuf>,
+        /// TCU calibration of the simulation (default: the built-in one).
+        #[arg(long, requires = "sim")]
+        config: Option<PathBuf>,
+        /// The SVG file to write (default: the log's name with `.svg`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -118,6 +140,13 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             quiet,
         } => decode(&file, format, &messages, quiet),
         LogCmd::Stats { file, json } => stats(&file, json),
+        LogCmd::Plot {
+            file,
+            signals,
+            sim,
+            config,
+            out,
+        } => plot(&file, &signals, sim.as_deref(), config.as_deref(), out),
         LogCmd::Monitor {
             iface,
             input,
@@ -238,6 +267,59 @@ fn decode(
         eprintln!("{}: {bad_lines} malformed line(s)", file.display());
         return Ok(ExitCode::from(2));
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn plot(
+    file: &PathBuf,
+    signals: &[String],
+    sim: Option<&std::path::Path>,
+    config: Option<&std::path::Path>,
+    out: Option<PathBuf>,
+) -> anyhow::Result<ExitCode> {
+    use ddct::sim::logplot::{self, SignalRef};
+    let names: Vec<&str> = if signals.is_empty() {
+        logplot::DEFAULT_SIGNALS.to_vec()
+    } else {
+        signals.iter().map(String::as_str).collect()
+    };
+    let wanted = names
+        .iter()
+        .map(|n| SignalRef::parse(n).with_context(|| format!("--signal {n}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut records = Vec::new();
+    for item in LogReader::any_format(open_input(file)?, Box::new(wall_clock)) {
+        match item {
+            Ok(r) => records.push(r),
+            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
+            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+        }
+    }
+    if records.is_empty() {
+        bail!("{}: no frame in the log", file.display());
+    }
+    let bus = logplot::traces(records.iter().map(|r| (r.timestamp, &r.frame)), &wanted);
+    let (sim_traces, title) = match sim {
+        Some(path) => {
+            let cfg = super::args::tcu_config(config)?;
+            let sc = ddct::sim::SimScenario::load(path)?;
+            let run = ddct::sim::run_scenario(&sc, &cfg, &ddct::sim::SimOptions::default());
+            let t = logplot::traces(run.frames.iter().map(|(t, f)| (*t, f)), &wanted);
+            (
+                Some(t),
+                format!(
+                    "{} (solid) and the lockstep simulation of {} (dashed)",
+                    file.display(),
+                    sc.name
+                ),
+            )
+        }
+        None => (None, file.display().to_string()),
+    };
+    let out = out.unwrap_or_else(|| file.with_extension("svg"));
+    let svg = logplot::figure(&title, &bus, sim_traces.as_ref());
+    std::fs::write(&out, &svg).with_context(|| format!("writing {}", out.display()))?;
+    println!("wrote {} ({} kB)", out.display(), svg.len().div_ceil(1000));
     Ok(ExitCode::SUCCESS)
 }
 

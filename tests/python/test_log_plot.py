@@ -1,0 +1,60 @@
+"""`ddct log plot`: a bench run's log (in-process bus) drawn with the lockstep simulation of its
+scenario overlaid. Checked as a user would look at it: a well-formed SVG under 200 kB, a legend
+entry per chosen signal for the bus and the simulation, the TCU states and gears as named lanes,
+the fault code marked; bad signal names refused naming the signal. The values themselves are
+checked against encoded frames in the unit tests (src/sim/logplot.rs)."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import ddct_testlib as lib
+
+SCENARIO = lib.REPO / "config" / "scenarios" / "launch_shift_20s.toml"
+
+
+def texts(svg) -> set[str]:
+    return {"".join(e.itertext()).strip() for e in ET.parse(svg).getroot().iter() if e.tag.endswith("text")}
+
+
+def test_log_plot_overlays_the_simulation(ddct, tmp_path):
+    out = tmp_path / "bench"
+    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", SCENARIO, "--out", out],
+                check=False, timeout=300)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    svg = tmp_path / "overlay.svg"
+    signals = ["EngSpeed", "DCT_Sensors.InShaft1Speed", "TCU_Status.TcuState", "GearActive"]
+    args = [ddct, "log", "plot", out / "bench.log", "--sim", SCENARIO, "--out", svg]
+    for s in signals:
+        args += ["-s", s]
+    r = lib.run(args, check=False)
+    assert r.returncode == 0, r.stderr
+    assert f"wrote {svg}" in r.stdout
+    size = svg.stat().st_size
+    assert 5_000 < size < 200_000, size
+    t = texts(svg)
+    for name in ("ENG_Status.EngSpeed", "DCT_Sensors.InShaft1Speed", "TCU_Status.TcuState", "TCU_Status.GearActive"):
+        assert f"{name} (bus)" in t and f"{name} (sim)" in t, (name, sorted(t)[:40])
+    # Lanes named by the DBC's value tables; the run ends with the plant's stop (a timeout).
+    assert {"Init", "Launch", "Drive", "Upshift", "N", "G1", "G3"} <= t, sorted(t)
+    assert "EngStatusTimeout" in t
+    assert "Signals in rpm" in t
+
+
+def test_log_plot_defaults_and_refusals(ddct, tmp_path):
+    out = tmp_path / "bench"
+    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", lib.REPO / "config" / "scenarios" /
+                 "launch_50.toml", "--out", out], check=False, timeout=300)
+    assert r.returncode in (0, 1), r.stderr[-2000:]
+    r = lib.run([ddct, "log", "plot", out / "bench.log"], check=False)
+    assert r.returncode == 0, r.stderr
+    t = texts(out / "bench.svg")
+    assert {"Signals in rpm", "Signals in Nm", "Signals in mm", "TCU_Status.TcuState"} <= t, sorted(t)
+    r = lib.run([ddct, "log", "plot", out / "bench.log", "-s", "Crc"], check=False)
+    assert r.returncode != 0 and "--signal Crc" in r.stderr and "several messages" in r.stderr, r.stderr
+    r = lib.run([ddct, "log", "plot", out / "bench.log", "-s", "ENG_Status.Nope"], check=False)
+    assert r.returncode != 0 and "unknown signal `ENG_Status.Nope`" in r.stderr, r.stderr
+    empty = tmp_path / "empty.log"
+    empty.write_text("")
+    r = lib.run([ddct, "log", "plot", empty], check=False)
+    assert r.returncode != 0 and "no frame in the log" in r.stderr, r.stderr
