@@ -539,6 +539,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         print!("{}", verdict::table(&runs));
     }
     eprintln!("bench: summary in {}", a.out.join("summary.json").display());
+    let report = a.out.join("report.html");
+    std::fs::write(&report, html_report(&summary)?)
+        .with_context(|| format!("writing {}", report.display()))?;
+    eprintln!("bench: report in {}", report.display());
     if let Some(path) = &a.junit {
         std::fs::write(path, verdict::junit("ddct bench", &runs))
             .with_context(|| format!("writing {}", path.display()))?;
@@ -553,6 +557,94 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
 
 fn f1(v: Option<f64>) -> String {
     v.map_or("-".into(), |x| format!("{x:.2}"))
+}
+
+/// The run as a self-contained HTML page: verdict, launches, shifts, timing, the figures.
+fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
+    use ddct::sim::html::{self, Table};
+    let strs = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    let mut launches = Table {
+        caption: "Launches (|Terr|300: peak torque error in the first 300 ms, N·m; a_pk600: peak \
+                  acceleration in the first 600 ms, m/s²)"
+            .into(),
+        head: strs(&[
+            "run",
+            "pedal %",
+            "lock-up s",
+            "flare rpm",
+            "spike m/s²",
+            "stall",
+            "|Terr|300",
+            "a_pk600",
+        ]),
+        rows: Vec::new(),
+    };
+    let mut shifts = Table {
+        caption: "Shifts".into(),
+        head: strs(&["run", "shift", "duration s", "min accel m/s²", "completed"]),
+        rows: Vec::new(),
+    };
+    for (name, m) in [("bus", Some(&s.bus)), ("sim", s.sim.as_ref())] {
+        let Some(m) = m else { continue };
+        for l in &m.launches {
+            launches.rows.push(vec![
+                name.into(),
+                format!("{:.0}", l.pedal_pct),
+                f1(l.lockup_s),
+                format!("{:.0}", l.flare_rpm),
+                f1(l.lockup_spike_mps2),
+                l.stall.to_string(),
+                format!("{:.1}", l.peak_torque_error_300ms_nm),
+                format!("{:.2}", l.peak_accel_600ms_mps2),
+            ]);
+        }
+        for x in &m.shifts {
+            shifts.rows.push(vec![
+                name.into(),
+                format!("{}→{}", x.from, x.to),
+                format!("{:.2}", x.duration_s),
+                format!("{:.2}", x.min_accel_mps2),
+                x.completed.to_string(),
+            ]);
+        }
+    }
+    let t = &s.timing;
+    let mut timing = Table {
+        caption: "Timing (recorder receive timestamps, µs)".into(),
+        head: strs(&["what", "n", "p50", "p99", "max"]),
+        rows: Vec::new(),
+    };
+    let mut line = |name: &str, x: &Spread| {
+        timing.rows.push(vec![
+            name.into(),
+            x.n.to_string(),
+            format!("{:.0}", x.p50_us),
+            format!("{:.0}", x.p99_us),
+            format!("{:.0}", x.max_us),
+        ])
+    };
+    line("DCT_Sensors → TCU_ClutchCmd (TCU daemon)", &t.tcu_latency);
+    if let Some(e) = &t.echo_latency {
+        line("bare frame echo, same bus", e);
+    }
+    line("TCU_ClutchCmd |interval − 10 ms|", &t.clutch_cmd_jitter);
+    line("DCT_Sensors |interval − 10 ms|", &t.sensors_jitter);
+    let mut figures = Vec::new();
+    for p in &s.plots {
+        let svg = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+        figures.push((
+            p.file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into()),
+            svg,
+        ));
+    }
+    Ok(html::report(
+        &format!("ddct bench: {} on {}", s.scenario, s.iface),
+        &s.description,
+        verdict::passed(&s.verdict),
+        &[html::verdict_table(&s.verdict), launches, shifts, timing],
+        &figures,
+    ))
 }
 
 fn print_summary(s: &BenchSummary) {

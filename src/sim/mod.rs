@@ -13,6 +13,7 @@
 //! Frame faults for safety tests ([`Injection`]) act between the plant and the TCU.
 
 pub mod buslog;
+pub mod html;
 pub mod logplot;
 pub mod metrics;
 pub mod plots;
