@@ -648,7 +648,9 @@ fn parse_truth(s: &str) -> anyhow::Result<PlantTruth> {
 fn run_experiment(a: ExperimentArgs) -> anyhow::Result<ExitCode> {
     let truth = parse_truth(&a.truth)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let pb = super::spinner("simulating the rig records");
     let recs = experiment::experiment_records(&truth, a.seed, &Params::default());
+    pb.finish_and_clear();
     for (name, records) in recs {
         let path = a.out.join(format!("{name}.log"));
         let file =

@@ -303,7 +303,9 @@ fn plot(
         Some(path) => {
             let cfg = super::args::tcu_config(config)?;
             let sc = ddct::sim::SimScenario::load(path)?;
+            let pb = super::spinner(format!("simulating {} ({} s)", sc.name, sc.duration_s));
             let run = ddct::sim::run_scenario(&sc, &cfg, &ddct::sim::SimOptions::default());
+            pb.finish_and_clear();
             let t = logplot::traces(run.frames.iter().map(|(t, f)| (*t, f)), &wanted);
             (
                 Some(t),

@@ -292,7 +292,10 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
                 log: a.log.clone(),
                 lockstep,
             };
-            anyhow::Ok(run_plant(ep, shutdown_signal(), c).await?)
+            let pb = super::spinner("the plant on the in-process bus");
+            let r = run_plant(ep, shutdown_signal(), c).await;
+            pb.finish_and_clear();
+            anyhow::Ok(r?)
         } else {
             let bus = open_can(&iface.to_string())?;
             let c = PlantDaemonConfig {

@@ -59,7 +59,9 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
     for path in &args.scenario {
         let sc = SimScenario::load(path)?;
         let t0 = Instant::now();
+        let pb = super::spinner(format!("{}: {} s simulated", sc.name, sc.duration_s));
         let run = sim::run_scenario(&sc, &cfg, &SimOptions::default());
+        pb.finish_and_clear();
         let wall = t0.elapsed().as_secs_f64();
         let m = metrics::compute(&run.rows, &cfg);
         let (mut plot, mut csv) = (None, None);
