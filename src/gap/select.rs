@@ -477,32 +477,8 @@ fn round(
 ) -> Vec<Candidate> {
     let aff_all: Vec<Channel> = s.chans.to_vec();
     let base_train = train_sse(base, s.train, &aff_all, false);
-    let threads = s.threads.clamp(1, classes.len().max(1));
-    // A shared queue, not a fixed share per thread: a thermal class's fit replays the
-    // temperatures and costs several torque classes'.
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<(usize, Candidate)> = std::thread::scope(|sc| {
-        let handles: Vec<_> = (0..threads)
-            .map(|_| {
-                let (base_train, next) = (&base_train, &next);
-                sc.spawn(move || {
-                    let mut mine = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(c) = classes.get(i) else { break };
-                        let seed = seed ^ (i as u64 + 1);
-                        if let Some(k) = candidate(s, base, base_val, base_train, *c, seed) {
-                            mine.push((i, k));
-                        }
-                    }
-                    mine
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap_or_default())
-            .collect()
+    let mut out = on_cores(s.threads, classes, |i, c| {
+        candidate(s, base, base_val, &base_train, *c, seed ^ (i as u64 + 1))
     });
     // Best gain first; equal gains in the order of `classes`, whichever thread fitted them.
     out.sort_by(|a, b| b.1.gain.total_cmp(&a.1.gain).then(a.0.cmp(&b.0)));
@@ -737,18 +713,35 @@ fn refit_without(
 
 /// [`refit_without`] for every selected class at once, on the available cores.
 fn refits_without(s: &Setup, base: &Model, current: &Model, chosen: &[ClassId]) -> Vec<Model> {
-    let threads = s.threads.clamp(1, chosen.len().max(1));
+    let mut out = on_cores(s.threads, chosen, |_, c| {
+        Some(refit_without(s, base, current, chosen, *c))
+    });
+    out.sort_by_key(|(i, _)| *i);
+    out.into_iter().map(|(_, m)| m).collect()
+}
+
+/// `f(i, item)` for every item on up to `threads` threads, with its index, in no particular
+/// order (`None` results dropped). A shared queue, not a fixed share per thread: a thermal
+/// class's fit replays the temperatures and costs several torque classes'.
+fn on_cores<T: Sync, R: Send>(
+    threads: usize,
+    items: &[T],
+    f: impl Fn(usize, &T) -> Option<R> + Sync,
+) -> Vec<(usize, R)> {
+    let threads = threads.clamp(1, items.len().max(1));
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<(usize, Model)> = std::thread::scope(|sc| {
+    std::thread::scope(|sc| {
         let handles: Vec<_> = (0..threads)
             .map(|_| {
-                let next = &next;
+                let (next, f) = (&next, &f);
                 sc.spawn(move || {
                     let mut mine = Vec::new();
                     loop {
                         let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(c) = chosen.get(i) else { break };
-                        mine.push((i, refit_without(s, base, current, chosen, *c)));
+                        let Some(item) = items.get(i) else { break };
+                        if let Some(r) = f(i, item) {
+                            mine.push((i, r));
+                        }
                     }
                     mine
                 })
@@ -758,9 +751,7 @@ fn refits_without(s: &Setup, base: &Model, current: &Model, chosen: &[ClassId]) 
             .into_iter()
             .flat_map(|h| h.join().unwrap_or_default())
             .collect()
-    });
-    out.sort_by_key(|(i, _)| *i);
-    out.into_iter().map(|(_, m)| m).collect()
+    })
 }
 
 /// Backward check: each selected class is removed in turn and the others refitted jointly with
