@@ -114,6 +114,32 @@ def play_driver(bus, program: str, pedal: float, seconds: float) -> int:
 # ---------------------------------------------------------------------------------------------
 # Analysis of a recorded log
 
+TCU_MESSAGES = ("TCU_ClutchCmd", "TCU_EngineReq", "TCU_GearCmd", "TCU_Status", "TCU_Estimates")
+
+
+def bad_tcu_frames(records) -> list:
+    """(t, message, what) for every TCU frame with a wrong E2E CRC or a signal outside its DBC
+    range. A NaN or infinity inside the TCU cannot be encoded on the bus: it would show here as
+    an out-of-range value (or as a missing frame, which the callers count)."""
+    bad = []
+    for name in TCU_MESSAGES:
+        msg = ddct_can.message(name)
+        protected = ddct_can.e2e.has_e2e_signals(msg)
+        for t, _, fid, _, data in records:
+            if fid != msg.frame_id:
+                continue
+            data = bytes(data)
+            if protected and ddct_can.e2e.e2e_crc(fid, data) != data[-1]:
+                bad.append((t, name, "CRC"))
+                continue
+            values = msg.decode(data, decode_choices=False)
+            for s in msg.signals:
+                v = values[s.name]
+                if not math.isfinite(v) or (s.minimum is not None and v < s.minimum - 1e-9) or \
+                        (s.maximum is not None and v > s.maximum + 1e-9):
+                    bad.append((t, name, f"{s.name}={v}"))
+    return bad
+
 
 @dataclass
 class Series:

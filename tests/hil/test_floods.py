@@ -1,6 +1,6 @@
 """Floods and stops against the daemons on their own clocks over vcan0 (issue 12): the TCU keeps its
 10 ms cycle, a flood on an input it needs ends in the safe state with that input's code and not
-in silence, it recovers when the flood ends, puts no NaN on the bus and stops on SIGTERM.
+in silence, it recovers when the flood ends, sends only valid, in-range frames and stops on SIGTERM.
 
 Each run: a launch at 40 % pedal in real time (scripts/launch.py), and from FLOOD_FROM_S for
 FLOOD_S seconds cangen on the same bus at 2 500 frames/s:
@@ -17,13 +17,13 @@ detection within 80 ms of the flood's first frame (the exact 3-cycle contract is
 time, in-process and by test_hil.py), exit within 100 ms of SIGTERM, and — when the host never
 stalled the TCU (its report counts every timer wake-up late beyond tolerance) — its frames at
 most 30 ms apart. What must hold under any load is asserted always: the safe state with the
-right code during a flood on a needed input, recovery after it, no NaN, exit status 0 with a
+right code during a flood on a needed input, recovery after it, every TCU frame with a valid CRC
+and inside the DBC's ranges (a NaN cannot be encoded: it would show there), exit status 0 with a
 report.
 """
 
 from __future__ import annotations
 
-import math
 import subprocess
 import threading
 import time
@@ -152,19 +152,6 @@ def status_rows(records):
             if fid == status and e2e.e2e_crc(fid, bytes(d)) == d[-1]]
 
 
-def nan_signals(records) -> list:
-    """TCU frames with a non-finite decoded signal."""
-    bad = []
-    for name in ("TCU_ClutchCmd", "TCU_EngineReq", "TCU_Status", "TCU_Estimates"):
-        fid = hil.frame_id(name)
-        msg = hil.ddct_can.message(fid)
-        for t, _, f, _, d in records:
-            if f == fid:
-                v = msg.decode(bytes(d), decode_choices=False)
-                bad += [(name, k, t) for k, x in v.items() if isinstance(x, float) and not math.isfinite(x)]
-    return bad
-
-
 @pytest.mark.parametrize("kind,message,code,others", CASES, ids=[f"{k}-{m or 'random'}" for k, m, _, _ in CASES])
 def test_a_flood_keeps_the_cycle_and_ends_in_the_safe_state(ddct, out_dir, kind, message, code, others):
     codes = {code} | others if code else set()
@@ -206,7 +193,10 @@ def test_a_flood_keeps_the_cycle_and_ends_in_the_safe_state(ddct, out_dir, kind,
     # Under any load.
     assert r["stopped_by"] == "shutdown" and r["computations"] > 0, r
     assert rate >= MIN_RATE_HZ, f"the flood reached {rate:.0f}/s only"
-    assert nan_signals(run.records) == [], nan_signals(run.records)[:5]
+    # Every TCU frame with a valid CRC and inside the DBC's ranges (the random-id flood sends on
+    # the TCU's ids too: its window is left out).
+    records = run.records if kind != "all_ids" else [r for r in run.records if not t_first <= r[0] <= t_last + 0.05]
+    assert hil.bad_tcu_frames(records) == [], hil.bad_tcu_frames(records)[:5]
     if codes:
         assert code in {c for _, c, _ in during}, f"no {code} during the flood: {sorted({c for _, c, _ in during})}"
         assert flagged, f"no safe state with {codes} during the flood: {sorted({c for _, c, _ in during})}"

@@ -20,7 +20,6 @@ again, exit within 100 ms of SIGTERM.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import signal
 import subprocess
@@ -74,17 +73,6 @@ def frames_of(records, name):
     return [t for t, _, f, _, _ in records if f == fid]
 
 
-def no_nan(records):
-    bad = []
-    for name in ("TCU_ClutchCmd", "TCU_EngineReq", "TCU_Status", "TCU_Estimates"):
-        msg = hil.ddct_can.message(name)
-        for t, _, f, _, d in records:
-            if f == msg.frame_id:
-                v = msg.decode(bytes(d), decode_choices=False)
-                bad += [(name, k, t) for k, x in v.items() if isinstance(x, float) and not math.isfinite(x)]
-    return bad
-
-
 def normal(state, fault):
     return state not in ("SafeState", "Init") and fault == "None"
 
@@ -107,7 +95,7 @@ def drive(ddct, out_dir, name, disturb):
     print(f"\n== {name}: {len(records)} frames; TCU SIGTERM to exit {tcu_stop_ms} ms")
     for t, st, fc in transitions(statuses(records)):
         print(f"  {t:.3f}  {st:<10} {fc}")
-    assert no_nan(records) == [], no_nan(records)[:5]
+    assert hil.bad_tcu_frames(records) == [], hil.bad_tcu_frames(records)[:5]
     assert bench.tcu_report is not None and bench.tcu_report["stopped_by"] == "shutdown", bench.tcu_report
     return records, marks, bench, tcu_stop_ms
 
