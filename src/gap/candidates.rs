@@ -377,16 +377,9 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
             let power: Vec<f64> = (0..m.n)
                 .map(|k| g.invert(m.torque[i][k], 0.0) * m.slip[i][k])
                 .collect();
-            let mut e = m.e_cum[i].first().copied().unwrap_or(0.0);
-            let mut e_cum = Vec::with_capacity(m.n);
-            for k in 0..m.n {
-                e_cum.push(e);
-                if k + 1 < m.n {
-                    e += 0.5 * (power[k] + power[k + 1]) * m.dt;
-                }
-            }
+            let e0 = m.e_cum[i].first().copied().unwrap_or(0.0);
+            c.e_cum[i] = replay::cumulative_energy(&power, e0, m.dt).into();
             c.power[i] = power.into();
-            c.e_cum[i] = e_cum.into();
         }
     }
     Some(c)

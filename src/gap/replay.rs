@@ -77,17 +77,7 @@ impl Measured {
                 .map(|k| torque[i][k] * slip[i][k])
                 .collect::<Vec<f64>>()
         });
-        let e_cum = [0, 1].map(|i| {
-            let mut e = e0[i];
-            let mut v = Vec::with_capacity(n);
-            for k in 0..n {
-                v.push(e);
-                if k + 1 < n {
-                    e += 0.5 * (power[i][k] + power[i][k + 1]) * d.dt;
-                }
-            }
-            v
-        });
+        let e_cum = [0, 1].map(|i| cumulative_energy(&power[i], e0[i], d.dt));
         let x = [d.req(Col::X1).to_vec(), d.req(Col::X2).to_vec()];
         // Samples near or past the kiss point: x_to above x_ISP at a temperature well above the
         // hottest measured neighbour of the disk (the disk may run hotter than its plates), or
@@ -234,6 +224,20 @@ impl Measured {
             e_fric_j: self.e_cum[i][k],
         }
     }
+}
+
+/// Friction energy dissipated up to each sample (J), from `e0` at the first, by the trapezoid
+/// rule over the friction power `power` (W) sampled every `dt` s.
+pub fn cumulative_energy(power: &[f64], e0: f64, dt: f64) -> Vec<f64> {
+    let mut e = e0;
+    let mut v = Vec::with_capacity(power.len());
+    for (k, p) in power.iter().enumerate() {
+        v.push(e);
+        if let Some(next) = power.get(k + 1) {
+            e += 0.5 * (p + next) * dt;
+        }
+    }
+    v
 }
 
 /// Disk temperatures θ_c1, θ_c2 from (16c)/(16d) driven by the measured plate, central-disk and
