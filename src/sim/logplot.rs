@@ -7,8 +7,9 @@
 //! TCU_Status is marked on every panel; a message silent for more than five of its cycles leaves
 //! its lines open.
 
+use super::{buslog, plots};
 use crate::can::codec::{MessageDef, SignalDef};
-use crate::can::messages::{ids, message_by_name, FaultCode, MESSAGES};
+use crate::can::messages::{ids, message_by_name, MESSAGES};
 use crate::can::CanFrame;
 use crate::plot::{Figure, Panel, Series, Style, PALETTE};
 use std::time::Duration;
@@ -91,7 +92,7 @@ impl SignalRef {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Traces {
     pub traces: Vec<(SignalRef, Vec<(f64, f64)>)>,
-    pub faults: Vec<(f64, &'static str)>,
+    pub faults: Vec<(f64, String)>,
 }
 
 /// Decodes the chosen signals from a run's frames (in time order). Frames of the wrong length are
@@ -100,41 +101,32 @@ pub fn traces<'a>(
     frames: impl IntoIterator<Item = (Duration, &'a CanFrame)>,
     signals: &[SignalRef],
 ) -> Traces {
-    let frames: Vec<(Duration, &CanFrame)> = frames.into_iter().collect();
+    let frames: Vec<(Duration, CanFrame)> = frames.into_iter().map(|(t, f)| (t, *f)).collect();
     let t0 = frames
         .iter()
         .find(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
         .or(frames.first())
         .map_or(Duration::ZERO, |(t, _)| *t);
     let secs = |t: Duration| t.as_secs_f64() - t0.as_secs_f64();
-    let mut out = Traces {
-        traces: signals.iter().map(|s| (*s, Vec::new())).collect(),
-        faults: Vec::new(),
-    };
-    let status =
-        message_by_name("TCU_Status").and_then(|m| m.signal_index("FaultCode").map(|i| (m, i)));
-    let mut last_fault = FaultCode::None as u64;
+    let mut traces: Vec<(SignalRef, Vec<(f64, f64)>)> =
+        signals.iter().map(|s| (*s, Vec::new())).collect();
     for (t, f) in &frames {
         let Some(id) = f.standard_id() else { continue };
-        for (r, points) in out.traces.iter_mut() {
+        for (r, points) in traces.iter_mut() {
             if r.message.id == id {
                 if let Ok(p) = r.message.payload(f.bytes()) {
                     points.push((secs(*t), r.signal.decode_physical(p)));
                 }
             }
         }
-        if let Some((m, i)) = status.filter(|(m, _)| m.id == id) {
-            if let Ok(p) = m.payload(f.bytes()) {
-                let raw = m.signals[i].raw_unsigned(p);
-                if raw != last_fault && raw != FaultCode::None as u64 {
-                    out.faults
-                        .push((secs(*t), m.signals[i].label(raw).unwrap_or("?")));
-                }
-                last_fault = raw;
-            }
-        }
     }
-    out
+    // The fault events as the run figures mark them (their times count from the first frame).
+    let shift = frames.first().map_or(0.0, |(t, _)| secs(*t));
+    let faults = plots::fault_events(&buslog::rows(&frames))
+        .into_iter()
+        .map(|(t, label)| (t + shift, label))
+        .collect();
+    Traces { traces, faults }
 }
 
 fn series(name: String, r: &SignalRef, points: &[(f64, f64)]) -> Series {
@@ -204,7 +196,7 @@ pub fn figure(title: &str, bus: &Traces, sim: Option<&Traces>) -> String {
     let mut fig = Figure::new(title, 1);
     for (_, mut p) in panels {
         for (t, label) in &bus.faults {
-            p.marker(*t, *label);
+            p.marker(*t, label.clone());
         }
         fig = fig.panel(p);
     }
@@ -214,7 +206,7 @@ pub fn figure(title: &str, bus: &Traces, sim: Option<&Traces>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::can::messages::{EngStatus, TcuStatus};
+    use crate::can::messages::{EngStatus, FaultCode, TcuStatus};
 
     #[test]
     fn signals_by_name_or_message_and_name() {

@@ -17,7 +17,7 @@ fn series(rows: &[Row], name: &str, f: impl Fn(&Row) -> f64) -> Series {
 }
 
 /// The times a fault code appears (a change to a code other than None), with its name.
-fn fault_events(rows: &[Row]) -> Vec<(f64, String)> {
+pub(crate) fn fault_events(rows: &[Row]) -> Vec<(f64, String)> {
     let mut last = FaultCode::None;
     let mut out = Vec::new();
     for r in rows {
