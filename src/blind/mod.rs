@@ -218,24 +218,30 @@ pub fn run_trial(seed: u64, index: usize, nominal: &Params) -> TrialResult {
     r
 }
 
-/// Runs trials 0..`trials` on `threads` threads; `on_done` sees each result as it finishes.
+/// The indices among 0..`trials` whose kind is in `kinds` (every index when `kinds` is empty):
+/// a subset of a run is the same trials as in the whole run.
+pub fn indices(seed: u64, trials: usize, kinds: &[TruthKind]) -> Vec<usize> {
+    (0..trials)
+        .filter(|&i| kinds.is_empty() || kinds.contains(&truth::kind_of(seed, i).0))
+        .collect()
+}
+
+/// Runs the trials `indices` on `threads` threads; `on_done` sees each result as it finishes.
 /// Results are returned in index order.
 pub fn run(
     seed: u64,
-    trials: usize,
+    indices: &[usize],
     threads: usize,
     nominal: &Params,
     on_done: &(dyn Fn(&TrialResult) + Sync),
 ) -> Vec<TrialResult> {
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let results = std::sync::Mutex::new(Vec::with_capacity(trials));
+    let results = std::sync::Mutex::new(Vec::with_capacity(indices.len()));
     std::thread::scope(|s| {
-        for _ in 0..threads.clamp(1, trials.max(1)) {
+        for _ in 0..threads.clamp(1, indices.len().max(1)) {
             s.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if i >= trials {
-                    break;
-                }
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&i) = indices.get(k) else { break };
                 let r = run_trial(seed, i, nominal);
                 on_done(&r);
                 results.lock().unwrap_or_else(|e| e.into_inner()).push(r);
@@ -741,7 +747,11 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
             c.n,
             if c.at_least { "≥" } else { "≤" },
             c.goal_pct,
-            if c.met { "met" } else { "NOT met" }
+            match (c.n, c.met) {
+                (0, _) => "no trials",
+                (_, true) => "met",
+                (_, false) => "NOT met",
+            }
         );
     }
     let _ = writeln!(

@@ -15,7 +15,7 @@ use ddct::model::effects::EffectId;
 use ddct::model::Params;
 use ddct::truth::form::Family;
 use ddct::truth::inject::{OutsideKind, Target};
-use ddct::truth::{self, CaseSpec, Variants};
+use ddct::truth::{self, CaseSpec, TruthKind, Variants};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -100,6 +100,33 @@ pub struct BlindArgs {
     /// Output directory: report.txt, report.json (trials and summary), detectability.svg.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Run only the trials of these kinds among the `--trials` (the same trials, truths and
+    /// noise as in the whole run; repeat or separate by commas). Criteria of other kinds then
+    /// have no trials.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    kind: Vec<TruthKindArg>,
+}
+
+/// A kind of blind trial.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum TruthKindArg {
+    Nominal,
+    Class,
+    Sensor,
+    Pair,
+    Outside,
+}
+
+impl From<TruthKindArg> for TruthKind {
+    fn from(k: TruthKindArg) -> Self {
+        match k {
+            TruthKindArg::Nominal => TruthKind::Nominal,
+            TruthKindArg::Class => TruthKind::Class,
+            TruthKindArg::Sensor => TruthKind::Sensor,
+            TruthKindArg::Pair => TruthKind::Pair,
+            TruthKindArg::Outside => TruthKind::Outside,
+        }
+    }
 }
 
 /// A class of the diagnosis (`gap::class::ClassId`).
@@ -460,8 +487,17 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         .clamp(1, 64);
     let started = Instant::now();
     let correct = std::sync::atomic::AtomicUsize::new(0);
-    let pb = super::bar(a.trials as u64, "trials");
-    let results = blind::run(a.seed, a.trials, threads, &p, &|r: &TrialResult| {
+    let kinds: Vec<TruthKind> = a.kind.iter().map(|k| (*k).into()).collect();
+    let indices = blind::indices(a.seed, a.trials, &kinds);
+    if indices.is_empty() {
+        bail!(
+            "no trial of the kinds {:?} among {} trials",
+            a.kind,
+            a.trials
+        );
+    }
+    let pb = super::bar(indices.len() as u64, "trials");
+    let results = blind::run(a.seed, &indices, threads, &p, &|r: &TrialResult| {
         let c = correct.fetch_add(usize::from(r.correct), std::sync::atomic::Ordering::Relaxed)
             + usize::from(r.correct);
         pb.inc(1);

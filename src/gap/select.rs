@@ -22,6 +22,7 @@ use super::context::{self, File, Scores};
 use super::keys;
 use super::lsq::{self, Fit, LmOptions, ParamSpec};
 use super::stats::{self, Rng};
+
 use crate::model::effects::Subsystem;
 use crate::model::params::Params;
 
@@ -234,6 +235,135 @@ fn train_residuals(
     (sse, n_eff)
 }
 
+/// The fit of `classes` together on top of a model: the recalibration each class moves with it,
+/// the channels it is fitted on, whether the base model's cached disk temperature serves.
+/// `None` when a class has none of its channels in the records.
+fn job_for(s: &Setup, classes: &[ClassId]) -> Option<Job> {
+    let mut recal: Vec<&'static str> = Vec::new();
+    let mut chans: Vec<Channel> = Vec::new();
+    let mut cached_disk = true;
+    let present = |g: Subsystem| {
+        classfit::group_channels(g)
+            .into_iter()
+            .filter(|c| s.chans.contains(c))
+    };
+    for &class in classes {
+        let group = classfit::group(class);
+        recal.extend(recal_keys(group));
+        if class == ClassId::SensorTorque {
+            recal.extend(recal_keys(Subsystem::Thermal));
+        }
+        let own: Vec<Channel> = classfit::channels(class)
+            .into_iter()
+            .filter(|c| s.chans.contains(c))
+            .collect();
+        if own.is_empty() {
+            return None;
+        }
+        chans.extend(own);
+        // A thermocouple reading error also moves the disk temperature estimated from the
+        // readings, and so the torque: fitted on the torque channels too, jointly with the
+        // torque recalibration (fitted on the thermocouples alone it trades a wrong offset
+        // against the thermal parameters and leaves the torque worse than before).
+        if class == ClassId::SensorTemperature {
+            recal.extend(recal_keys(Subsystem::TorqueCharacteristic));
+            chans.extend(present(Subsystem::TorqueCharacteristic));
+        }
+        // A torque reading error also changes the friction power the disk temperature is
+        // estimated from: that class needs the disk replayed, not the base model's cached
+        // estimate.
+        cached_disk &= group == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque;
+    }
+    // The actuator lag class is the lag's recalibration itself.
+    if classes.contains(&ClassId::ActuatorLag) {
+        recal.retain(|k| !recal_keys(Subsystem::Actuator).contains(k));
+    }
+    Some(Job {
+        classes: classes.to_vec(),
+        form: classfit::Form::Flexible,
+        recal: first_of_each(recal),
+        chans: first_of_each(chans),
+        wide: false,
+        cached_disk,
+        max_iter: 25,
+    })
+}
+
+/// `v` without repeats, in the order of first appearance.
+fn first_of_each<T: PartialEq + Copy>(v: Vec<T>) -> Vec<T> {
+    let mut out: Vec<T> = Vec::with_capacity(v.len());
+    for x in v {
+        if !out.contains(&x) {
+            out.push(x);
+        }
+    }
+    out
+}
+
+/// Fits `classes` together on top of `base` ([`job_for`]); a thermal class moves the disk
+/// temperature, so the torque recalibration is refitted after it. Returns the model, the fit and
+/// whether the disk temperature was taken from the cache.
+fn fit_classes(s: &Setup, base: &Model, classes: &[ClassId]) -> Option<(Model, Fit, bool)> {
+    let job = job_for(s, classes)?;
+    let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots);
+    let fit = fit?;
+    let tq: Vec<Channel> = classfit::group_channels(Subsystem::TorqueCharacteristic)
+        .into_iter()
+        .filter(|c| s.chans.contains(c))
+        .collect();
+    let thermal = classes
+        .iter()
+        .any(|c| classfit::group(*c) == Subsystem::Thermal);
+    if thermal && !tq.is_empty() {
+        let job = Job {
+            classes: vec![],
+            form: classfit::Form::Flexible,
+            recal: recal_keys(Subsystem::TorqueCharacteristic),
+            chans: tq,
+            wide: false,
+            cached_disk: false,
+            max_iter: 15,
+        };
+        model = fit_model(&model, s, &job);
+    }
+    Some((model, fit, job.cached_disk))
+}
+
+/// The channels a set of classes acts on that the records have.
+fn affected_in(s: &Setup, classes: &[ClassId]) -> Vec<Channel> {
+    first_of_each(
+        classes
+            .iter()
+            .flat_map(|c| affected(*c))
+            .filter(|c| s.chans.contains(c))
+            .collect(),
+    )
+}
+
+/// ΔBIC on training of `model` against the base's per-channel SSE over `aff`, with `k`
+/// parameters, each channel's sample size corrected for the autocorrelation of the model's
+/// residual (what is left once the terms are fitted; the base's residual carries the gap itself
+/// and would count a large structured error as a few samples).
+fn delta_bic(
+    s: &Setup,
+    model: &Model,
+    base_train: &[f64],
+    aff: &[Channel],
+    cached_disk: bool,
+    k: usize,
+) -> f64 {
+    let (t, n_eff) = train_residuals(model, s.train, aff, cached_disk);
+    let (mut ll, mut neff) = (0.0, 0.0);
+    for c in aff {
+        let i = c.index();
+        if base_train[i] > 0.0 && t[i] > 0.0 && n_eff[i] > 0.0 {
+            ll += n_eff[i] * (t[i] / base_train[i]).ln();
+            neff += n_eff[i];
+        }
+    }
+    ll + k as f64 * f64::max(neff, 2.0).ln()
+}
+
 /// Fits and scores one class on top of `base`.
 fn candidate(
     s: &Setup,
@@ -243,86 +373,10 @@ fn candidate(
     class: ClassId,
     rng_seed: u64,
 ) -> Option<Candidate> {
-    let group = classfit::group(class);
-    let mut recal = recal_keys(group);
-    if class == ClassId::ActuatorLag {
-        recal.clear();
-    }
-    if class == ClassId::SensorTorque {
-        recal.extend(recal_keys(Subsystem::Thermal));
-    }
-    let mut fit_chans: Vec<Channel> = classfit::channels(class)
-        .into_iter()
-        .filter(|c| s.chans.contains(c))
-        .collect();
-    if fit_chans.is_empty() {
-        return None;
-    }
-    // A thermocouple reading error also moves the disk temperature estimated from the readings,
-    // and so the torque: fitted on the torque channels too, jointly with the torque
-    // recalibration (fitted on the thermocouples alone it trades a wrong offset against the
-    // thermal parameters and leaves the torque worse than before).
-    if class == ClassId::SensorTemperature {
-        recal.extend(recal_keys(Subsystem::TorqueCharacteristic));
-        fit_chans.extend(
-            classfit::group_channels(Subsystem::TorqueCharacteristic)
-                .into_iter()
-                .filter(|c| s.chans.contains(c)),
-        );
-    }
-    // A torque reading error also changes the friction power the disk temperature is estimated
-    // from: that class needs the disk replayed, not the base model's cached estimate.
-    let cached_disk = group == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque;
-    let job = Job {
-        classes: vec![class],
-        form: classfit::Form::Flexible,
-        recal,
-        chans: fit_chans.clone(),
-        wide: false,
-        cached_disk,
-        max_iter: 25,
-    };
-    let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots);
-    let fit = fit?;
-    let mut aff: Vec<Channel> = affected(class)
-        .into_iter()
-        .filter(|c| s.chans.contains(c))
-        .collect();
-    aff.dedup();
-    if group == Subsystem::Thermal {
-        // The disk temperature moved: refit the torque recalibration.
-        let tq: Vec<Channel> = classfit::group_channels(Subsystem::TorqueCharacteristic)
-            .into_iter()
-            .filter(|c| s.chans.contains(c))
-            .collect();
-        if !tq.is_empty() {
-            let job = Job {
-                classes: vec![],
-                form: classfit::Form::Flexible,
-                recal: recal_keys(Subsystem::TorqueCharacteristic),
-                chans: tq,
-                wide: false,
-                cached_disk: false,
-                max_iter: 15,
-            };
-            model = fit_model(&model, s, &job);
-        }
-    }
-    // ΔBIC on training over the affected channels, each channel's sample size corrected for
-    // the autocorrelation of the candidate's residual (what is left once the term is fitted; the
-    // base's residual carries the gap itself and would count a large structured error as a few
-    // samples).
-    let (t, n_eff) = train_residuals(&model, s.train, &aff, cached_disk);
-    let (mut ll, mut neff) = (0.0, 0.0);
-    for c in &aff {
-        let i = c.index();
-        if base_train[i] > 0.0 && t[i] > 0.0 && n_eff[i] > 0.0 {
-            ll += n_eff[i] * (t[i] / base_train[i]).ln();
-            neff += n_eff[i];
-        }
-    }
-    let k = classfit::params(class, base).len() as f64;
-    let delta_bic = ll + k * f64::max(neff, 2.0).ln();
+    let (model, fit, cached_disk) = fit_classes(s, base, &[class])?;
+    let aff = affected_in(s, &[class]);
+    let k = classfit::params(class, base).len();
+    let delta_bic = delta_bic(s, &model, base_train, &aff, cached_disk, k);
     let v = Scores::of(&model, s.validate, &aff, s.nunits_v);
     let val = base_val.with(&v, &aff);
     let ub = base_val.unit_std(s.chans);
@@ -485,7 +539,8 @@ fn round(
     out.into_iter().map(|(_, k)| k).collect()
 }
 
-/// Forward selection of up to `max_classes` classes from `classes`, starting at `base`.
+/// Forward selection of up to `max_classes` classes from `classes`, starting at `base`, then
+/// the swap and backward checks.
 pub fn select(
     s: &Setup,
     base: &Model,
@@ -515,6 +570,18 @@ pub fn select(
             &left,
             seed.wrapping_add(r as u64 * 7919),
         );
+        for c in &cands {
+            tracing::debug!(
+                "round {r}: {} gain {:.1} (95 % CI {:.1}…{:.1}), ΔBIC {:.1}, excess {:.1}: {}",
+                c.class,
+                c.gain,
+                c.gain_ci95.0,
+                c.gain_ci95.1,
+                c.delta_bic,
+                c.excess_before,
+                c.note
+            );
+        }
         let kept = cands.iter().position(|c| c.credited);
         let mut ambiguous = Vec::new();
         if let Some(b) = kept {
@@ -754,6 +821,51 @@ fn on_cores<T: Sync, R: Send>(
     })
 }
 
+/// What a selected class is worth beside the others: the validation gain lost when it is taken
+/// out and the others refitted (`without`), against the model with it (`with`).
+#[derive(Debug, Clone)]
+struct Loss {
+    /// Summed over the validation units, with its 95 % block-bootstrap interval.
+    gain: f64,
+    ci95: (f64, f64),
+    /// What the forward step asks of a class here: 10 % of the excess left without it, half the
+    /// practical tolerance, 2 % of the samples.
+    need: f64,
+}
+
+impl Loss {
+    /// The loss is measured on the class's own channels: the others' refit moves their channels
+    /// too, and on a channel a large effect dominates (a position sensor's error 300 times the
+    /// thermal one) that refit's scatter would swamp the class's loss.
+    fn of(s: &Setup, without: &Scores, with: &Scores, c: ClassId, seed: u64) -> Loss {
+        let own: Vec<Channel> = affected(c)
+            .into_iter()
+            .filter(|ch| s.chans.contains(ch))
+            .collect();
+        let unit: Vec<f64> = without
+            .unit_std(&own)
+            .iter()
+            .zip(&with.unit_std(&own))
+            .map(|(a, b)| a - b)
+            .collect();
+        let gain: f64 = unit.iter().sum();
+        let mut rng = Rng::new(seed);
+        let ci95 = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
+            idx.iter().map(|&j| unit[j]).sum::<f64>()
+        });
+        let (z, n) = without.total(&own);
+        let tol: f64 = without.unit_tolerance(&own).iter().sum();
+        let need = (s.min_gain * (z - n).max(0.0)).max(0.5 * tol).max(0.02 * n);
+        Loss { gain, ci95, need }
+    }
+
+    /// The class is still needed: its loss is significant and at least what the forward step
+    /// asks.
+    fn needed(&self) -> bool {
+        self.ci95.0 > 0.0 && self.gain >= self.need
+    }
+}
+
 /// Backward check: each selected class is removed in turn and the others refitted jointly with
 /// the recalibration; the class is dropped when the (c) and (b) criteria of the forward step no
 /// longer hold for it (a class that only explained what a later class explains better). The
@@ -788,33 +900,15 @@ fn backward(s: &Setup, base: &Model, sel: &mut Selection, seed: u64) {
         aff.sort();
         aff.dedup();
         let v_minus = cur_val.with(&Scores::of(&minus, s.validate, &aff, s.nunits_v), &aff);
-        // The loss is measured on the class's own channels: the others' refit moves their
-        // channels too, and on a channel a large effect dominates (a position sensor's error
-        // 300 times the thermal one) that refit's scatter would swamp the class's loss.
-        let own: Vec<Channel> = affected(c)
-            .into_iter()
-            .filter(|ch| s.chans.contains(ch))
-            .collect();
-        let u: Vec<f64> = v_minus
-            .unit_std(&own)
-            .iter()
-            .zip(&cur_val.unit_std(&own))
-            .map(|(a, b)| a - b)
-            .collect();
-        let gain: f64 = u.iter().sum();
-        let mut rng = Rng::new(seed ^ 0xBAC4 ^ c as u64);
-        let ci = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
-            idx.iter().map(|&j| u[j]).sum::<f64>()
-        });
-        let (z, n) = v_minus.total(&own);
-        let tol: f64 = v_minus.unit_tolerance(&own).iter().sum();
-        let need = (s.min_gain * (z - n).max(0.0)).max(0.5 * tol).max(0.02 * n);
+        let loss = Loss::of(s, &v_minus, cur_val, c, seed ^ 0xBAC4 ^ c as u64);
         tracing::debug!(
-            "backward {c}: gain {gain:.1} (95 % CI {:.1}…{:.1}), need {need:.1}",
-            ci.0,
-            ci.1
+            "backward {c}: gain {:.1} (95 % CI {:.1}…{:.1}), need {:.1}",
+            loss.gain,
+            loss.ci95.0,
+            loss.ci95.1,
+            loss.need
         );
-        if ci.0 <= 0.0 || gain < need {
+        if !loss.needed() {
             dropped_any = true;
             *current = minus;
             *cur_val = v_minus;
