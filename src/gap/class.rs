@@ -56,6 +56,8 @@ pub enum Variable {
     EngineTorque,
     /// The measured value of a channel itself (sensor gain/offset).
     Measurement,
+    /// The measured clutch torque (N·m): the knots of a torque reading error.
+    ClutchTorque,
 }
 
 impl Variable {
@@ -73,6 +75,7 @@ impl Variable {
             Variable::Power => "power",
             Variable::EngineTorque => "engine_torque",
             Variable::Measurement => "measurement",
+            Variable::ClutchTorque => "clutch_torque",
         }
     }
 }

@@ -291,7 +291,17 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
         }
         ActuatorTransfer => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
-        SensorTorque => gain_offset(name, 0.3, "offset_nm", 10.0, 0.5),
+        SensorTorque => {
+            let mut v = vec![ParamSpec::new(
+                "sensor_torque.offset_nm",
+                0.0,
+                -10.0,
+                10.0,
+                0.5,
+            )];
+            v.extend(shape_params(name, 20.0, 0.5));
+            v
+        }
         SensorTorqueSkew => vec![ParamSpec::new(
             "sensor_torque_skew.skew_s",
             0.0,
@@ -361,7 +371,16 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         }
         ActuatorLag => m.p.actuator.tau_s = v[0],
         ActuatorTransfer => m.terms.transfer = Some(go(v)),
-        SensorTorque => m.terms.torque_sensor = Some(go(v)),
+        SensorTorque => {
+            m.terms.torque_sensor =
+                knots
+                    .0
+                    .get(&Variable::ClutchTorque)
+                    .map(|z| super::terms::Reading {
+                        offset: v[0],
+                        shape: Shape::from_increments(*z, &v[1..]),
+                    })
+        }
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
         SensorTemperatureLag => m.terms.temp_lag_s = v[0],
         SensorTemperature => {
@@ -437,8 +456,8 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
         ActuatorLag => (m.p.actuator.tau_s, "s"),
         ActuatorTransfer => (t.transfer.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
         SensorTorque => (
-            t.torque_sensor.map_or(0.0, |g| g.gain - 1.0),
-            "relative gain",
+            t.torque_sensor.map_or(0.0, |r| r.largest_error(0.0, 150.0)),
+            "N·m, largest reading error over 0…150 N·m",
         ),
         SensorTorqueSkew => (t.torque_skew_s, "s"),
         SensorTemperatureLag => (t.temp_lag_s, "s"),
@@ -467,6 +486,10 @@ pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
         ConvectionSpeed => t.convection.map(|c| c.shape),
         HeatPartition => t.partition.map(|p| p.shape),
         SensorTemperature => t.temp_sensor.map(|r| Shape {
+            z: r.shape.z,
+            v: r.shape.v.map(|v| v + r.offset),
+        }),
+        SensorTorque => t.torque_sensor.map(|r| Shape {
             z: r.shape.z,
             v: r.shape.v.map(|v| v + r.offset),
         }),
@@ -518,5 +541,47 @@ pub fn member_from_shape(class: ClassId, m: &Model) -> Option<(EffectId, Vec<f64
             Some((EffectId::FrictionPressure, vec![1.0 + slope(&lp)]))
         }
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A torque reading error is an offset and a piecewise-linear curve in the torque: the
+    /// reading, its size and its inverse checked by hand at one torque between the knots.
+    #[test]
+    fn torque_reading_is_an_offset_and_a_curve_in_the_torque() {
+        let z = [0.0, 20.0, 50.0, 100.0, 150.0];
+        let knots = Knots([(Variable::ClutchTorque, z)].into_iter().collect());
+        let mut m = Model::nominal(crate::model::params::Params::default());
+        let names: Vec<String> = params(ClassId::SensorTorque, &m)
+            .iter()
+            .map(|p| p.name.clone())
+            .collect();
+        assert_eq!(names[0], "sensor_torque.offset_nm");
+        assert_eq!(names.len(), KNOTS);
+        // offset −0.5 N·m; the curve rises 1 N·m per segment, stays, falls 0.5.
+        apply(
+            ClassId::SensorTorque,
+            &knots,
+            &mut m,
+            &[-0.5, 1.0, 1.0, 0.0, -0.5],
+        );
+        let r = m.terms.torque_sensor.expect("a torque reading");
+        // At 35 N·m: 35 − 0.5 + 1 + (35 − 20)/30 · 1 = 36.
+        assert!((m.terms.measured_torque(35.0) - 36.0).abs() < 1e-12);
+        assert!((r.inverse().eval(36.0) - 35.0).abs() < 1e-12);
+        // The largest error over 0…150 N·m is at 50…100 N·m: −0.5 + 2 = 1.5.
+        let (size, unit) = magnitude(ClassId::SensorTorque, &m);
+        assert!((size - 1.5).abs() < 1e-12, "{size}");
+        assert!(unit.starts_with("N·m"));
+        remove(
+            ClassId::SensorTorque,
+            &mut m,
+            &Model::nominal(crate::model::params::Params::default()),
+        );
+        assert!(m.terms.torque_sensor.is_none());
+        assert_eq!(m.terms.measured_torque(35.0), 35.0);
     }
 }
