@@ -1,5 +1,6 @@
 //! The bus layer: the DBC contract (generated message types), E2E protection, the `Bus` trait
-//! with its SocketCAN and in-process implementations, and candump log I/O.
+//! with its SocketCAN and in-process implementations, and candump log I/O; `runtime_dbc` decodes
+//! logs with a DBC file given at run time instead of the contract.
 
 pub mod bus;
 pub mod candump;
@@ -12,6 +13,7 @@ pub mod frame;
 pub mod messages;
 pub mod monitor;
 pub mod replay;
+pub mod runtime_dbc;
 pub mod socketcan;
 
 pub use bus::{
