@@ -4,8 +4,10 @@ use super::args::open_can;
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
-use ddct::can::candump::{LogError, LogReader, LogWriter};
+use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
+use ddct::can::e2e::E2eConfig;
+use ddct::can::runtime_dbc::{self, RuntimeDbc};
 use ddct::can::Bus;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -32,6 +34,12 @@ pub enum LogCmd {
         /// No `gap:` notice per message that fell silent (the E2E summary stays).
         #[arg(long, short = 'q')]
         quiet: bool,
+        /// Decode with this DBC file instead of the built-in contract (dbc/ddct.dbc): every
+        /// message of it, Intel and Motorola signals, value tables, multiplexing. The E2E
+        /// verdict is computed only for the contract's E2E messages with the same id and signal
+        /// layout, `n/a` for the others; `-m` takes this DBC's names and ids.
+        #[arg(long, value_name = "FILE")]
+        dbc: Option<PathBuf>,
     },
     /// A live view of the bus: per message the latest decoded values (states, gears and fault
     /// codes by name), frames, rate, age of the last frame and E2E errors; redrawn four times a
@@ -138,7 +146,8 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             format,
             messages,
             quiet,
-        } => decode(&file, format, &messages, quiet),
+            dbc,
+        } => decode(&file, format, &messages, quiet, dbc.as_deref()),
         LogCmd::Stats { file, json } => stats(&file, json),
         LogCmd::Plot {
             file,
@@ -185,18 +194,32 @@ fn open_input(file: &PathBuf) -> anyhow::Result<Box<dyn BufRead>> {
     Ok(Box::new(BufReader::new(f)))
 }
 
-fn wanted_filter(messages: &[String]) -> anyhow::Result<Vec<u32>> {
+/// The ids `-m/--message` selects: names or hex ids of the built-in contract, or of the `--dbc`
+/// file when one is given.
+fn wanted_filter(messages: &[String], dbc: Option<&RuntimeDbc>) -> anyhow::Result<Vec<u32>> {
     messages
         .iter()
         .map(|m| {
-            if let Some(def) = ddct::can::messages::message_by_name(m) {
-                return Ok(u32::from(def.id));
-            }
             let t = m.trim_start_matches("0x").trim_start_matches("0X");
-            u32::from_str_radix(t, 16)
-                .ok()
-                .filter(|id| ddct::can::messages::message_def(*id).is_some())
-                .with_context(|| format!("--message {m}: not a message name or id of the contract"))
+            let id = u32::from_str_radix(t, 16).ok();
+            match dbc {
+                Some(db) => db
+                    .message_by_name(m)
+                    .map(|d| d.id)
+                    .or(id.filter(|id| db.messages.iter().any(|d| d.id == *id)))
+                    .with_context(|| {
+                        format!(
+                            "--message {m}: not a message name or id of {}",
+                            db.path.display()
+                        )
+                    }),
+                None => ddct::can::messages::message_by_name(m)
+                    .map(|def| u32::from(def.id))
+                    .or(id.filter(|id| ddct::can::messages::message_def(*id).is_some()))
+                    .with_context(|| {
+                        format!("--message {m}: not a message name or id of the contract")
+                    }),
+            }
         })
         .collect()
 }
@@ -208,17 +231,102 @@ fn wall_clock() -> Duration {
         .unwrap_or_default()
 }
 
+/// One decoded frame as `ddct log decode` prints it, from the built-in decoder or a `--dbc`
+/// file.
+struct Shown<'a> {
+    timestamp: Duration,
+    iface: &'a str,
+    id: u32,
+    name: Option<&'a str>,
+    /// The E2E verdict's name; `n/a` where a `--dbc` decode does not compute it.
+    e2e: &'static str,
+    signals: Vec<ShownSignal<'a>>,
+    error: Option<String>,
+}
+
+struct ShownSignal<'a> {
+    name: &'a str,
+    value: f64,
+    /// The value as the table shows it (a value-table name or the number at its resolution).
+    text: String,
+    label: Option<&'a str>,
+    unit: &'a str,
+    in_range: bool,
+}
+
+/// The E2E field of a frame whose verdict a `--dbc` decode does not compute.
+const E2E_NOT_COMPUTED: &str = "n/a";
+
+impl<'a> Shown<'a> {
+    fn builtin(d: &'a DecodedFrame) -> Self {
+        Shown {
+            timestamp: d.timestamp,
+            iface: &d.iface,
+            id: d.id,
+            name: d.message.map(|m| m.name),
+            e2e: d.e2e.as_str(),
+            signals: d
+                .signals
+                .iter()
+                .map(|s| ShownSignal {
+                    name: s.signal.name,
+                    value: s.value,
+                    text: s.display_value(),
+                    label: s.label,
+                    unit: s.signal.unit,
+                    in_range: s.in_range,
+                })
+                .collect(),
+            error: d.error.as_ref().map(|e| e.to_string()),
+        }
+    }
+
+    fn runtime(r: &'a LogRecord, d: &runtime_dbc::Decoded<'a>) -> Self {
+        Shown {
+            timestamp: r.timestamp,
+            iface: &r.iface,
+            id: r.frame.raw_id(),
+            name: d.message.map(|m| m.name.as_str()),
+            e2e: d.e2e.map_or(E2E_NOT_COMPUTED, |v| v.as_str()),
+            signals: d
+                .signals
+                .iter()
+                .map(|s| ShownSignal {
+                    name: &s.signal.name,
+                    value: s.value,
+                    text: s.display_value(),
+                    label: s.label,
+                    unit: &s.signal.unit,
+                    in_range: s.in_range,
+                })
+                .collect(),
+            error: d.issue.as_ref().map(|e| e.to_string()),
+        }
+    }
+}
+
+/// The decoder of `ddct log decode`: the built-in contract or a `--dbc` file.
+enum AnyDecoder<'a> {
+    Builtin(LogDecoder),
+    Runtime(runtime_dbc::Decoder<'a>),
+}
+
 fn decode(
     file: &PathBuf,
     format: Format,
     messages: &[String],
     quiet: bool,
+    dbc: Option<&std::path::Path>,
 ) -> anyhow::Result<ExitCode> {
-    let filter = wanted_filter(messages)?;
+    let runtime = dbc.map(RuntimeDbc::load).transpose()?;
+    let filter = wanted_filter(messages, runtime.as_ref())?;
     let input = open_input(file)?;
     let stdout = std::io::stdout();
     let mut out = BufWriter::new(stdout.lock());
-    let mut decoder = LogDecoder::default();
+    let mut decoder = match &runtime {
+        Some(db) => AnyDecoder::Runtime(runtime_dbc::Decoder::new(db, E2eConfig::default())),
+        None => AnyDecoder::Builtin(LogDecoder::default()),
+    };
     let mut bad_lines = 0usize;
     let mut verdicts: BTreeMap<&'static str, usize> = BTreeMap::new();
     if format == Format::Csv {
@@ -234,11 +342,22 @@ fn decode(
             }
             Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
         };
-        let d = decoder.decode(&rec);
+        let builtin;
+        let runtime_decoded;
+        let d = match &mut decoder {
+            AnyDecoder::Builtin(dec) => {
+                builtin = dec.decode(&rec);
+                Shown::builtin(&builtin)
+            }
+            AnyDecoder::Runtime(dec) => {
+                runtime_decoded = dec.decode(&rec);
+                Shown::runtime(&rec, &runtime_decoded)
+            }
+        };
         if !filter.is_empty() && !filter.contains(&d.id) {
             continue;
         }
-        *verdicts.entry(d.e2e.as_str()).or_default() += 1;
+        *verdicts.entry(d.e2e).or_default() += 1;
         let written = match format {
             Format::Table => writeln!(out, "{}", table_line(&d)),
             Format::Csv => write_csv(&mut out, &d),
@@ -254,13 +373,24 @@ fn decode(
     out.flush()?;
     let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!("frames by E2E verdict: {}", summary.join(", "));
-    for g in decoder.gaps().iter().filter(|_| !quiet) {
+    let gaps: Vec<(&str, Duration, Duration)> = match &decoder {
+        AnyDecoder::Builtin(dec) => dec
+            .gaps()
+            .iter()
+            .map(|g| (g.message, g.from, g.to))
+            .collect(),
+        AnyDecoder::Runtime(dec) => dec
+            .gaps()
+            .iter()
+            .map(|g| (g.message, g.from, g.to))
+            .collect(),
+    };
+    for (message, from, to) in gaps.iter().filter(|_| !quiet) {
         eprintln!(
-            "gap: {} silent from {:.6} to {:.6} s ({} ms)",
-            g.message,
-            g.from.as_secs_f64(),
-            g.to.as_secs_f64(),
-            (g.to - g.from).as_millis()
+            "gap: {message} silent from {:.6} to {:.6} s ({} ms)",
+            from.as_secs_f64(),
+            to.as_secs_f64(),
+            (*to - *from).as_millis()
         );
     }
     if bad_lines > 0 {
@@ -366,28 +496,24 @@ fn stats(file: &PathBuf, as_json: bool) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn table_line(d: &DecodedFrame) -> String {
-    let name = d.message.map_or("?", |m| m.name);
+fn table_line(d: &Shown<'_>) -> String {
+    let name = d.name.unwrap_or("?");
     let mut s = format!(
         "({:.6}) {} {:03X} {:<14} e2e={:<16}",
         d.timestamp.as_secs_f64(),
         d.iface,
         d.id,
         name,
-        d.e2e.as_str()
+        d.e2e
     );
     for sig in &d.signals {
-        let unit = if sig.signal.unit.is_empty() {
+        let unit = if sig.unit.is_empty() {
             String::new()
         } else {
-            format!(" {}", sig.signal.unit)
+            format!(" {}", sig.unit)
         };
         let flag = if sig.in_range { "" } else { "(!)" };
-        s.push_str(&format!(
-            " {}={}{unit}{flag}",
-            sig.signal.name,
-            sig.display_value()
-        ));
+        s.push_str(&format!(" {}={}{unit}{flag}", sig.name, sig.text));
     }
     if let Some(e) = &d.error {
         s.push_str(&format!("  error: {e}"));
@@ -395,8 +521,8 @@ fn table_line(d: &DecodedFrame) -> String {
     s
 }
 
-fn write_csv(out: &mut impl Write, d: &DecodedFrame) -> std::io::Result<()> {
-    let name = d.message.map_or("", |m| m.name);
+fn write_csv(out: &mut impl Write, d: &Shown<'_>) -> std::io::Result<()> {
+    let name = d.name.unwrap_or("");
     if d.signals.is_empty() {
         return writeln!(
             out,
@@ -404,7 +530,7 @@ fn write_csv(out: &mut impl Write, d: &DecodedFrame) -> std::io::Result<()> {
             d.timestamp.as_secs_f64(),
             d.iface,
             d.id,
-            d.e2e.as_str()
+            d.e2e
         );
     }
     for sig in &d.signals {
@@ -414,35 +540,35 @@ fn write_csv(out: &mut impl Write, d: &DecodedFrame) -> std::io::Result<()> {
             d.timestamp.as_secs_f64(),
             d.iface,
             d.id,
-            sig.signal.name,
+            sig.name,
             sig.value,
-            sig.signal.unit,
-            d.e2e.as_str()
+            sig.unit,
+            d.e2e
         )?;
     }
     Ok(())
 }
 
-fn json_line(d: &DecodedFrame) -> String {
+fn json_line(d: &Shown<'_>) -> String {
     let signals: serde_json::Map<String, serde_json::Value> = d
         .signals
         .iter()
-        .map(|s| (s.signal.name.to_string(), json!(s.value)))
+        .map(|s| (s.name.to_string(), json!(s.value)))
         .collect();
     let labels: serde_json::Map<String, serde_json::Value> = d
         .signals
         .iter()
-        .filter_map(|s| s.label.map(|l| (s.signal.name.to_string(), json!(l))))
+        .filter_map(|s| s.label.map(|l| (s.name.to_string(), json!(l))))
         .collect();
     json!({
         "t": d.timestamp.as_secs_f64(),
         "iface": d.iface,
         "id": d.id,
-        "name": d.message.map(|m| m.name),
+        "name": d.name,
         "signals": signals,
         "labels": labels,
-        "e2e": d.e2e.as_str(),
-        "error": d.error.as_ref().map(|e| e.to_string()),
+        "e2e": d.e2e,
+        "error": d.error,
     })
     .to_string()
 }
