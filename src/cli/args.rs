@@ -72,6 +72,26 @@ impl FromStr for Speed {
     }
 }
 
+/// A positive, finite number of seconds (`--duration`, `--lockstep-timeout`).
+pub fn seconds(s: &str) -> Result<std::time::Duration, String> {
+    match s.parse::<f64>() {
+        Ok(d) if d.is_finite() && d > 0.0 && d < 1e9 => Ok(std::time::Duration::from_secs_f64(d)),
+        _ => Err(format!("{s}: a positive number of seconds")),
+    }
+}
+
+/// A parser of a finite number in `lo ..= hi` of `unit` (`--echo`, `--input-speed`).
+pub fn number_in(
+    lo: f64,
+    hi: f64,
+    unit: &'static str,
+) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync + 'static {
+    move |s: &str| match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && (lo..=hi).contains(&v) => Ok(v),
+        _ => Err(format!("{s}: a number of {unit} in {lo} ..= {hi}")),
+    }
+}
+
 /// `--rt-priority`: SCHED_FIFO priorities are 1..=99; anything else is refused, not clamped.
 pub fn rt_priority(s: &str) -> Result<i32, String> {
     match s.parse::<i32>() {
@@ -117,6 +137,17 @@ mod tests {
     #[test]
     fn ifaces_parse_to_sim_or_a_valid_name() {
         assert_eq!("sim".parse::<Iface>(), Ok(Iface::Sim));
+        assert_eq!(seconds("2.5"), Ok(std::time::Duration::from_millis(2500)));
+        for bad in ["0", "-1", "nan", "inf", "x"] {
+            assert!(seconds(bad)
+                .unwrap_err()
+                .contains("positive number of seconds"));
+        }
+        let rpm = number_in(0.0, 6000.0, "rpm");
+        assert_eq!(rpm("6000"), Ok(6000.0));
+        for bad in ["-0.1", "6000.5", "NaN", "fast"] {
+            assert!(rpm(bad).unwrap_err().contains("rpm in 0 ..= 6000"), "{bad}");
+        }
         assert_eq!("vcan0".parse::<Iface>(), Ok(Iface::Can("vcan0".into())));
         for bad in ["", "a/b", "can 0", "x:1", "sixteen_chars_xx"] {
             assert!(bad.parse::<Iface>().is_err(), "{bad:?}");

@@ -13,7 +13,7 @@
 
 use super::args::{open_can, rt_priority, Iface};
 use super::{runtime, shutdown_signal};
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::Args;
 use ddct::can::candump::{LogReader, LogWriter};
 use ddct::can::messages::{ids, FaultCode, TcuState};
@@ -55,8 +55,8 @@ pub struct BenchArgs {
     /// Output folder: bench.log (candump -l of the run), echo.log, figures, summary.json.
     #[arg(long, default_value = "out/bench")]
     out: PathBuf,
-    /// Seconds of bare frame echo measured before the run (0: none).
-    #[arg(long, default_value_t = 10.0)]
+    /// Seconds of bare frame echo measured before the run (0 ..= 600; 0: none).
+    #[arg(long, default_value_t = 10.0, value_parser = super::args::number_in(0.0, 600.0, "seconds"))]
     echo: f64,
     /// Analyse a candump -l log instead of running (the scenario still names the launch target).
     #[arg(long)]
@@ -422,9 +422,6 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
                 Some(Iface::Can(name)) => Net::Can(name),
                 _ => Net::Sim(InProcessBus::new("sim")),
             };
-            if !(a.echo.is_finite() && a.echo >= 0.0 && a.echo <= 600.0) {
-                bail!("--echo {}: must be 0 ..= 600 seconds", a.echo);
-            }
             let echo = if a.echo > 0.0 {
                 eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
                 let pb = super::spinner(format!("bare frame echo, {} s", a.echo));

@@ -45,8 +45,9 @@ pub struct PlantArgs {
     /// Rig mode: built-in x_to profile (config/rig/*.toml) instead of TCU_ClutchCmd from the bus.
     #[arg(long)]
     rig_profile: Option<PathBuf>,
-    /// Rig mode: dyno speed holding the input side (rpm); overrides the config and the profile.
-    #[arg(long)]
+    /// Rig mode: dyno speed holding the input side (rpm, 0 ..= 6000); overrides the config and
+    /// the profile.
+    #[arg(long, value_parser = super::args::number_in(0.0, 6000.0, "rpm"))]
     input_speed: Option<f64>,
     /// Reality effects file ([effects.<id>] tables); replaces the config's effects.
     #[arg(long)]
@@ -59,8 +60,8 @@ pub struct PlantArgs {
     log: Option<PathBuf>,
     /// Stop after this many seconds of simulated time (default: until SIGINT/SIGTERM; with a
     /// built-in rig profile or on `--iface sim`, the profile's or scenario's length).
-    #[arg(long)]
-    duration: Option<f64>,
+    #[arg(long, value_parser = super::args::seconds)]
+    duration: Option<Duration>,
     /// Run simulated time this many times faster than wall time (`max`: as fast as possible,
     /// only on `--iface sim`, the default there).
     #[arg(long)]
@@ -72,8 +73,8 @@ pub struct PlantArgs {
     #[arg(long, value_name = "MESSAGE[,MESSAGE]", num_args = 0..=1, default_missing_value = "TCU_ClutchCmd")]
     lockstep: Option<String>,
     /// Lockstep: seconds of wall time to wait for an answer before simulating on without it.
-    #[arg(long, default_value_t = 1.0)]
-    lockstep_timeout: f64,
+    #[arg(long, default_value = "1", value_parser = super::args::seconds)]
+    lockstep_timeout: Duration,
     /// Sensor-noise seed (default: the config's).
     #[arg(long)]
     seed: Option<u64>,
@@ -132,9 +133,6 @@ fn build_config(a: &PlantArgs) -> anyhow::Result<PlantConfig> {
     if let Some(rpm) = a.input_speed {
         if cfg.mode != Mode::Rig {
             bail!("--input-speed is for rig mode (add --mode rig)");
-        }
-        if !(rpm.is_finite() && (0.0..=6000.0).contains(&rpm)) {
-            bail!("--input-speed {rpm}: must be in 0 ..= 6000 rpm");
         }
         cfg.rig.input_speed_rpm = rpm;
         if let Some(p) = cfg.rig_profile.as_mut() {
@@ -233,11 +231,7 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
         }
         Some(Speed::Factor(k)) => Some(k),
     };
-    let mut duration = match a.duration {
-        Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
-        Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
-        None => None,
-    };
+    let mut duration = a.duration;
     if duration.is_none() {
         if let (Mode::Rig, Some(p)) = (cfg.mode, &cfg.rig_profile) {
             duration = Some(Duration::from_secs_f64(p.duration_s()));
@@ -261,15 +255,9 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             if sim && speed.is_none() {
                 bail!("--lockstep needs real-time pacing (--speed K)");
             }
-            if !(a.lockstep_timeout.is_finite() && a.lockstep_timeout > 0.0) {
-                bail!(
-                    "--lockstep-timeout {}: must be a positive number of seconds",
-                    a.lockstep_timeout
-                );
-            }
             Some(Lockstep {
                 messages,
-                timeout: Duration::from_secs_f64(a.lockstep_timeout),
+                timeout: a.lockstep_timeout,
             })
         }
     };

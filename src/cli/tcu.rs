@@ -30,8 +30,8 @@ pub struct TcuArgs {
     log: Option<PathBuf>,
     /// Stop after this many seconds (default: until SIGINT/SIGTERM; on `sim` the driver
     /// scenario's length).
-    #[arg(long)]
-    duration: Option<f64>,
+    #[arg(long, value_parser = super::args::seconds)]
+    duration: Option<Duration>,
     /// `--iface sim` only: the plant's driver scenario (default: the built-in
     /// config/scenarios/driver_launch.toml).
     #[arg(long)]
@@ -73,11 +73,7 @@ impl From<ClockArg> for TcuClock {
 
 pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     let cfg = super::args::tcu_config(a.config.as_deref())?;
-    let duration = match a.duration {
-        Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
-        Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
-        None => None,
-    };
+    let duration = a.duration;
     if a.clock == ClockArg::Bus && a.iface.is_sim() {
         bail!("--clock bus is for a lockstep bench on a CAN interface (`--iface sim` runs in real time)");
     }

@@ -28,6 +28,11 @@ def test_a_missing_interface_says_how_to_get_one(ddct, tmp_path, cmd):
         (["plant", "--iface", "sim", "--speed", "fast"], "--speed"),
         (["plant", "--iface", "sim", "--speed", "0"], "--speed"),
         (["tcu", "--iface", "can/0"], "--iface"),
+        (["tcu", "--iface", "sim", "--duration", "nan"], "--duration"),
+        (["plant", "--iface", "sim", "--duration=-1"], "--duration"),
+        (["plant", "--iface", "sim", "--mode", "rig", "--input-speed", "7000"], "--input-speed"),
+        (["plant", "--iface", "sim", "--lockstep", "--lockstep-timeout", "0"], "--lockstep-timeout"),
+        (["bench", "--iface", "sim", "--echo", "601"], "--echo"),
     ],
 )
 def test_out_of_range_arguments_are_usage_errors(ddct, cmd, flag):
