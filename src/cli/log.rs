@@ -9,17 +9,19 @@ use ddct::can::decode::{DecodedFrame, LogDecoder};
 use ddct::can::e2e::E2eConfig;
 use ddct::can::runtime_dbc::{self, RuntimeDbc};
 use ddct::can::Bus;
+use indicatif::ProgressBar;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufRead, BufReader, BufWriter, IsTerminal as _, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 #[derive(Debug, Subcommand)]
 pub enum LogCmd {
-    /// Decode a candump log with the DBC, with the E2E verdict of every frame.
+    /// Decode a candump log with the DBC, with the E2E verdict of every frame. On a terminal,
+    /// a progress bar on stderr (a spinner with the frame count for standard input).
     Decode {
         /// The log (`-` for standard input): `candump -l` / `-L` lines, or candump's screen
         /// output (`candump vcan0`, `-t a`, `-x`, `-a`), whose lines without a time are stamped
@@ -84,7 +86,8 @@ pub enum LogCmd {
         ready_file: Option<PathBuf>,
     },
     /// Send the frames of a candump -l log on a SocketCAN interface, at the log's own timing
-    /// (absolute deadlines from the first frame) unless `--max-rate`.
+    /// (absolute deadlines from the first frame) unless `--max-rate`; on a terminal, a progress
+    /// bar on stderr.
     Replay {
         /// The candump -l log file.
         file: PathBuf,
@@ -305,6 +308,67 @@ impl<'a> Shown<'a> {
     }
 }
 
+/// Standard output that takes the progress bar off the terminal while it writes, for when the
+/// decoded lines and the bar share one terminal. Only whole lines go out (the bar is drawn after
+/// the last one; a line cut at a buffer boundary would be erased with it).
+struct AroundBar {
+    pb: ProgressBar,
+    out: std::io::Stdout,
+    partial: Vec<u8>,
+}
+
+impl AroundBar {
+    fn emit(&mut self, upto: usize) -> std::io::Result<()> {
+        let (out, partial) = (&mut self.out, &mut self.partial);
+        self.pb.suspend(|| {
+            out.write_all(&partial[..upto])?;
+            out.flush()
+        })?;
+        partial.drain(..upto);
+        Ok(())
+    }
+}
+
+impl Write for AroundBar {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.partial.extend_from_slice(buf);
+        if let Some(last) = self.partial.iter().rposition(|b| *b == b'\n') {
+            self.emit(last + 1)?;
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.emit(self.partial.len())
+    }
+}
+
+/// The log to decode with its progress display (stderr, terminal only): a bar by bytes for a
+/// file; for standard input a spinner counting frames (`per_frame`: the caller counts them).
+struct DecodeInput {
+    reader: Box<dyn BufRead>,
+    pb: ProgressBar,
+    per_frame: bool,
+}
+
+fn open_decode_input(file: &PathBuf) -> anyhow::Result<DecodeInput> {
+    if file.as_os_str() == "-" {
+        return Ok(DecodeInput {
+            reader: Box::new(BufReader::new(std::io::stdin())),
+            pb: super::counter("decoding standard input", "frames"),
+            per_frame: true,
+        });
+    }
+    let f = File::open(file).with_context(|| format!("{}", file.display()))?;
+    let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+    let pb = super::byte_bar(len, format!("decoding {}", file.display()));
+    Ok(DecodeInput {
+        reader: Box::new(BufReader::new(pb.wrap_read(f))),
+        pb,
+        per_frame: false,
+    })
+}
+
 /// The decoder of `ddct log decode`: the built-in contract or a `--dbc` file.
 enum AnyDecoder<'a> {
     Builtin(LogDecoder),
@@ -320,9 +384,22 @@ fn decode(
 ) -> anyhow::Result<ExitCode> {
     let runtime = dbc.map(RuntimeDbc::load).transpose()?;
     let filter = wanted_filter(messages, runtime.as_ref())?;
-    let input = open_input(file)?;
+    let DecodeInput {
+        reader,
+        pb,
+        per_frame,
+    } = open_decode_input(file)?;
     let stdout = std::io::stdout();
-    let mut out = BufWriter::new(stdout.lock());
+    let sink: Box<dyn Write> = if stdout.is_terminal() && !pb.is_hidden() {
+        Box::new(AroundBar {
+            pb: pb.clone(),
+            out: stdout,
+            partial: Vec::new(),
+        })
+    } else {
+        Box::new(stdout.lock())
+    };
+    let mut out = BufWriter::new(sink);
     let mut decoder = match &runtime {
         Some(db) => AnyDecoder::Runtime(runtime_dbc::Decoder::new(db, E2eConfig::default())),
         None => AnyDecoder::Builtin(LogDecoder::default()),
@@ -332,16 +409,19 @@ fn decode(
     if format == Format::Csv {
         writeln!(out, "time_s,iface,id,message,signal,value,unit,e2e")?;
     }
-    for item in LogReader::any_format(input, Box::new(wall_clock)) {
+    for item in LogReader::any_format(reader, Box::new(wall_clock)) {
         let rec = match item {
             Ok(r) => r,
             Err(LogError::Line { line, kind }) => {
                 bad_lines += 1;
-                eprintln!("{}:{line}: {kind}", file.display());
+                pb.suspend(|| eprintln!("{}:{line}: {kind}", file.display()));
                 continue;
             }
             Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
         };
+        if per_frame {
+            pb.inc(1);
+        }
         let builtin;
         let runtime_decoded;
         let d = match &mut decoder {
@@ -371,6 +451,7 @@ fn decode(
         }
     }
     out.flush()?;
+    pb.finish_and_clear();
     let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!("frames by E2E verdict: {}", summary.join(", "));
     let gaps: Vec<(&str, Duration, Duration)> = match &decoder {
@@ -771,6 +852,8 @@ fn replay(file: &PathBuf, iface: &str, pace: Pace, passes: u32) -> anyhow::Resul
     }
     let rt = runtime()?;
     let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();
+    let pb = super::bar((records.len() * passes as usize) as u64, "frames");
+    pb.set_message(format!(" sent on {iface}"));
     let sent = rt.block_on(async {
         let mut bus = open_can(iface)?;
         let start = tokio::time::Instant::now();
@@ -790,9 +873,12 @@ fn replay(file: &PathBuf, iface: &str, pace: Pace, passes: u32) -> anyhow::Resul
             }
             bus.send(r.frame).await?;
             sent += 1;
+            pb.inc(1);
         }
         anyhow::Ok(sent)
-    })?;
+    });
+    pb.finish_and_clear();
+    let sent = sent?;
     eprintln!("sent {sent} frame(s) on {iface}");
     Ok(ExitCode::SUCCESS)
 }

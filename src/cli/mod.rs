@@ -94,3 +94,35 @@ pub fn bar(len: u64, unit: &str) -> indicatif::ProgressBar {
     );
     pb
 }
+
+/// A bar over `len` bytes of input (a file being read) with the time left; terminal only.
+pub fn byte_bar(
+    len: u64,
+    msg: impl Into<std::borrow::Cow<'static, str>>,
+) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new(len).with_message(msg);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg} [{bar:30}] {bytes}/{total_bytes}, {elapsed} elapsed, ~{eta} left",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    pb
+}
+
+/// A spinner with a count of `unit` (advanced by `inc`) and the elapsed time, for input of
+/// unknown length such as standard input; terminal only.
+pub fn counter(
+    msg: impl Into<std::borrow::Cow<'static, str>>,
+    unit: &str,
+) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new_spinner().with_message(msg);
+    let template = format!("{{spinner}} {{msg}}: {{pos}} {unit} ({{elapsed}})");
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(&template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    pb
+}
