@@ -54,8 +54,8 @@ pub enum LogCmd {
         /// input, e.g. `candump vcan0 | ddct log monitor -`).
         input: Option<PathBuf>,
         /// Stop after this many seconds (default: until SIGINT/SIGTERM or the end of the input).
-        #[arg(long)]
-        duration: Option<f64>,
+        #[arg(long, value_parser = super::args::seconds)]
+        duration: Option<Duration>,
     },
     /// Cycle-time statistics per message of a candump -l log (p50/p99/min/max intervals).
     Stats {
@@ -78,8 +78,8 @@ pub enum LogCmd {
         #[arg(long)]
         count: Option<u64>,
         /// Stop after this many seconds.
-        #[arg(long)]
-        duration: Option<f64>,
+        #[arg(long, value_parser = super::args::seconds)]
+        duration: Option<Duration>,
         /// Once the socket is open and the signal handlers installed, write the pid to this file
         /// (a bench script waits for it before the traffic starts).
         #[arg(long)]
@@ -671,14 +671,9 @@ fn draw(text: &str, tty: bool) {
 fn monitor(
     iface: Option<&str>,
     input: Option<&PathBuf>,
-    duration: Option<f64>,
+    limit: Option<Duration>,
 ) -> anyhow::Result<ExitCode> {
     use std::io::IsTerminal as _;
-    let limit = match duration {
-        Some(d) if d.is_finite() && d > 0.0 => Some(Duration::from_secs_f64(d)),
-        Some(d) => bail!("--duration {d}: must be a positive number of seconds"),
-        None => None,
-    };
     let tty = std::io::stdout().is_terminal();
     let mut decoder = LogDecoder::default();
     let mut mon = ddct::can::monitor::Monitor::default();
@@ -752,14 +747,9 @@ fn record(
     iface: &str,
     out: &PathBuf,
     count: Option<u64>,
-    duration: Option<f64>,
+    duration: Option<Duration>,
     ready_file: Option<&std::path::Path>,
 ) -> anyhow::Result<ExitCode> {
-    if let Some(d) = duration {
-        if !(d.is_finite() && d > 0.0) {
-            bail!("--duration {d}: must be a positive number of seconds");
-        }
-    }
     let file = File::create(out).with_context(|| format!("{}", out.display()))?;
     let mut writer = LogWriter::new(BufWriter::new(file));
     let rt = runtime()?;
@@ -770,7 +760,7 @@ fn record(
         if let Err(e) = bus.set_recv_buffer(RECORD_RCVBUF) {
             tracing::warn!("{e}: the default receive queue may drop frames under load");
         }
-        let deadline = duration.map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d));
+        let deadline = duration.map(|d| tokio::time::Instant::now() + d);
         let stop = shutdown_signal();
         announce_ready(ready_file)?;
         tokio::pin!(stop);

@@ -33,6 +33,8 @@ def test_a_missing_interface_says_how_to_get_one(ddct, tmp_path, cmd):
         (["plant", "--iface", "sim", "--mode", "rig", "--input-speed", "7000"], "--input-speed"),
         (["plant", "--iface", "sim", "--lockstep", "--lockstep-timeout", "0"], "--lockstep-timeout"),
         (["bench", "--iface", "sim", "--echo", "601"], "--echo"),
+        (["log", "monitor", "-", "--duration", "0"], "--duration"),
+        (["log", "record", "--iface", "vcan0", "--out", "x.log", "--duration", "inf"], "--duration"),
     ],
 )
 def test_out_of_range_arguments_are_usage_errors(ddct, cmd, flag):
