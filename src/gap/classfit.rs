@@ -332,6 +332,15 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
     }
 }
 
+/// A reading error from its parameters (offset, then the curve's increments) on the knots of
+/// `var`; `None` without knots.
+fn reading(knots: &Knots, var: Variable, v: &[f64]) -> Option<super::terms::Reading> {
+    knots.0.get(&var).map(|z| super::terms::Reading {
+        offset: v[0],
+        shape: Shape::from_increments(*z, &v[1..]),
+    })
+}
+
 /// Sets the class's term in `m` from the parameter vector `v` (as [`params`] lists them).
 pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
     use ClassId::*;
@@ -371,28 +380,10 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         }
         ActuatorLag => m.p.actuator.tau_s = v[0],
         ActuatorTransfer => m.terms.transfer = Some(go(v)),
-        SensorTorque => {
-            m.terms.torque_sensor =
-                knots
-                    .0
-                    .get(&Variable::ClutchTorque)
-                    .map(|z| super::terms::Reading {
-                        offset: v[0],
-                        shape: Shape::from_increments(*z, &v[1..]),
-                    })
-        }
+        SensorTorque => m.terms.torque_sensor = reading(knots, Variable::ClutchTorque, v),
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
         SensorTemperatureLag => m.terms.temp_lag_s = v[0],
-        SensorTemperature => {
-            m.terms.temp_sensor =
-                knots
-                    .0
-                    .get(&Variable::Measurement)
-                    .map(|z| super::terms::Reading {
-                        offset: v[0],
-                        shape: Shape::from_increments(*z, &v[1..]),
-                    })
-        }
+        SensorTemperature => m.terms.temp_sensor = reading(knots, Variable::Measurement, v),
         SensorPosition => m.terms.pos_sensor = Some(go(v)),
         ConvectionSpeed => {
             m.terms.convection =

@@ -214,6 +214,16 @@ impl Scores {
         sum_rows(&self.std_unit, chans)
     }
 
+    /// Per unit, how much the standardized squares over `chans` fell from `self` to `after`
+    /// (a gain when positive).
+    pub fn unit_gain_to(&self, after: &Scores, chans: &[Channel]) -> Vec<f64> {
+        self.unit_std(chans)
+            .iter()
+            .zip(&after.unit_std(chans))
+            .map(|(a, b)| a - b)
+            .collect()
+    }
+
     /// Sample count per unit summed over `chans`.
     pub fn unit_count(&self, chans: &[Channel]) -> Vec<f64> {
         sum_rows(&self.unit_n, chans)

@@ -598,12 +598,7 @@ fn recalibration_findings(
             aff.retain(|c| s.chans.contains(c));
         }
         let v2 = val.with(&Scores::of(&m2, s.validate, &aff, s.nunits_v), &aff);
-        let u: Vec<f64> = val
-            .unit_std(s.chans)
-            .iter()
-            .zip(&v2.unit_std(s.chans))
-            .map(|(a, b)| a - b)
-            .collect();
+        let u = val.unit_gain_to(&v2, s.chans);
         let gain: f64 = u.iter().sum();
         let ci = stats::bootstrap(u.len(), o.bootstrap, rng, |idx| {
             idx.iter().map(|&j| u[j]).sum::<f64>()

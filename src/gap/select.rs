@@ -379,9 +379,7 @@ fn candidate(
     let delta_bic = delta_bic(s, &model, base_train, &aff, cached_disk, k);
     let v = Scores::of(&model, s.validate, &aff, s.nunits_v);
     let val = base_val.with(&v, &aff);
-    let ub = base_val.unit_std(s.chans);
-    let uc = val.unit_std(s.chans);
-    let unit_gain: Vec<f64> = ub.iter().zip(&uc).map(|(a, b)| a - b).collect();
+    let unit_gain = base_val.unit_gain_to(&val, s.chans);
     let gain: f64 = unit_gain.iter().sum();
     let mut rng = Rng::new(rng_seed);
     let gain_ci95 = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
@@ -417,13 +415,7 @@ fn candidate(
             .into_iter()
             .filter(|c| s.chans.contains(c))
             .collect();
-        let u: Vec<f64> = base_val
-            .unit_std(&own)
-            .iter()
-            .zip(&val.unit_std(&own))
-            .map(|(a, b)| a - b)
-            .collect();
-        let own_gain: f64 = u.iter().sum();
+        let own_gain: f64 = base_val.unit_gain_to(&val, &own).iter().sum();
         if own_gain < gain / 3.0 {
             why.push(format!(
                 "its own readings carry {own_gain:.1} of the gain {gain:.1} (less than a third): the gain is the torque's"
@@ -830,12 +822,7 @@ impl Loss {
             .into_iter()
             .filter(|ch| s.chans.contains(ch))
             .collect();
-        let unit: Vec<f64> = without
-            .unit_std(&own)
-            .iter()
-            .zip(&with.unit_std(&own))
-            .map(|(a, b)| a - b)
-            .collect();
+        let unit = without.unit_gain_to(with, &own);
         let gain: f64 = unit.iter().sum();
         let mut rng = Rng::new(seed);
         let ci95 = stats::bootstrap(s.nunits_v, s.bootstrap, &mut rng, |idx| {
