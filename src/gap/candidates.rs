@@ -372,11 +372,10 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         c.pp = [fix_temp(&m.pp[0]), fix_temp(&m.pp[1])];
         c.cd = fix_temp(&m.cd);
     }
-    if let Some(r) = &t.torque_sensor {
-        let inv = r.inverse();
+    if let Some(g) = &t.torque_sensor {
         for i in 0..2 {
             let power: Vec<f64> = (0..m.n)
-                .map(|k| inv.eval(m.torque[i][k]) * m.slip[i][k])
+                .map(|k| g.invert(m.torque[i][k], 0.0) * m.slip[i][k])
                 .collect();
             let e0 = m.e_cum[i].first().copied().unwrap_or(0.0);
             c.e_cum[i] = replay::cumulative_energy(&power, e0, m.dt).into();

@@ -56,8 +56,6 @@ pub enum Variable {
     EngineTorque,
     /// The measured value of a channel itself (sensor gain/offset).
     Measurement,
-    /// The measured clutch torque (N·m): the knots of a torque reading error.
-    ClutchTorque,
 }
 
 impl Variable {
@@ -75,7 +73,6 @@ impl Variable {
             Variable::Power => "power",
             Variable::EngineTorque => "engine_torque",
             Variable::Measurement => "measurement",
-            Variable::ClutchTorque => "clutch_torque",
         }
     }
 }

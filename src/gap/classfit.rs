@@ -291,17 +291,7 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
         }
         ActuatorTransfer => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
-        SensorTorque => {
-            let mut v = vec![ParamSpec::new(
-                "sensor_torque.offset_nm",
-                0.0,
-                -10.0,
-                10.0,
-                0.5,
-            )];
-            v.extend(shape_params(name, 20.0, 0.5));
-            v
-        }
+        SensorTorque => gain_offset(name, 0.3, "offset_nm", 10.0, 0.5),
         SensorTorqueSkew => vec![ParamSpec::new(
             "sensor_torque_skew.skew_s",
             0.0,
@@ -332,8 +322,8 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
     }
 }
 
-/// A reading error from its parameters (offset, then the curve's increments) on the knots of
-/// `var`; `None` without knots.
+/// A thermocouple's reading error from its parameters (offset, then the curve's increments) on
+/// the knots of `var`; `None` without knots.
 fn reading(knots: &Knots, var: Variable, v: &[f64]) -> Option<super::terms::Reading> {
     knots.0.get(&var).map(|z| super::terms::Reading {
         offset: v[0],
@@ -380,7 +370,7 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         }
         ActuatorLag => m.p.actuator.tau_s = v[0],
         ActuatorTransfer => m.terms.transfer = Some(go(v)),
-        SensorTorque => m.terms.torque_sensor = reading(knots, Variable::ClutchTorque, v),
+        SensorTorque => m.terms.torque_sensor = Some(go(v)),
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
         SensorTemperatureLag => m.terms.temp_lag_s = v[0],
         SensorTemperature => m.terms.temp_sensor = reading(knots, Variable::Measurement, v),
@@ -447,8 +437,8 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
         ActuatorLag => (m.p.actuator.tau_s, "s"),
         ActuatorTransfer => (t.transfer.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
         SensorTorque => (
-            t.torque_sensor.map_or(0.0, |r| r.largest_error(0.0, 150.0)),
-            "N·m, largest reading error over 0…150 N·m",
+            t.torque_sensor.map_or(0.0, |g| g.gain - 1.0),
+            "relative gain",
         ),
         SensorTorqueSkew => (t.torque_skew_s, "s"),
         SensorTemperatureLag => (t.temp_lag_s, "s"),
@@ -477,10 +467,6 @@ pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
         ConvectionSpeed => t.convection.map(|c| c.shape),
         HeatPartition => t.partition.map(|p| p.shape),
         SensorTemperature => t.temp_sensor.map(|r| Shape {
-            z: r.shape.z,
-            v: r.shape.v.map(|v| v + r.offset),
-        }),
-        SensorTorque => t.torque_sensor.map(|r| Shape {
             z: r.shape.z,
             v: r.shape.v.map(|v| v + r.offset),
         }),
@@ -532,47 +518,5 @@ pub fn member_from_shape(class: ClassId, m: &Model) -> Option<(EffectId, Vec<f64
             Some((EffectId::FrictionPressure, vec![1.0 + slope(&lp)]))
         }
         _ => None,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A torque reading error is an offset and a piecewise-linear curve in the torque: the
-    /// reading, its size and its inverse checked by hand at one torque between the knots.
-    #[test]
-    fn torque_reading_is_an_offset_and_a_curve_in_the_torque() {
-        let z = [0.0, 20.0, 50.0, 100.0, 150.0];
-        let knots = Knots([(Variable::ClutchTorque, z)].into_iter().collect());
-        let mut m = Model::nominal(crate::model::params::Params::default());
-        let names: Vec<String> = params(ClassId::SensorTorque, &m)
-            .iter()
-            .map(|p| p.name.clone())
-            .collect();
-        assert_eq!(names[0], "sensor_torque.offset_nm");
-        assert_eq!(names.len(), KNOTS);
-        // offset −0.5 N·m; the curve rises 1 N·m per segment, stays, falls 0.5.
-        apply(
-            ClassId::SensorTorque,
-            &knots,
-            &mut m,
-            &[-0.5, 1.0, 1.0, 0.0, -0.5],
-        );
-        let r = m.terms.torque_sensor.expect("a torque reading");
-        // At 35 N·m: 35 − 0.5 + 1 + (35 − 20)/30 · 1 = 36.
-        assert!((m.terms.measured_torque(35.0) - 36.0).abs() < 1e-12);
-        assert!((r.inverse().eval(36.0) - 35.0).abs() < 1e-12);
-        // The largest error over 0…150 N·m is at 50…100 N·m: −0.5 + 2 = 1.5.
-        let (size, unit) = magnitude(ClassId::SensorTorque, &m);
-        assert!((size - 1.5).abs() < 1e-12, "{size}");
-        assert!(unit.starts_with("N·m"));
-        remove(
-            ClassId::SensorTorque,
-            &mut m,
-            &Model::nominal(crate::model::params::Params::default()),
-        );
-        assert!(m.terms.torque_sensor.is_none());
-        assert_eq!(m.terms.measured_torque(35.0), 35.0);
     }
 }

@@ -468,16 +468,12 @@ fn knots(model: &Model, train: &[File]) -> Knots {
                 vals.entry(Variable::Measurement).or_default().push(v);
             }
         }
-        // The friction power of slipping clutches (the heat partition's variable) and the
-        // torque readings (a torque reading error's variable).
+        // The friction power of slipping clutches (the heat partition's variable).
         for i in 0..2 {
             for &k in f.fit.get(Channel::Torque(i)) {
                 vals.entry(Variable::Power)
                     .or_default()
                     .push(f.m.power[i][k].max(0.0));
-                vals.entry(Variable::ClutchTorque)
-                    .or_default()
-                    .push(f.m.torque[i][k]);
             }
         }
     }

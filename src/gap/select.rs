@@ -463,20 +463,32 @@ fn candidate(
 }
 
 /// The largest reading error of a fitted sensor class over its channel's working range
-/// (thermocouples 20…250 °C, clutch torque 0…150 N·m), with that channel's practical tolerance
-/// and unit; `None` for other classes.
+/// (thermocouples 20…250 °C, clutch torque 0…150 N·m), with that channel's
+/// practical tolerance and unit; `None` for other classes.
 fn reading_error(class: ClassId, m: &Model) -> Option<(f64, f64, &'static str)> {
-    let (r, (lo, hi), chan, unit) = match class {
-        ClassId::SensorTemperature => (m.terms.temp_sensor?, (20.0, 250.0), Channel::Temp(0), "K"),
+    let (g, range, reference, chan, unit) = match class {
+        ClassId::SensorTemperature => {
+            let r = m.terms.temp_sensor?;
+            return Some((
+                r.largest_error(20.0, 250.0),
+                context::tolerance(Channel::Temp(0)),
+                "K",
+            ));
+        }
         ClassId::SensorTorque => (
             m.terms.torque_sensor?,
-            (0.0, 150.0),
+            [0.0, 150.0],
+            0.0,
             Channel::Torque(0),
             "N·m",
         ),
         _ => return None,
     };
-    Some((r.largest_error(lo, hi), context::tolerance(chan), unit))
+    let err = range
+        .iter()
+        .map(|&v| (g.apply(v, reference) - v).abs())
+        .fold(0.0, f64::max);
+    Some((err, context::tolerance(chan), unit))
 }
 
 /// Fits a job and returns only the model.

@@ -246,7 +246,7 @@ pub struct Terms {
     /// Bearing = transfer(measured actuator position).
     pub transfer: Option<GainOffset>,
     /// Measured torque = torque_sensor(torque).
-    pub torque_sensor: Option<Reading>,
+    pub torque_sensor: Option<GainOffset>,
     /// The torque channel is recorded `torque_skew_s` late (s; negative: early).
     pub torque_skew_s: f64,
     /// Thermocouple first-order lag (s).
@@ -342,7 +342,7 @@ impl Terms {
     #[inline]
     pub fn measured_torque(&self, t: f64) -> f64 {
         match &self.torque_sensor {
-            Some(r) => r.apply(t),
+            Some(g) => g.apply(t, 0.0),
             None => t,
         }
     }
