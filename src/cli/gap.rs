@@ -573,7 +573,9 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
         }
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let pb = super::spinner("simulating the truth's rig records");
     let recs = truth::records(&t, a.seed);
+    pb.finish_and_clear();
     let mut names = (Vec::new(), Vec::new());
     for (set, list) in [(&recs.train, &mut names.0), (&recs.validate, &mut names.1)] {
         for (name, csv) in set {
