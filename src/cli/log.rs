@@ -250,7 +250,8 @@ struct Shown<'a> {
 struct ShownSignal<'a> {
     name: &'a str,
     value: f64,
-    /// The value as the table shows it (a value-table name or the number at its resolution).
+    /// The value as the table shows it (a value-table name or the number at its resolution);
+    /// formatted only for the table (empty for CSV and JSON, which print the value).
     text: String,
     label: Option<&'a str>,
     unit: &'a str,
@@ -261,7 +262,7 @@ struct ShownSignal<'a> {
 const E2E_NOT_COMPUTED: &str = "n/a";
 
 impl<'a> Shown<'a> {
-    fn builtin(d: &'a DecodedFrame) -> Self {
+    fn builtin(d: &'a DecodedFrame, with_text: bool) -> Self {
         Shown {
             timestamp: d.timestamp,
             iface: &d.iface,
@@ -274,7 +275,11 @@ impl<'a> Shown<'a> {
                 .map(|s| ShownSignal {
                     name: s.signal.name,
                     value: s.value,
-                    text: s.display_value(),
+                    text: if with_text {
+                        s.display_value()
+                    } else {
+                        String::new()
+                    },
                     label: s.label,
                     unit: s.signal.unit,
                     in_range: s.in_range,
@@ -284,7 +289,7 @@ impl<'a> Shown<'a> {
         }
     }
 
-    fn runtime(r: &'a LogRecord, d: &runtime_dbc::Decoded<'a>) -> Self {
+    fn runtime(r: &'a LogRecord, d: &runtime_dbc::Decoded<'a>, with_text: bool) -> Self {
         Shown {
             timestamp: r.timestamp,
             iface: &r.iface,
@@ -297,7 +302,11 @@ impl<'a> Shown<'a> {
                 .map(|s| ShownSignal {
                     name: &s.signal.name,
                     value: s.value,
-                    text: s.display_value(),
+                    text: if with_text {
+                        s.display_value()
+                    } else {
+                        String::new()
+                    },
                     label: s.label,
                     unit: &s.signal.unit,
                     in_range: s.in_range,
@@ -422,21 +431,28 @@ fn decode(
         if per_frame {
             pb.inc(1);
         }
+        // Every frame goes through the decoder (its E2E and gap tracking); only the selected
+        // ones are turned into output.
+        let wanted = filter.is_empty() || filter.contains(&rec.frame.raw_id());
+        let table = format == Format::Table;
         let builtin;
         let runtime_decoded;
         let d = match &mut decoder {
             AnyDecoder::Builtin(dec) => {
                 builtin = dec.decode(&rec);
-                Shown::builtin(&builtin)
+                if !wanted {
+                    continue;
+                }
+                Shown::builtin(&builtin, table)
             }
             AnyDecoder::Runtime(dec) => {
                 runtime_decoded = dec.decode(&rec);
-                Shown::runtime(&rec, &runtime_decoded)
+                if !wanted {
+                    continue;
+                }
+                Shown::runtime(&rec, &runtime_decoded, table)
             }
         };
-        if !filter.is_empty() && !filter.contains(&d.id) {
-            continue;
-        }
         *verdicts.entry(d.e2e).or_default() += 1;
         let written = match format {
             Format::Table => writeln!(out, "{}", table_line(&d)),
