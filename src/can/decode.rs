@@ -47,18 +47,56 @@ pub struct DecodedFrame {
 
 /// A message that went silent for longer than the E2E timeout.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Gap {
-    pub message: &'static str,
+pub struct Gap<'a> {
+    pub message: &'a str,
     pub from: Duration,
     pub to: Duration,
+}
+
+/// The silences of a frame sequence, shared by the built-in and the `--dbc` decoders: per
+/// message (`K`) the time last seen, and every interval of at least `timeout_cycles` of the
+/// message's cycle (messages without a cycle are never silent).
+#[derive(Debug)]
+pub struct Silences<'a, K> {
+    last_seen: std::collections::HashMap<K, Duration>,
+    gaps: Vec<Gap<'a>>,
+}
+
+impl<K> Default for Silences<'_, K> {
+    fn default() -> Self {
+        Silences {
+            last_seen: std::collections::HashMap::new(),
+            gaps: Vec::new(),
+        }
+    }
+}
+
+impl<'a, K: Eq + std::hash::Hash> Silences<'a, K> {
+    /// Message `key` (named `name`, cycle `cycle_ms`) seen at `t`.
+    pub fn seen(&mut self, key: K, name: &'a str, cycle_ms: u64, timeout_cycles: u64, t: Duration) {
+        let limit = Duration::from_millis(cycle_ms * timeout_cycles);
+        if let Some(last) = self.last_seen.insert(key, t) {
+            if cycle_ms > 0 && t.saturating_sub(last) >= limit {
+                self.gaps.push(Gap {
+                    message: name,
+                    from: last,
+                    to: t,
+                });
+            }
+        }
+    }
+
+    /// Silences longer than the timeout seen so far.
+    pub fn gaps(&self) -> &[Gap<'a>] {
+        &self.gaps
+    }
 }
 
 /// Stateful decoder of a frame sequence (the E2E counter state carries over between frames).
 pub struct LogDecoder {
     checker: Option<E2eChecker>,
     config: E2eConfig,
-    last_seen: Vec<(u16, Duration)>,
-    gaps: Vec<Gap>,
+    silences: Silences<'static, u16>,
 }
 
 impl Default for LogDecoder {
@@ -72,8 +110,7 @@ impl LogDecoder {
         Self {
             checker: None,
             config,
-            last_seen: Vec::new(),
-            gaps: Vec::new(),
+            silences: Silences::default(),
         }
     }
 
@@ -106,7 +143,13 @@ impl LogDecoder {
         } else {
             E2eVerdict::NotProtected
         };
-        self.track_gap(def, r.timestamp);
+        self.silences.seen(
+            def.id,
+            def.name,
+            u64::from(def.cycle_ms),
+            u64::from(self.config.timeout_cycles),
+            r.timestamp,
+        );
         let data = r.frame.bytes();
         let signals = def.decode_lenient(data).unwrap_or_default();
         let error = Message::decode(id, data).err();
@@ -121,27 +164,9 @@ impl LogDecoder {
         }
     }
 
-    fn track_gap(&mut self, def: &'static MessageDef, t: Duration) {
-        let limit =
-            Duration::from_millis(u64::from(def.cycle_ms) * u64::from(self.config.timeout_cycles));
-        match self.last_seen.iter_mut().find(|(i, _)| *i == def.id) {
-            Some((_, last)) => {
-                if def.cycle_ms > 0 && t.saturating_sub(*last) >= limit {
-                    self.gaps.push(Gap {
-                        message: def.name,
-                        from: *last,
-                        to: t,
-                    });
-                }
-                *last = t;
-            }
-            None => self.last_seen.push((def.id, t)),
-        }
-    }
-
     /// Silences longer than the E2E timeout seen so far.
-    pub fn gaps(&self) -> &[Gap] {
-        &self.gaps
+    pub fn gaps(&self) -> &[Gap<'static>] {
+        self.silences.gaps()
     }
 }
 

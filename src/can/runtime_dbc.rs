@@ -26,14 +26,13 @@
 
 use super::candump::LogRecord;
 use super::codec::{decimals_of, MessageDef};
-use super::decode::E2eVerdict;
+use super::decode::{E2eVerdict, Gap, Silences};
 use super::e2e::{E2eChecker, E2eConfig};
 use super::messages::message_def;
 use embedded_can::Frame as _;
 use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 use thiserror::Error;
 
 /// Why a DBC file could not be used.
@@ -576,22 +575,12 @@ pub struct Decoded<'a> {
     pub issue: Option<FrameIssue>,
 }
 
-/// A message that fell silent for longer than [`E2eConfig::timeout_cycles`] of its
-/// `GenMsgCycleTime`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Gap<'a> {
-    pub message: &'a str,
-    pub from: Duration,
-    pub to: Duration,
-}
-
 /// Decodes a frame sequence with a runtime DBC (E2E and gap state carry over between frames).
 pub struct Decoder<'a> {
     dbc: &'a RuntimeDbc,
     config: E2eConfig,
     checker: Option<E2eChecker>,
-    last_seen: HashMap<usize, Duration>,
-    gaps: Vec<Gap<'a>>,
+    silences: Silences<'a, usize>,
 }
 
 impl<'a> Decoder<'a> {
@@ -600,8 +589,7 @@ impl<'a> Decoder<'a> {
             dbc,
             config,
             checker: None,
-            last_seen: HashMap::new(),
-            gaps: Vec::new(),
+            silences: Silences::default(),
         }
     }
 
@@ -628,7 +616,13 @@ impl<'a> Decoder<'a> {
         };
         let m = &dbc.messages[mi];
         let data = r.frame.bytes();
-        self.track_gap(mi, m, r.timestamp);
+        self.silences.seen(
+            mi,
+            &m.name,
+            u64::from(m.cycle_ms),
+            u64::from(self.config.timeout_cycles),
+            r.timestamp,
+        );
         let e2e = m.e2e_twin.map(|def| {
             let twins = dbc.messages.iter().filter_map(|m| m.e2e_twin.map(|d| d.id));
             let checker = self
@@ -657,23 +651,9 @@ impl<'a> Decoder<'a> {
         }
     }
 
-    fn track_gap(&mut self, mi: usize, m: &'a Message, t: Duration) {
-        let limit =
-            Duration::from_millis(u64::from(m.cycle_ms) * u64::from(self.config.timeout_cycles));
-        if let Some(last) = self.last_seen.insert(mi, t) {
-            if m.cycle_ms > 0 && t.saturating_sub(last) >= limit {
-                self.gaps.push(Gap {
-                    message: &m.name,
-                    from: last,
-                    to: t,
-                });
-            }
-        }
-    }
-
     /// Silences longer than the timeout seen so far.
     pub fn gaps(&self) -> &[Gap<'a>] {
-        &self.gaps
+        self.silences.gaps()
     }
 }
 
@@ -749,6 +729,7 @@ mod tests {
     use crate::can::e2e::E2eSender;
     use crate::can::messages::{ids, EngStatus};
     use crate::can::CanFrame;
+    use std::time::Duration;
 
     const FOREIGN: &str = r#"VERSION ""
 

@@ -470,24 +470,17 @@ fn decode(
     pb.finish_and_clear();
     let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!("frames by E2E verdict: {}", summary.join(", "));
-    let gaps: Vec<(&str, Duration, Duration)> = match &decoder {
-        AnyDecoder::Builtin(dec) => dec
-            .gaps()
-            .iter()
-            .map(|g| (g.message, g.from, g.to))
-            .collect(),
-        AnyDecoder::Runtime(dec) => dec
-            .gaps()
-            .iter()
-            .map(|g| (g.message, g.from, g.to))
-            .collect(),
+    let gaps = match &decoder {
+        AnyDecoder::Builtin(dec) => dec.gaps(),
+        AnyDecoder::Runtime(dec) => dec.gaps(),
     };
-    for (message, from, to) in gaps.iter().filter(|_| !quiet) {
+    for g in gaps.iter().filter(|_| !quiet) {
         eprintln!(
-            "gap: {message} silent from {:.6} to {:.6} s ({} ms)",
-            from.as_secs_f64(),
-            to.as_secs_f64(),
-            (*to - *from).as_millis()
+            "gap: {} silent from {:.6} to {:.6} s ({} ms)",
+            g.message,
+            g.from.as_secs_f64(),
+            g.to.as_secs_f64(),
+            (g.to - g.from).as_millis()
         );
     }
     if bad_lines > 0 {
