@@ -65,6 +65,14 @@ pub fn inertias(p: &DrivelineParams) -> [f64; 4] {
 /// Road load at the wheels (N·m): (19) with regularised sign, plus grade and brake.
 /// `grade` is rise over run (0.05 = 5 %), `brake` a fraction 0..1.
 pub fn load_torque(p: &DrivelineParams, w_out_radps: f64, grade: f64, brake: f64) -> f64 {
+    let grade = if grade.is_finite() { grade } else { 0.0 };
+    load_torque_graded(p, w_out_radps, grade_torque(p, grade), brake)
+}
+
+/// [`load_torque`] with the grade torque [`grade_torque`] already computed (it holds over a step
+/// with held inputs; the speed-dependent part does not).
+#[inline]
+pub fn load_torque_graded(p: &DrivelineParams, w_out_radps: f64, grade_nm: f64, brake: f64) -> f64 {
     let v = p.wheel_radius_m * w_out_radps;
     let s = (v / p.load_smoothing_m_per_s).tanh();
     let brake = if brake.is_finite() {
@@ -72,11 +80,10 @@ pub fn load_torque(p: &DrivelineParams, w_out_radps: f64, grade: f64, brake: f64
     } else {
         0.0
     };
-    let grade = if grade.is_finite() { grade } else { 0.0 };
     p.f0_nm * s
         + p.f1_nm_s_per_m * v
         + p.f2_nm_s2_per_m2 * v * v.abs()
-        + grade_torque(p, grade)
+        + grade_nm
         + p.brake_max_nm * brake * s
 }
 

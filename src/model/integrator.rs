@@ -26,10 +26,17 @@ pub fn rk4_step<S: OdeSystem>(sys: &S, x: &S::State, u: &S::Input, h: f64) -> S:
 #[inline]
 pub fn rk4_step_with<X: OdeState>(x: &X, h: f64, f: impl Fn(&X) -> X) -> X {
     let k1 = f(x);
-    let k2 = f(&x.axpy(0.5 * h, &k1));
+    rk4_step_from(x, &k1, h, f)
+}
+
+/// One classical RK4 step of length `h` of ẋ = f(x) whose first stage k1 = f(x) the caller has
+/// already evaluated (for event detection, say): three more evaluations.
+#[inline]
+pub fn rk4_step_from<X: OdeState>(x: &X, k1: &X, h: f64, f: impl Fn(&X) -> X) -> X {
+    let k2 = f(&x.axpy(0.5 * h, k1));
     let k3 = f(&x.axpy(0.5 * h, &k2));
     let k4 = f(&x.axpy(h, &k3));
-    x.axpy(h / 6.0, &k1)
+    x.axpy(h / 6.0, k1)
         .axpy(h / 3.0, &k2)
         .axpy(h / 3.0, &k3)
         .axpy(h / 6.0, &k4)

@@ -13,6 +13,7 @@ pub mod figures;
 pub mod integrator;
 pub mod params;
 pub mod powertrain;
+pub mod slip_integral;
 pub mod thermal;
 
 pub use params::{

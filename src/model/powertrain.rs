@@ -28,7 +28,7 @@ use super::actuator;
 use super::clutch;
 use super::driveline::{self, GearShaft, Groups, Links, C1, C2, F, OUT};
 use super::engine::{self, EngineInputs};
-use super::integrator::{rk4_step, OdeState, OdeSystem};
+use super::integrator::{rk4_step_from, OdeState, OdeSystem};
 use super::params::{ClutchParams, Params};
 use super::thermal::{self, Thermal5, Thermal5State, ThermalInputs};
 use serde::{Deserialize, Serialize};
@@ -406,10 +406,42 @@ impl<H: Hooks> Powertrain<H> {
         }
     }
 
-    /// Derivative and outputs at a state.
-    pub fn eval(&self, s: &State, u: &Inputs) -> (State, Outputs) {
+    /// What holds over an integration step: the rigid groups of the links (locks and gears change
+    /// only at events, never between RK4 stages) and the grade torque of the held inputs.
+    fn frozen(&self, s: &State, u: &Inputs) -> Frozen {
+        Frozen {
+            g: self.groups(s),
+            grade_nm: self.grade_torque(u),
+        }
+    }
+
+    /// Grade torque of the inputs (N·m); a non-finite grade counts as level.
+    fn grade_torque(&self, u: &Inputs) -> f64 {
+        let grade = if u.grade.is_finite() { u.grade } else { 0.0 };
+        driveline::grade_torque(&self.p.driveline, grade)
+    }
+
+    /// The step's invariants at `s` for the grade torque `grade_nm`, reusing `last` while the
+    /// links are those of `s` (they change only at lock, break-away and gear events).
+    fn frozen_at(&self, s: &State, grade_nm: f64, last: &mut Option<Frozen>) -> Frozen {
+        if let Some(f) = *last {
+            if f.g.links == self.links(s) {
+                return f;
+            }
+        }
+        let f = Frozen {
+            g: self.groups(s),
+            grade_nm,
+        };
+        *last = Some(f);
+        f
+    }
+
+    /// The torques, accelerations and powers at a state: what the derivative and the outputs
+    /// share.
+    fn forces(&self, fz: &Frozen, s: &State, u: &Inputs) -> Forces {
         let p = &self.p;
-        let g = self.groups(s);
+        let g = &fz.g;
         let w = s.speeds();
         let slips = driveline::slips(&w);
         let ctx = [self.clutch_context(s, 0), self.clutch_context(s, 1)];
@@ -441,7 +473,7 @@ impl<H: Hooks> Powertrain<H> {
         let cmd = self.hooks.engine_command(cmd, w[F]);
         let t_e = s.engine_torque_nm;
         // Load.
-        let t_load = driveline::load_torque(&p.driveline, w[OUT], u.grade, u.brake);
+        let t_load = driveline::load_torque_graded(&p.driveline, w[OUT], fz.grade_nm, u.brake);
         // External torques per body and accelerations.
         let t = [
             t_e - tc[0] - tc[1],
@@ -463,74 +495,112 @@ impl<H: Hooks> Powertrain<H> {
             self.hooks.clutch_beta(&p.clutch, &ctx[0]),
             self.hooks.clutch_beta(&p.clutch, &ctx[1]),
         ];
+        Forces {
+            w,
+            slips,
+            ctx,
+            tc,
+            ts_odd,
+            ts_even,
+            p_sync,
+            cmd,
+            di,
+            t_e,
+            t_load,
+            acc,
+            p_fric,
+            beta,
+        }
+    }
+
+    /// Time derivative of the continuous state from its forces (discrete fields copied).
+    fn derivative_from(&self, s: &State, u: &Inputs, fc: &Forces) -> State {
+        let p = &self.p;
         let tin = ThermalInputs {
-            p_fric1_w: p_fric[0],
-            p_fric2_w: p_fric[1],
-            beta1: beta[0],
-            beta2: beta[1],
+            p_fric1_w: fc.p_fric[0],
+            p_fric2_w: fc.p_fric[1],
+            beta1: fc.beta[0],
+            beta2: fc.beta[1],
             theta_h_c: u.theta_h_c,
-            w_f_radps: w[F],
+            w_f_radps: fc.w[F],
         };
         let mut dth = self.thermal.derivative(&s.thermal, &tin);
         let extra = self.hooks.extra_heat(&s.thermal, &tin);
         dth = dth.axpy(1.0, &extra);
         let rw = p.driveline.wheel_radius_m;
-        let d = State {
+        State {
             t_s: 1.0,
-            w_f: acc[F],
-            w_c1: acc[C1],
-            w_c2: acc[C2],
-            w_out: acc[OUT],
+            w_f: fc.acc[F],
+            w_c1: fc.acc[C1],
+            w_c2: fc.acc[C2],
+            w_out: fc.acc[OUT],
             x1_mm: actuator::derivative(&p.actuator, s.x1_mm, u.x1_ref_mm),
             x2_mm: actuator::derivative(&p.actuator, s.x2_mm, u.x2_ref_mm),
-            engine_torque_nm: engine::torque_rate(&p.engine, t_e, cmd),
-            idle_int_nm: di,
+            engine_torque_nm: engine::torque_rate(&p.engine, fc.t_e, fc.cmd),
+            idle_int_nm: fc.di,
             thermal: dth,
-            e_engine_j: t_e * w[F],
-            e_fric1_j: p_fric[0],
-            e_fric2_j: p_fric[1],
-            e_sync_j: p_sync,
-            e_load_j: t_load * w[OUT],
-            distance_m: rw * w[OUT],
+            e_engine_j: fc.t_e * fc.w[F],
+            e_fric1_j: fc.p_fric[0],
+            e_fric2_j: fc.p_fric[1],
+            e_sync_j: fc.p_sync,
+            e_load_j: fc.t_load * fc.w[OUT],
+            distance_m: rw * fc.w[OUT],
             ..*s
-        };
+        }
+    }
+
+    /// Algebraic outputs from the forces (the static capacities are computed here only).
+    fn outputs_from(&self, fc: &Forces) -> Outputs {
+        let p = &self.p;
+        let rw = p.driveline.wheel_radius_m;
         let capacity = [
-            self.hooks.clutch_capacity(&p.clutch, &ctx[0]),
-            self.hooks.clutch_capacity(&p.clutch, &ctx[1]),
+            self.hooks.clutch_capacity(&p.clutch, &fc.ctx[0]),
+            self.hooks.clutch_capacity(&p.clutch, &fc.ctx[1]),
         ];
-        let out = Outputs {
-            t_e_nm: t_e,
-            t_e_cmd_nm: cmd,
-            t_fc1_nm: tc[0],
-            t_fc2_nm: tc[1],
-            slip1_radps: slips[0],
-            slip2_radps: slips[1],
-            p_fric1_w: p_fric[0],
-            p_fric2_w: p_fric[1],
+        Outputs {
+            t_e_nm: fc.t_e,
+            t_e_cmd_nm: fc.cmd,
+            t_fc1_nm: fc.tc[0],
+            t_fc2_nm: fc.tc[1],
+            slip1_radps: fc.slips[0],
+            slip2_radps: fc.slips[1],
+            p_fric1_w: fc.p_fric[0],
+            p_fric2_w: fc.p_fric[1],
             capacity1_nm: capacity[0],
             capacity2_nm: capacity[1],
-            beta1: beta[0],
-            beta2: beta[1],
-            t_load_nm: t_load,
-            t_sync_odd_nm: ts_odd,
-            t_sync_even_nm: ts_even,
-            p_sync_w: p_sync,
-            acc,
-            vehicle_speed_mps: rw * w[OUT],
-            vehicle_accel_mps2: rw * acc[OUT],
-            idle_int_rate: di,
-        };
-        (d, out)
+            beta1: fc.beta[0],
+            beta2: fc.beta[1],
+            t_load_nm: fc.t_load,
+            t_sync_odd_nm: fc.ts_odd,
+            t_sync_even_nm: fc.ts_even,
+            p_sync_w: fc.p_sync,
+            acc: fc.acc,
+            vehicle_speed_mps: rw * fc.w[OUT],
+            vehicle_accel_mps2: rw * fc.acc[OUT],
+            idle_int_rate: fc.di,
+        }
+    }
+
+    /// Derivative and outputs at a state.
+    pub fn eval(&self, s: &State, u: &Inputs) -> (State, Outputs) {
+        let fc = self.forces(&self.frozen(s, u), s, u);
+        (self.derivative_from(s, u, &fc), self.outputs_from(&fc))
     }
 
     /// Time derivative of the continuous state (discrete fields copied).
     pub fn derivative(&self, s: &State, u: &Inputs) -> State {
-        self.eval(s, u).0
+        self.derivative_in(&self.frozen(s, u), s, u)
+    }
+
+    /// The derivative with the step's invariants given (one per RK4 stage).
+    #[inline]
+    fn derivative_in(&self, fz: &Frozen, s: &State, u: &Inputs) -> State {
+        self.derivative_from(s, u, &self.forces(fz, s, u))
     }
 
     /// Algebraic outputs at a state.
     pub fn outputs(&self, s: &State, u: &Inputs) -> Outputs {
-        self.eval(s, u).1
+        self.outputs_from(&self.forces(&self.frozen(s, u), s, u))
     }
 
     /// Locks clutch `i` if the links allow it and the torque needed to stay locked is within the
@@ -618,9 +688,19 @@ impl<H: Hooks> Powertrain<H> {
     }
 
     /// Break-away: a locked clutch whose needed torque exceeds its static capacity slips.
-    fn check_breakaway(&self, s: &mut State, u: &Inputs, rep: &mut StepReport) {
+    fn check_breakaway(
+        &self,
+        s: &mut State,
+        u: &Inputs,
+        fz: &mut Option<Frozen>,
+        rep: &mut StepReport,
+    ) {
+        let grade_nm = self.grade_torque(u);
         for _ in 0..2 {
-            let out = self.outputs(s, u);
+            if !s.locked(0) && !s.locked(1) {
+                return;
+            }
+            let out = self.outputs_from(&self.forces(&self.frozen_at(s, grade_nm, fz), s, u));
             let mut changed = false;
             for i in 0..2 {
                 let (need, cap) = if i == 0 {
@@ -651,7 +731,10 @@ impl<H: Hooks> Powertrain<H> {
             return rep;
         }
         self.update_gears(s, u, dt, &mut rep);
-        self.check_breakaway(s, u, &mut rep);
+        // The groups of the links, rebuilt only when an event changes them.
+        let mut last = None;
+        self.check_breakaway(s, u, &mut last, &mut rep);
+        let grade_nm = self.grade_torque(u);
         // A slipping clutch sitting exactly at zero slip may lock at once.
         for i in 0..2 {
             if !s.locked(i) && s.slip(i) == 0.0 && self.try_lock(s, u, i) {
@@ -663,8 +746,12 @@ impl<H: Hooks> Powertrain<H> {
         let mut skip = [false; 2];
         loop {
             let s0 = *s;
-            let d0 = self.derivative(&s0, u);
-            let s1 = rk4_step(self, &s0, u, h_left);
+            // The links hold over the step: one set of groups for d0 and the RK4 stages, and d0
+            // (the slip rates for event location) is RK4's first stage.
+            let fz = self.frozen_at(&s0, grade_nm, &mut last);
+            let f = |x: &State| self.derivative_in(&fz, x, u);
+            let d0 = f(&s0);
+            let s1 = rk4_step_from(&s0, &d0, h_left, f);
             // Earliest predicted zero crossing of a slipping clutch: from the RK4 end point
             // (sign change) or from the slip rate at the start (the cube-root friction makes
             // RK4's own stages straddle zero, so the end point alone can miss a crossing).
@@ -694,7 +781,7 @@ impl<H: Hooks> Powertrain<H> {
                 Some((i, frac)) if rep.events < max_events => {
                     let h1 = frac * h_left;
                     *s = if h1 > 0.0 {
-                        rk4_step(self, &s0, u, h1)
+                        rk4_step_from(&s0, &d0, h1, f)
                     } else {
                         s0
                     };
@@ -719,10 +806,10 @@ impl<H: Hooks> Powertrain<H> {
             }
         }
         // Remove round-off drift from the rigid links.
-        let g = self.groups(s);
-        let (w, _) = g.project(&self.j, &s.speeds());
+        let fz = self.frozen_at(s, grade_nm, &mut last);
+        let (w, _) = fz.g.project(&self.j, &s.speeds());
         s.set_speeds(w);
-        rep.outputs = self.outputs(s, u);
+        rep.outputs = self.outputs_from(&self.forces(&fz, s, u));
         rep
     }
 }
@@ -731,6 +818,35 @@ impl<H: Hooks> OdeSystem for Powertrain<H> {
     type State = State;
     type Input = Inputs;
     fn derivative(&self, x: &State, u: &Inputs) -> State {
-        self.eval(x, u).0
+        Powertrain::derivative(self, x, u)
     }
+}
+
+/// The invariants of one integration step (see [`Powertrain::step`]).
+#[derive(Debug, Clone, Copy)]
+struct Frozen {
+    g: Groups,
+    /// Grade torque at the wheels (N·m).
+    grade_nm: f64,
+}
+
+/// Torques, accelerations and powers at a state.
+#[derive(Debug, Clone, Copy)]
+struct Forces {
+    w: [f64; 4],
+    slips: [f64; 2],
+    ctx: [ClutchContext; 2],
+    /// Clutch torques: (13) when slipping, the link torque when locked (N·m).
+    tc: [f64; 2],
+    ts_odd: f64,
+    ts_even: f64,
+    p_sync: f64,
+    /// Engine torque command after the hooks (N·m) and the idle-integral rate.
+    cmd: f64,
+    di: f64,
+    t_e: f64,
+    t_load: f64,
+    acc: [f64; 4],
+    p_fric: [f64; 2],
+    beta: [f64; 2],
 }
