@@ -89,6 +89,10 @@ pub fn load_torque_graded(p: &DrivelineParams, w_out_radps: f64, grade_nm: f64, 
 
 /// Grade torque m·g·sin(atan(grade))·R_w (N·m).
 pub fn grade_torque(p: &DrivelineParams, grade: f64) -> f64 {
+    if grade == 0.0 {
+        // Level road (most steps): no atan/sin.
+        return 0.0;
+    }
     p.vehicle_mass_kg * p.gravity_m_per_s2 * grade.atan().sin() * p.wheel_radius_m
 }
 

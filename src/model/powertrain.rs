@@ -321,7 +321,7 @@ pub struct Outputs {
 /// What happened in one [`Powertrain::step`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepReport {
-    /// Outputs at the end of the step.
+    /// Outputs at the end of the step (left at the default by [`Powertrain::advance`]).
     pub outputs: Outputs,
     /// Clutches that locked / broke away during the step.
     pub locked: [bool; 2],
@@ -725,9 +725,16 @@ impl<H: Hooks> Powertrain<H> {
     /// Advances the state by `dt` seconds with the inputs held: gear events and break-away at the
     /// start, RK4 with the step split at each located slip zero crossing (lock events).
     pub fn step(&self, s: &mut State, u: &Inputs, dt: f64) -> StepReport {
+        let mut rep = self.advance(s, u, dt);
+        rep.outputs = self.outputs(s, u);
+        rep
+    }
+
+    /// [`Self::step`] without the end-of-step outputs (`outputs` left at its default): for a
+    /// caller that needs them only when a frame is due ([`Self::outputs`] then).
+    pub fn advance(&self, s: &mut State, u: &Inputs, dt: f64) -> StepReport {
         let mut rep = StepReport::default();
         if !(dt.is_finite() && dt > 0.0) {
-            rep.outputs = self.outputs(s, u);
             return rep;
         }
         self.update_gears(s, u, dt, &mut rep);
@@ -809,7 +816,6 @@ impl<H: Hooks> Powertrain<H> {
         let fz = self.frozen_at(s, grade_nm, &mut last);
         let (w, _) = fz.g.project(&self.j, &s.speeds());
         s.set_speeds(w);
-        rep.outputs = self.outputs_from(&self.forces(&fz, s, u));
         rep
     }
 }

@@ -75,12 +75,9 @@ static TABLE: LazyLock<Table> = LazyLock::new(|| {
     let mut p = 0.0;
     for k in 1..=N {
         let (a, b) = ((k - 1) as f64 * H, k as f64 * H);
-        // Four sub-panels per interval (the 8-node rule is then exact to round-off).
-        for j in 0..4 {
-            let lo = a + (b - a) * j as f64 / 4.0;
-            let hi = a + (b - a) * (j + 1) as f64 / 4.0;
-            p += panel(lo, hi);
-        }
+        // One 8-node panel per interval: in s = y^{1/3} the integrand is a smooth function
+        // whose degree-15 Taylor remainder over a width of 0.01 is below round-off.
+        p += panel(a, b);
         let y7 = b * b * b.cbrt();
         f[k] = p / y7;
         df[k] = (t(b) - 7.0 / 3.0 * f[k]) / b;
@@ -166,6 +163,7 @@ mod tests {
             worst = worst.max((p(y) - exact).abs() / exact);
         }
         assert!(worst < 1e-9, "worst relative interpolation error {worst:e}");
+        // The exact value: four 8-node panels per interval.
         fn sub(a: f64, b: f64) -> f64 {
             (0..4)
                 .map(|j| panel(a + (b - a) * j as f64 / 4.0, a + (b - a) * (j + 1) as f64 / 4.0))

@@ -191,6 +191,11 @@ pub struct Plant {
     queue: Vec<OutFrame>,
     pending_rx: Vec<Received>,
     last_out: Outputs,
+    /// `last_out` belongs to the current state (outputs are computed only when a frame is due,
+    /// in rig mode, or for effects whose states need them).
+    out_fresh: bool,
+    /// Inputs of the last step (for outputs computed after it).
+    u_last: Inputs,
     rig_speed_radps: f64,
     stats: PlantStats,
 }
@@ -301,6 +306,8 @@ impl Plant {
             queue: Vec::new(),
             pending_rx: Vec::new(),
             last_out,
+            out_fresh: true,
+            u_last: Inputs::default(),
             stats: PlantStats::default(),
             cfg,
         }
@@ -316,6 +323,12 @@ impl Plant {
 
     pub fn stats(&self) -> &PlantStats {
         &self.stats
+    }
+
+    /// When the plant next needs to run: its next 10 ms cycle (received frames take effect and
+    /// sensor frames are produced only at cycles; a call in between only integrates).
+    pub fn poll_timeout(&self) -> Duration {
+        CYCLE.saturating_mul(u32::try_from(self.next_cycle).unwrap_or(u32::MAX))
     }
 
     /// Simulated time integrated so far.
@@ -347,6 +360,7 @@ impl Plant {
             if self.steps == self.next_cycle * self.steps_per_cycle {
                 let t = self.time();
                 self.apply_rx_until(t);
+                self.refresh_outputs();
                 cycles.push(self.emit_cycle(t));
                 self.next_cycle += 1;
             }
@@ -355,6 +369,7 @@ impl Plant {
             }
             self.substep();
         }
+        self.refresh_outputs();
         let horizon = now + CYCLE;
         self.queue.sort_by_key(|f| f.due);
         let n_due = self.queue.partition_point(|f| f.due < horizon);
@@ -619,20 +634,39 @@ impl Plant {
             self.s.engine_torque_nm = self.last_out.t_fc1_nm + self.last_out.t_fc2_nm;
             self.s.idle_int_nm = 0.0;
         }
-        let rep = self.pt.step(&mut self.s, &u, self.dt);
-        if finite(&self.s) && rep.outputs.t_fc1_nm.is_finite() && rep.outputs.t_fc2_nm.is_finite() {
+        let (prev_out, prev_fresh) = (self.last_out, self.out_fresh);
+        self.pt.advance(&mut self.s, &u, self.dt);
+        self.u_last = u;
+        self.out_fresh = false;
+        // Rig mode feeds the clutch torques back to the dyno every step.
+        let every_step = self.cfg.mode == Mode::Rig || self.pt.hooks.needs_outputs();
+        if every_step {
+            self.refresh_outputs();
+        }
+        if finite(&self.s) && self.last_out.t_fc1_nm.is_finite() && self.last_out.t_fc2_nm.is_finite() {
             self.last_finite = self.s;
-            self.pt.hooks.advance(&self.s, &rep.outputs, self.dt);
-            self.last_out = rep.outputs;
+            let out = every_step.then_some(&self.last_out);
+            self.pt.hooks.advance(&self.s, out, self.dt);
         } else {
             self.stats.nonfinite_states += 1;
             self.s = self.last_finite;
             self.s.t_s += self.dt;
+            // The outputs of the state restored (computed again if they never were).
+            self.last_out = prev_out;
+            self.out_fresh = prev_fresh;
         }
         let h = &self.cfg.housing;
         self.theta_h = h.target_c + (self.theta_h - h.target_c) * (-self.dt / h.tau_s).exp();
         self.steps += 1;
         self.stats.steps += 1;
+    }
+
+    /// Computes the outputs of the current state once after a step (see `out_fresh`).
+    fn refresh_outputs(&mut self) {
+        if !self.out_fresh {
+            self.last_out = self.pt.outputs(&self.s, &self.u_last);
+            self.out_fresh = true;
+        }
     }
 
     fn noise(&self, cycle: u64, channel: u32, sigma: f64) -> f64 {

@@ -66,15 +66,31 @@ impl EffectHooks {
         effects::bearing_position(&self.set, self.bearing_mm[i.min(1)], x_actuator_mm)
     }
 
+    /// True when the effect states need the powertrain's outputs at the end of every step
+    /// (the surface temperature its friction power, the sliding acceleration the body
+    /// accelerations); otherwise the plant computes outputs only when a frame is due.
+    pub fn needs_outputs(&self) -> bool {
+        self.set
+            .is_active(effects::EffectId::SurfaceTemperatureFriction)
+            || self
+                .set
+                .is_active(effects::EffectId::SlidingAccelerationFriction)
+    }
+
     /// Advances the discrete effect states over a step of `dt` seconds that ended at `s` with
-    /// outputs `out`.
-    pub fn advance(&mut self, s: &State, out: &Outputs, dt: f64) {
+    /// outputs `out` (`None` when [`Self::needs_outputs`] is false: only the bearings move).
+    pub fn advance(&mut self, s: &State, out: Option<&Outputs>, dt: f64) {
         let x = [s.x1_mm, s.x2_mm];
+        for i in 0..2 {
+            self.bearing_mm[i] = effects::bearing_position(&self.set, self.bearing_mm[i], x[i]);
+        }
+        let Some(out) = out else {
+            return;
+        };
         let th = [s.thermal.c1, s.thermal.c2];
         let p = [out.p_fric1_w, out.p_fric2_w];
         let acc_c = [out.acc[C1], out.acc[C2]];
         for i in 0..2 {
-            self.bearing_mm[i] = effects::bearing_position(&self.set, self.bearing_mm[i], x[i]);
             self.theta_surface_c[i] = effects::surface_temperature_step(
                 &self.set,
                 self.theta_surface_c[i],

@@ -38,9 +38,16 @@ use std::time::Duration;
 /// one cycle after `now`; the runner holds them until then).
 pub trait PlantNode {
     fn advance(&mut self, now: Duration, rx: &[Received]) -> Vec<(Duration, CanFrame)>;
+    /// When the node next needs to run: received frames take effect and frames are produced only
+    /// then (the simulation skips the times in between).
+    fn poll_timeout(&self) -> Duration;
 }
 
 impl PlantNode for Plant {
+    fn poll_timeout(&self) -> Duration {
+        Plant::poll_timeout(self)
+    }
+
     fn advance(&mut self, now: Duration, rx: &[Received]) -> Vec<(Duration, CanFrame)> {
         self.step(now, rx)
             .frames
@@ -284,13 +291,18 @@ pub fn run_with(
     let mut log = Vec::new();
     let mut frozen = vec![None; opts.injections.len()];
     let mut steps = 0;
-    let n = duration.as_millis() as u64;
-    for k in 0..=n {
-        let t = ms * k as u32;
-        let out = plant.advance(t, &to_plant);
-        to_plant.clear();
-        pending.extend(out);
-        pending.sort_by_key(|(due, _)| *due);
+    let mut t = Duration::ZERO;
+    // On the 1 ms grid, visiting only the instants where something happens: the plant's cycle,
+    // a frame falling due, the TCU's poll timeout (a frame due between two grid points is
+    // delivered at the next one, as a 1 ms loop would).
+    let ceil_ms = |d: Duration| ms * d.as_nanos().div_ceil(ms.as_nanos()) as u32;
+    while t <= duration {
+        if t >= plant.poll_timeout() {
+            let out = plant.advance(t, &to_plant);
+            to_plant.clear();
+            pending.extend(out);
+            pending.sort_by_key(|(due, _)| *due);
+        }
         let due = pending.partition_point(|(d, _)| *d <= t);
         let mut sync = false;
         for (d, f) in pending.drain(..due) {
@@ -324,6 +336,16 @@ pub fn run_with(
             r.phase = o.trace.phase;
             rows.push(r);
         }
+        let next = [
+            Some(plant.poll_timeout()),
+            Some(tcu.poll_timeout()),
+            pending.first().map(|(d, _)| *d),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .unwrap_or(duration);
+        t = ceil_ms(next).max(t + ms);
     }
     (rows, log, steps)
 }
