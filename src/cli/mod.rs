@@ -70,6 +70,16 @@ pub fn announce_ready(path: Option<&std::path::Path>) -> anyhow::Result<()> {
         .with_context(|| format!("--ready-file {}", path.display()))
 }
 
+/// Peak resident memory of this process (VmHWM of /proc/self/status, MiB); `None` where there
+/// is no such file. Unlike getrusage's ru_maxrss it does not carry the parent's memory across
+/// exec, so a benchmark driver can read it from the child's report.
+pub fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
 /// A spinner with the elapsed time for a step that takes longer than a few seconds (`msg` says
 /// what runs); drawn on stderr only when it is a terminal (indicatif hides it otherwise).
 pub fn spinner(msg: impl Into<std::borrow::Cow<'static, str>>) -> indicatif::ProgressBar {

@@ -43,6 +43,8 @@ pub struct ScenarioSummary {
     pub realtime_ratio: f64,
     pub tcu_steps: u64,
     pub frames: usize,
+    /// The process's peak resident memory after this scenario (MiB; Linux, else absent).
+    pub peak_rss_mib: Option<f64>,
     pub plot: Option<PathBuf>,
     pub csv: Option<PathBuf>,
     pub metrics: Metrics,
@@ -86,6 +88,7 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
             realtime_ratio: run.duration_s / wall.max(1e-9),
             tcu_steps: run.tcu_steps,
             frames: run.frames.len(),
+            peak_rss_mib: super::peak_rss_mib(),
             plot,
             csv,
             verdict: verdict::judge(sc.limits.as_ref(), &m, None),
