@@ -415,6 +415,8 @@ fn decode(
     };
     let mut bad_lines = 0usize;
     let mut verdicts: BTreeMap<&'static str, usize> = BTreeMap::new();
+    // One line buffer for the whole log (CSV).
+    let mut line = String::with_capacity(128);
     if format == Format::Csv {
         writeln!(out, "time_s,iface,id,message,signal,value,unit,e2e")?;
     }
@@ -456,7 +458,7 @@ fn decode(
         *verdicts.entry(d.e2e).or_default() += 1;
         let written = match format {
             Format::Table => writeln!(out, "{}", table_line(&d)),
-            Format::Csv => write_csv(&mut out, &d),
+            Format::Csv => write_csv(&mut out, &mut line, &d),
             Format::Json => writeln!(out, "{}", json_line(&d)),
         };
         if let Err(e) = written {
@@ -611,32 +613,41 @@ fn table_line(d: &Shown<'_>) -> String {
     s
 }
 
-fn write_csv(out: &mut impl Write, d: &Shown<'_>) -> std::io::Result<()> {
+/// Writes a frame's CSV rows (one per signal) through the reused buffer `buf`: the frame's
+/// prefix (time, interface, id, message) is formatted once per frame, not per signal.
+fn write_csv(out: &mut impl Write, buf: &mut String, d: &Shown<'_>) -> std::io::Result<()> {
+    use std::fmt::Write as _;
+    buf.clear();
     let name = d.name.unwrap_or("");
+    let _ = write!(buf, "{:.6},{},0x{:03X},{name},", d.timestamp.as_secs_f64(), d.iface, d.id);
     if d.signals.is_empty() {
-        return writeln!(
-            out,
-            "{:.6},{},0x{:03X},{name},,,,{}",
-            d.timestamp.as_secs_f64(),
-            d.iface,
-            d.id,
-            d.e2e
-        );
+        let _ = writeln!(buf, ",,,{}", d.e2e);
+        return out.write_all(buf.as_bytes());
     }
+    let prefix = buf.len();
     for sig in &d.signals {
-        writeln!(
-            out,
-            "{:.6},{},0x{:03X},{name},{},{},{},{}",
-            d.timestamp.as_secs_f64(),
-            d.iface,
-            d.id,
-            sig.name,
-            sig.value,
-            sig.unit,
-            d.e2e
-        )?;
+        buf.truncate(prefix);
+        buf.push_str(sig.name);
+        buf.push(',');
+        push_value(buf, sig.value);
+        let _ = writeln!(buf, ",{},{}", sig.unit, d.e2e);
+        out.write_all(buf.as_bytes())?;
     }
     Ok(())
+}
+
+/// Appends `v` as `{}` prints it (the shortest text that reads back to the same f64), with
+/// integral values (counters, CRCs, gears, most speeds) through integer formatting.
+fn push_value(buf: &mut String, v: f64) {
+    use std::fmt::Write as _;
+    // |v| < 2^53 and integral: exact as i64, and `{}` of the f64 prints the same digits; −0.0
+    // prints "-0" and goes the general way.
+    if v.fract() == 0.0 && v.abs() < 9.007_199_254_740_992e15 && !(v == 0.0 && v.is_sign_negative())
+    {
+        let _ = write!(buf, "{}", v as i64);
+    } else {
+        let _ = write!(buf, "{v}");
+    }
 }
 
 fn json_line(d: &Shown<'_>) -> String {
