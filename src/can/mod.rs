@@ -1,11 +1,13 @@
 //! The bus layer: the DBC contract (generated message types), E2E protection, the `Bus` trait
 //! with its SocketCAN and in-process implementations, and candump log I/O; `runtime_dbc` decodes
-//! logs with a DBC file given at run time instead of the contract.
+//! logs with a DBC file given at run time instead of the contract; `columnar` writes decoded
+//! signals as Parquet.
 
 pub mod bus;
 pub mod candump;
 pub mod candump_screen;
 pub mod codec;
+pub mod columnar;
 pub mod dbc;
 pub mod decode;
 pub mod e2e;

@@ -5,6 +5,7 @@ use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
 use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
+use ddct::can::columnar::{SignalRow, SignalWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
 use ddct::can::e2e::E2eConfig;
 use ddct::can::runtime_dbc::{self, RuntimeDbc};
@@ -42,6 +43,9 @@ pub enum LogCmd {
         /// layout, `n/a` for the others; `-m` takes this DBC's names and ids.
         #[arg(long, value_name = "FILE")]
         dbc: Option<PathBuf>,
+        /// Write the output to this file instead of standard output (required for Parquet).
+        #[arg(long, short = 'o', value_name = "FILE", required_if_eq("format", "parquet"))]
+        out: Option<PathBuf>,
     },
     /// A live view of the bus: per message the latest decoded values (states, gears and fault
     /// codes by name), frames, rate, age of the last frame and E2E errors; redrawn four times a
@@ -140,6 +144,10 @@ pub enum Format {
     Csv,
     /// One JSON object per frame (JSON lines).
     Json,
+    /// The CSV's rows and columns as a Parquet table (`--out FILE`; pandas, polars and DuckDB
+    /// read it directly): time_s and value as f64, id as u32, the rest as strings; a frame
+    /// with no signal has an empty signal and a null value.
+    Parquet,
 }
 
 pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
@@ -150,7 +158,15 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             messages,
             quiet,
             dbc,
-        } => decode(&file, format, &messages, quiet, dbc.as_deref()),
+            out,
+        } => decode(
+            &file,
+            format,
+            &messages,
+            quiet,
+            dbc.as_deref(),
+            out.as_deref(),
+        ),
         LogCmd::Stats { file, json } => stats(&file, json),
         LogCmd::Plot {
             file,
@@ -390,8 +406,16 @@ fn decode(
     messages: &[String],
     quiet: bool,
     dbc: Option<&std::path::Path>,
+    out_path: Option<&std::path::Path>,
 ) -> anyhow::Result<ExitCode> {
     let runtime = dbc.map(RuntimeDbc::load).transpose()?;
+    let create = |p: &std::path::Path| {
+        File::create(p).with_context(|| format!("creating {}", p.display()))
+    };
+    let mut parquet = match (format, out_path) {
+        (Format::Parquet, Some(p)) => Some(SignalWriter::new(BufWriter::new(create(p)?))?),
+        _ => None,
+    };
     let filter = wanted_filter(messages, runtime.as_ref())?;
     let DecodeInput {
         reader,
@@ -399,7 +423,9 @@ fn decode(
         per_frame,
     } = open_decode_input(file)?;
     let stdout = std::io::stdout();
-    let sink: Box<dyn Write> = if stdout.is_terminal() && !pb.is_hidden() {
+    let sink: Box<dyn Write> = if let (Some(p), None) = (out_path, &parquet) {
+        Box::new(create(p)?)
+    } else if stdout.is_terminal() && !pb.is_hidden() {
         Box::new(AroundBar {
             pb: pb.clone(),
             out: stdout,
@@ -460,6 +486,12 @@ fn decode(
             Format::Table => writeln!(out, "{}", table_line(&d)),
             Format::Csv => write_csv(&mut out, &mut line, &d),
             Format::Json => writeln!(out, "{}", json_line(&d)),
+            Format::Parquet => {
+                if let Some(w) = parquet.as_mut() {
+                    push_parquet(w, &d)?;
+                }
+                Ok(())
+            }
         };
         if let Err(e) = written {
             if e.kind() == std::io::ErrorKind::BrokenPipe {
@@ -470,6 +502,10 @@ fn decode(
     }
     out.flush()?;
     pb.finish_and_clear();
+    if let (Some(w), Some(p)) = (parquet, out_path) {
+        let rows = w.finish().with_context(|| format!("writing {}", p.display()))?;
+        eprintln!("{}: {rows} rows", p.display());
+    }
     let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!("frames by E2E verdict: {}", summary.join(", "));
     let gaps = match &decoder {
@@ -611,6 +647,32 @@ fn table_line(d: &Shown<'_>) -> String {
         s.push_str(&format!("  error: {e}"));
     }
     s
+}
+
+/// Appends a frame's rows (one per signal, as the CSV's) to the Parquet table.
+fn push_parquet<'a, W: Write + Send>(
+    w: &mut SignalWriter<W>,
+    d: &Shown<'a>,
+) -> anyhow::Result<()> {
+    let row = |signal: &'a str, value: f64, unit: &'a str| -> SignalRow<'a> {
+        SignalRow {
+            time_s: d.timestamp.as_secs_f64(),
+            iface: d.iface,
+            id: d.id,
+            message: d.name.unwrap_or(""),
+            signal,
+            value,
+            unit,
+            e2e: d.e2e,
+        }
+    };
+    if d.signals.is_empty() {
+        w.push(&row("", f64::NAN, ""))?;
+    }
+    for s in &d.signals {
+        w.push(&row(s.name, s.value, s.unit))?;
+    }
+    Ok(())
 }
 
 /// Writes a frame's CSV rows (one per signal) through the reused buffer `buf`: the frame's
