@@ -155,13 +155,18 @@ mod tests {
     /// null value.
     #[test]
     fn round_trip_across_row_groups() {
-        let path = std::env::temp_dir().join(format!("ddct_columnar_{}.parquet", std::process::id()));
+        let path =
+            std::env::temp_dir().join(format!("ddct_columnar_{}.parquet", std::process::id()));
         let n = BATCH_ROWS + 17;
         {
             let mut w = SignalWriter::new(std::fs::File::create(&path).unwrap()).unwrap();
             for i in 0..n {
                 let signal = if i == 5 { "" } else { "EngSpeed" };
-                let value = if i == 5 { f64::NAN } else { i as f64 * 0.5 - 3.0 };
+                let value = if i == 5 {
+                    f64::NAN
+                } else {
+                    i as f64 * 0.5 - 3.0
+                };
                 w.push(&SignalRow {
                     time_s: 1.0e9 + i as f64 * 1e-3,
                     iface: "vcan0",

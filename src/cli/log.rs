@@ -44,7 +44,12 @@ pub enum LogCmd {
         #[arg(long, value_name = "FILE")]
         dbc: Option<PathBuf>,
         /// Write the output to this file instead of standard output (required for Parquet).
-        #[arg(long, short = 'o', value_name = "FILE", required_if_eq("format", "parquet"))]
+        #[arg(
+            long,
+            short = 'o',
+            value_name = "FILE",
+            required_if_eq("format", "parquet")
+        )]
         out: Option<PathBuf>,
     },
     /// A live view of the bus: per message the latest decoded values (states, gears and fault
@@ -409,9 +414,8 @@ fn decode(
     out_path: Option<&std::path::Path>,
 ) -> anyhow::Result<ExitCode> {
     let runtime = dbc.map(RuntimeDbc::load).transpose()?;
-    let create = |p: &std::path::Path| {
-        File::create(p).with_context(|| format!("creating {}", p.display()))
-    };
+    let create =
+        |p: &std::path::Path| File::create(p).with_context(|| format!("creating {}", p.display()));
     let mut parquet = match (format, out_path) {
         (Format::Parquet, Some(p)) => Some(SignalWriter::new(BufWriter::new(create(p)?))?),
         _ => None,
@@ -503,7 +507,9 @@ fn decode(
     out.flush()?;
     pb.finish_and_clear();
     if let (Some(w), Some(p)) = (parquet, out_path) {
-        let rows = w.finish().with_context(|| format!("writing {}", p.display()))?;
+        let rows = w
+            .finish()
+            .with_context(|| format!("writing {}", p.display()))?;
         eprintln!("{}: {rows} rows", p.display());
     }
     let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
@@ -650,10 +656,7 @@ fn table_line(d: &Shown<'_>) -> String {
 }
 
 /// Appends a frame's rows (one per signal, as the CSV's) to the Parquet table.
-fn push_parquet<'a, W: Write + Send>(
-    w: &mut SignalWriter<W>,
-    d: &Shown<'a>,
-) -> anyhow::Result<()> {
+fn push_parquet<'a, W: Write + Send>(w: &mut SignalWriter<W>, d: &Shown<'a>) -> anyhow::Result<()> {
     let row = |signal: &'a str, value: f64, unit: &'a str| -> SignalRow<'a> {
         SignalRow {
             time_s: d.timestamp.as_secs_f64(),
@@ -681,7 +684,13 @@ fn write_csv(out: &mut impl Write, buf: &mut String, d: &Shown<'_>) -> std::io::
     use std::fmt::Write as _;
     buf.clear();
     let name = d.name.unwrap_or("");
-    let _ = write!(buf, "{:.6},{},0x{:03X},{name},", d.timestamp.as_secs_f64(), d.iface, d.id);
+    let _ = write!(
+        buf,
+        "{:.6},{},0x{:03X},{name},",
+        d.timestamp.as_secs_f64(),
+        d.iface,
+        d.id
+    );
     if d.signals.is_empty() {
         let _ = writeln!(buf, ",,,{}", d.e2e);
         return out.write_all(buf.as_bytes());

@@ -12,9 +12,13 @@ use std::time::Instant;
 
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// Scenario file(s) (config/scenarios/*.toml); repeatable, run one after the other.
+    /// Scenario file(s) (config/scenarios/*.toml); repeatable, run in parallel (`--jobs`), reported
+    /// in the order given.
     #[arg(long, required = true)]
     scenario: Vec<PathBuf>,
+    /// Scenarios run at once (default: the machine's cores).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    jobs: Option<u16>,
     /// TCU calibration (its `params` names the physical parameter file; default: the built-in
     /// config/tcu.toml with config/params.toml, so no working directory is needed).
     #[arg(long)]
@@ -43,7 +47,8 @@ pub struct ScenarioSummary {
     pub realtime_ratio: f64,
     pub tcu_steps: u64,
     pub frames: usize,
-    /// The process's peak resident memory after this scenario (MiB; Linux, else absent).
+    /// The process's peak resident memory after this scenario (MiB; Linux, else absent; with
+    /// several scenarios at once, the peak of the process so far).
     pub peak_rss_mib: Option<f64>,
     pub plot: Option<PathBuf>,
     pub csv: Option<PathBuf>,
@@ -57,44 +62,27 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let mut out = Vec::new();
-    for path in &args.scenario {
-        let sc = SimScenario::load(path)?;
-        let t0 = Instant::now();
-        let pb = super::spinner(format!("{}: {} s simulated", sc.name, sc.duration_s));
-        let run = sim::run_scenario(&sc, &cfg, &SimOptions::default());
-        pb.finish_and_clear();
-        let wall = t0.elapsed().as_secs_f64();
-        let m = metrics::compute(&run.rows, &cfg);
-        let (mut plot, mut csv) = (None, None);
-        if let Some(dir) = &args.out {
-            let p = dir.join(format!("{}.svg", run.scenario));
-            let title = format!("{}: {}", run.scenario, run.description);
-            std::fs::write(&p, plots::run_figure(&title, &run.rows))
-                .with_context(|| format!("writing {}", p.display()))?;
-            plot = Some(p);
-            let c = dir.join(format!("{}.csv", run.scenario));
-            std::fs::write(&c, sim::rows_csv(&run.rows))
-                .with_context(|| format!("writing {}", c.display()))?;
-            csv = Some(c);
-        }
-        out.push(ScenarioSummary {
-            scenario: run.scenario.clone(),
-            description: run.description.clone(),
-            temperature_compensation: run.config.temperature_compensation,
-            slip_compensation: run.config.slip_compensation,
-            simulated_s: run.duration_s,
-            wall_s: wall,
-            realtime_ratio: run.duration_s / wall.max(1e-9),
-            tcu_steps: run.tcu_steps,
-            frames: run.frames.len(),
-            peak_rss_mib: super::peak_rss_mib(),
-            plot,
-            csv,
-            verdict: verdict::judge(sc.limits.as_ref(), &m, None),
-            metrics: m,
-        });
-    }
+    // Every scenario loaded (and its errors reported) before any runs.
+    let scenarios = args
+        .scenario
+        .iter()
+        .map(|p| SimScenario::load(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let jobs = args
+        .jobs
+        .map(usize::from)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .min(scenarios.len())
+        .max(1);
+    let pb = super::spinner(format!(
+        "{} scenario(s), {} s simulated, on {jobs} thread(s)",
+        scenarios.len(),
+        scenarios.iter().map(|s| s.duration_s).sum::<f64>()
+    ));
+    let out = run_parallel(&scenarios, jobs, |sc| {
+        run_one(sc, &cfg, args.out.as_deref())
+    })?;
+    pb.finish_and_clear();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     }
@@ -122,6 +110,84 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
         eprintln!("FAIL: {}", failed.join(", "));
         Ok(ExitCode::FAILURE)
     }
+}
+
+/// Runs `f` on every scenario on `jobs` threads (each takes the next scenario not yet taken);
+/// the results in the scenarios' order, the first error if any.
+fn run_parallel<T: Send>(
+    scenarios: &[SimScenario],
+    jobs: usize,
+    f: impl Fn(&SimScenario) -> anyhow::Result<T> + Sync,
+) -> anyhow::Result<Vec<T>> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let slots: Vec<std::sync::Mutex<Option<anyhow::Result<T>>>> = scenarios
+        .iter()
+        .map(|_| std::sync::Mutex::new(None))
+        .collect();
+    std::thread::scope(|scope| {
+        for _ in 0..jobs {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(sc) = scenarios.get(i) else {
+                    break;
+                };
+                let r = f(sc);
+                if let Ok(mut slot) = slots[i].lock() {
+                    *slot = Some(r);
+                }
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .zip(scenarios)
+        .map(|(slot, sc)| {
+            slot.into_inner()
+                .ok()
+                .flatten()
+                .unwrap_or_else(|| Err(anyhow::anyhow!("scenario {} did not run", sc.name)))
+        })
+        .collect()
+}
+
+/// One scenario: the lockstep run, its metrics and verdict, the figure and CSV under `dir`.
+fn run_one(
+    sc: &SimScenario,
+    cfg: &ddct::tcu::TcuConfig,
+    dir: Option<&std::path::Path>,
+) -> anyhow::Result<ScenarioSummary> {
+    let t0 = Instant::now();
+    let run = sim::run_scenario(sc, cfg, &SimOptions::default());
+    let wall = t0.elapsed().as_secs_f64();
+    let m = metrics::compute(&run.rows, cfg);
+    let (mut plot, mut csv) = (None, None);
+    if let Some(dir) = dir {
+        let p = dir.join(format!("{}.svg", run.scenario));
+        let title = format!("{}: {}", run.scenario, run.description);
+        std::fs::write(&p, plots::run_figure(&title, &run.rows))
+            .with_context(|| format!("writing {}", p.display()))?;
+        plot = Some(p);
+        let c = dir.join(format!("{}.csv", run.scenario));
+        std::fs::write(&c, sim::rows_csv(&run.rows))
+            .with_context(|| format!("writing {}", c.display()))?;
+        csv = Some(c);
+    }
+    Ok(ScenarioSummary {
+        scenario: run.scenario.clone(),
+        description: run.description.clone(),
+        temperature_compensation: run.config.temperature_compensation,
+        slip_compensation: run.config.slip_compensation,
+        simulated_s: run.duration_s,
+        wall_s: wall,
+        realtime_ratio: run.duration_s / wall.max(1e-9),
+        tcu_steps: run.tcu_steps,
+        frames: run.frames.len(),
+        peak_rss_mib: super::peak_rss_mib(),
+        plot,
+        csv,
+        verdict: verdict::judge(sc.limits.as_ref(), &m, None),
+        metrics: m,
+    })
 }
 
 fn opt(v: Option<f64>, prec: usize) -> String {

@@ -158,7 +158,9 @@ mod tests {
         let mut worst: f64 = 0.0;
         for k in (0..N).step_by(37) {
             let y = (k as f64 + 0.5) * H;
-            let exact = (0..k).map(|j| sub(j as f64 * H, (j + 1) as f64 * H)).sum::<f64>()
+            let exact = (0..k)
+                .map(|j| sub(j as f64 * H, (j + 1) as f64 * H))
+                .sum::<f64>()
                 + sub(k as f64 * H, y);
             worst = worst.max((p(y) - exact).abs() / exact);
         }
@@ -166,7 +168,12 @@ mod tests {
         // The exact value: four 8-node panels per interval.
         fn sub(a: f64, b: f64) -> f64 {
             (0..4)
-                .map(|j| panel(a + (b - a) * j as f64 / 4.0, a + (b - a) * (j + 1) as f64 / 4.0))
+                .map(|j| {
+                    panel(
+                        a + (b - a) * j as f64 / 4.0,
+                        a + (b - a) * (j + 1) as f64 / 4.0,
+                    )
+                })
                 .sum()
         }
     }

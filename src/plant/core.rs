@@ -643,7 +643,10 @@ impl Plant {
         if every_step {
             self.refresh_outputs();
         }
-        if finite(&self.s) && self.last_out.t_fc1_nm.is_finite() && self.last_out.t_fc2_nm.is_finite() {
+        if finite(&self.s)
+            && self.last_out.t_fc1_nm.is_finite()
+            && self.last_out.t_fc2_nm.is_finite()
+        {
             self.last_finite = self.s;
             let out = every_step.then_some(&self.last_out);
             self.pt.hooks.advance(&self.s, out, self.dt);

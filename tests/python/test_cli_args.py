@@ -33,6 +33,7 @@ def test_a_missing_interface_says_how_to_get_one(ddct, tmp_path, cmd):
         (["plant", "--iface", "sim", "--mode", "rig", "--input-speed", "7000"], "--input-speed"),
         (["plant", "--iface", "sim", "--lockstep", "--lockstep-timeout", "0"], "--lockstep-timeout"),
         (["bench", "--iface", "sim", "--echo", "601"], "--echo"),
+        (["sim", "--scenario", "x.toml", "--jobs", "0"], "--jobs"),
         (["log", "monitor", "-", "--duration", "0"], "--duration"),
         (["log", "record", "--iface", "vcan0", "--out", "x.log", "--duration", "inf"], "--duration"),
     ],
