@@ -194,6 +194,16 @@ fn runs_are_deterministic() {
     let (a, _) = run("launch_50", &SimOptions::default());
     let (b, _) = run("launch_50", &SimOptions::default());
     assert_eq!(a.frames, b.frames);
+    assert_eq!(a.frame_count, a.frames.len() as u64);
+    // Counting instead of keeping the frames changes nothing else.
+    let dropped = SimOptions {
+        drop_frames: true,
+        ..SimOptions::default()
+    };
+    let (c, _) = run("launch_50", &dropped);
+    assert!(c.frames.is_empty());
+    assert_eq!(c.frame_count, a.frame_count);
+    assert_eq!(c.rows, a.rows);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -220,6 +230,7 @@ fn safety_case(id: u16, kind: InjectionKind) -> SafetyTimes {
             from_s: FAULT_FROM_S,
             to_s: FAULT_TO_S,
         }],
+        ..SimOptions::default()
     };
     let (r, m) = run("launch_50", &opts);
     assert!(!m.nonfinite);

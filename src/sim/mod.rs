@@ -213,6 +213,9 @@ impl BusView {
 #[derive(Debug, Clone, Default)]
 pub struct SimOptions {
     pub injections: Vec<Injection>,
+    /// Count the frames instead of keeping them (`SimRun::frames` left empty): memory then no
+    /// longer grows with the frames of a long scenario.
+    pub drop_frames: bool,
 }
 
 /// Everything a run produced.
@@ -222,9 +225,12 @@ pub struct SimRun {
     pub description: String,
     pub duration_s: f64,
     pub rows: Vec<Row>,
-    /// Every frame the plant sent (after injections) and the TCU sent, with its time.
+    /// Every frame the plant sent (after injections) and the TCU sent, with its time (empty
+    /// with `SimOptions::drop_frames`).
     #[serde(skip)]
     pub frames: Vec<(Duration, CanFrame)>,
+    /// How many frames went over the bus.
+    pub frame_count: u64,
     pub tcu_steps: u64,
     pub safe_entries: u64,
     pub config: SimConfigSummary,
@@ -281,7 +287,7 @@ pub fn run_with(
     tcu: &mut Tcu,
     duration: Duration,
     opts: &SimOptions,
-) -> (Vec<Row>, Vec<(Duration, CanFrame)>, u64) {
+) -> SimTrace {
     let ms = Duration::from_millis(1);
     let mut to_plant: Vec<Received> = Vec::new();
     let mut pending: Vec<(Duration, CanFrame)> = Vec::new();
@@ -291,6 +297,7 @@ pub fn run_with(
     let mut log = Vec::new();
     let mut frozen = vec![None; opts.injections.len()];
     let mut steps = 0;
+    let mut frame_count = 0u64;
     let mut t = Duration::ZERO;
     // On the 1 ms grid, visiting only the instants where something happens: the plant's cycle,
     // a frame falling due, the TCU's poll timeout (a frame due between two grid points is
@@ -310,7 +317,10 @@ pub fn run_with(
                 continue;
             };
             view.take(&f);
-            log.push((d, f));
+            frame_count += 1;
+            if !opts.drop_frames {
+                log.push((d, f));
+            }
             if crate::tcu::is_sync_frame(&f) {
                 sync = true;
             }
@@ -323,7 +333,10 @@ pub fn run_with(
             steps += 1;
             for f in &o.frames {
                 view.take(f);
-                log.push((t, *f));
+                frame_count += 1;
+                if !opts.drop_frames {
+                    log.push((t, *f));
+                }
                 to_plant.push(Received {
                     frame: *f,
                     timestamp: t,
@@ -347,7 +360,22 @@ pub fn run_with(
         .unwrap_or(duration);
         t = ceil_ms(next).max(t + ms);
     }
-    (rows, log, steps)
+    SimTrace {
+        rows,
+        frames: log,
+        frame_count,
+        tcu_steps: steps,
+    }
+}
+
+/// What [`run_with`] recorded.
+#[derive(Debug, Clone)]
+pub struct SimTrace {
+    pub rows: Vec<Row>,
+    /// Every frame with its time (empty with `SimOptions::drop_frames`).
+    pub frames: Vec<(Duration, CanFrame)>,
+    pub frame_count: u64,
+    pub tcu_steps: u64,
 }
 
 /// Runs a scenario: the plant core of `plant` with the scenario's configuration and the TCU core
@@ -358,13 +386,19 @@ pub fn run_scenario(sc: &SimScenario, base: &TcuConfig, opts: &SimOptions) -> Si
     let mut plant = Plant::new(sc.plant.clone());
     let mut tcu = Tcu::new(cfg.clone(), Duration::ZERO);
     let duration = Duration::from_secs_f64(sc.duration_s);
-    let (rows, frames, tcu_steps) = run_with(&mut plant, &mut tcu, duration, opts);
+    let SimTrace {
+        rows,
+        frames,
+        frame_count,
+        tcu_steps,
+    } = run_with(&mut plant, &mut tcu, duration, opts);
     SimRun {
         scenario: sc.name.clone(),
         description: sc.description.clone(),
         duration_s: sc.duration_s,
         rows,
         frames,
+        frame_count,
         tcu_steps,
         safe_entries: tcu.safe_entries(),
         config: SimConfigSummary {
