@@ -18,41 +18,20 @@ pub const CRC_BYTE: usize = 7;
 /// Alive counter modulus.
 pub const COUNTER_MODULUS: u8 = 16;
 
-const CRC8_SAE_J1850: [u8; 256] = {
-    let mut table = [0u8; 256];
-    let mut i = 0;
-    while i < 256 {
-        let mut c = i as u8;
-        let mut b = 0;
-        while b < 8 {
-            c = if c & 0x80 != 0 {
-                (c << 1) ^ 0x1D
-            } else {
-                c << 1
-            };
-            b += 1;
-        }
-        table[i] = c;
-        i += 1;
-    }
-    table
-};
+/// CRC-8/SAE-J1850 (poly 0x1D, init 0xFF, xor-out 0xFF) from the maintained `crc` crate.
+const CRC8: crc::Crc<u8> = crc::Crc::<u8>::new(&crc::CRC_8_SAE_J1850);
 
 /// CRC-8/SAE-J1850 of a byte string (check value of "123456789" is 0x4B).
 pub fn crc8_sae_j1850(bytes: &[u8]) -> u8 {
-    let mut crc = 0xFFu8;
-    for &b in bytes {
-        crc = CRC8_SAE_J1850[usize::from(crc ^ b)];
-    }
-    crc ^ 0xFF
+    CRC8.checksum(bytes)
 }
 
 /// The E2E CRC of a payload: over the id's two little-endian bytes and bytes 0–6.
 pub fn e2e_crc(id: u16, data: &[u8; 8]) -> u8 {
-    let mut buf = [0u8; 9];
-    buf[..2].copy_from_slice(&id.to_le_bytes());
-    buf[2..].copy_from_slice(&data[..CRC_BYTE]);
-    crc8_sae_j1850(&buf)
+    let mut d = CRC8.digest();
+    d.update(&id.to_le_bytes());
+    d.update(&data[..CRC_BYTE]);
+    d.finalize()
 }
 
 /// Writes the alive counter (mod 16) and the CRC into an encoded payload.
