@@ -1,6 +1,7 @@
 //! Generates the typed CAN message definitions from `dbc/ddct.dbc`, the single source of truth of
 //! the bus contract. The output (`$OUT_DIR/messages.rs`) is included by `src/can/messages.rs`.
 
+use heck::{ToSnakeCase as _, ToUpperCamelCase as _};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -23,48 +24,14 @@ fn main() {
     std::fs::write(&out, code).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
 }
 
+/// snake_case of a DBC name (the `heck` crate): `ClutchTorqueReq` → `clutch_torque_req`.
 fn snake(name: &str) -> String {
-    let mut s = String::new();
-    let chars: Vec<char> = name.chars().collect();
-    for (i, &c) in chars.iter().enumerate() {
-        if c == '_' {
-            if !s.ends_with('_') {
-                s.push('_');
-            }
-            continue;
-        }
-        if c.is_ascii_uppercase() {
-            let prev = if i > 0 { chars[i - 1] } else { '_' };
-            let next_lower = chars.get(i + 1).is_some_and(|n| n.is_ascii_lowercase());
-            if i > 0
-                && prev != '_'
-                && (prev.is_ascii_lowercase() || prev.is_ascii_digit() || next_lower)
-            {
-                s.push('_');
-            }
-            s.push(c.to_ascii_lowercase());
-        } else {
-            s.push(c);
-        }
-    }
-    s
+    name.to_snake_case()
 }
 
+/// UpperCamelCase of a DBC name (the `heck` crate): `TCU_ClutchCmd` → `TcuClutchCmd`.
 fn camel(name: &str) -> String {
-    name.split('_')
-        .filter(|p| !p.is_empty())
-        .map(|p| {
-            let all_upper = p.chars().all(|c| !c.is_ascii_lowercase());
-            let mut cs = p.chars();
-            let first = cs.next().unwrap().to_ascii_uppercase();
-            let rest: String = if all_upper {
-                cs.map(|c| c.to_ascii_lowercase()).collect()
-            } else {
-                cs.collect()
-            };
-            format!("{first}{rest}")
-        })
-        .collect()
+    name.to_upper_camel_case()
 }
 
 #[derive(PartialEq)]
