@@ -116,15 +116,13 @@ pub struct LoopStats {
     pub deadline_misses: u64,
     /// Cycles whose computation did not finish before the next deadline.
     pub overruns: u64,
-    lateness_us: Vec<u32>,
+    lateness: Micros,
 }
 
 /// Lateness above which a wake-up counts as a missed deadline, as a fraction of the period.
 pub const MISS_FRACTION: f64 = 0.5;
 
 impl LoopStats {
-    const MAX_SAMPLES: usize = 1 << 20;
-
     /// Records one tick of a loop with the given period.
     pub fn record(&mut self, tick: &Tick, period: Duration) {
         self.cycles += 1;
@@ -132,15 +130,12 @@ impl LoopStats {
         if tick.late_by.as_secs_f64() > MISS_FRACTION * period.as_secs_f64() {
             self.deadline_misses += 1;
         }
-        if self.lateness_us.len() < Self::MAX_SAMPLES {
-            self.lateness_us
-                .push(tick.late_by.as_micros().min(u128::from(u32::MAX)) as u32);
-        }
+        self.lateness.record(tick.late_by);
     }
 
     /// Lateness percentile in microseconds (`q` in 0..=1).
     pub fn lateness_percentile_us(&self, q: f64) -> Option<f64> {
-        percentile(&self.lateness_us, q)
+        self.lateness.percentile(q)
     }
 
     /// One line for logs and summaries.
@@ -157,15 +152,38 @@ impl LoopStats {
     }
 }
 
-/// Nearest-rank percentile of integer samples.
-pub fn percentile(samples: &[u32], q: f64) -> Option<f64> {
-    if samples.is_empty() {
-        return None;
+/// Durations in microseconds with their percentiles: an HDR histogram (the `hdrhistogram`
+/// crate; 3 significant digits up to an hour), so memory stays constant however long a daemon
+/// runs and no sample is dropped.
+#[derive(Debug, Clone)]
+pub struct Micros(hdrhistogram::Histogram<u64>);
+
+impl Default for Micros {
+    fn default() -> Self {
+        Self(
+            hdrhistogram::Histogram::new_with_bounds(1, 3_600_000_000, 3)
+                .expect("constant bounds 1 us .. 1 h at 3 digits are valid"),
+        )
     }
-    let mut s = samples.to_vec();
-    s.sort_unstable();
-    let rank = ((q.clamp(0.0, 1.0) * s.len() as f64).ceil() as usize).clamp(1, s.len());
-    Some(f64::from(s[rank - 1]))
+}
+
+impl Micros {
+    /// Records one duration (beyond an hour: an hour).
+    pub fn record(&mut self, d: Duration) {
+        let us = u64::try_from(d.as_micros()).unwrap_or(u64::MAX);
+        self.0.saturating_record(us);
+    }
+
+    /// The `q` quantile (0..=1; 1 is the maximum) in microseconds; `None` with no sample.
+    pub fn percentile(&self, q: f64) -> Option<f64> {
+        if self.0.is_empty() {
+            None
+        } else if q >= 1.0 {
+            Some(self.0.max() as f64)
+        } else {
+            Some(self.0.value_at_quantile(q.max(0.0)) as f64)
+        }
+    }
 }
 
 /// Wall-clock time since the Unix epoch, the timestamp base of candump logs.
@@ -250,11 +268,19 @@ mod tests {
 
     #[test]
     fn percentiles() {
-        let s: Vec<u32> = (1..=100).collect();
-        assert_eq!(percentile(&s, 0.5), Some(50.0));
-        assert_eq!(percentile(&s, 0.99), Some(99.0));
-        assert_eq!(percentile(&s, 1.0), Some(100.0));
-        assert_eq!(percentile(&[], 0.5), None);
+        let mut m = Micros::default();
+        assert_eq!(m.percentile(0.5), None);
+        for us in 1..=100 {
+            m.record(Duration::from_micros(us));
+        }
+        assert_eq!(m.percentile(0.5), Some(50.0));
+        assert_eq!(m.percentile(0.99), Some(99.0));
+        assert_eq!(m.percentile(1.0), Some(100.0));
+        // Three significant digits at any magnitude: 12 345 678 us within 0.1 %.
+        let mut big = Micros::default();
+        big.record(Duration::from_micros(12_345_678));
+        let v = big.percentile(1.0).unwrap();
+        assert!((v - 12_345_678.0).abs() <= 12_345.678, "{v}");
     }
 }
 

@@ -28,7 +28,7 @@
 //!   the candump tap (`log`) is flushed either way.
 
 use super::clock::{BusClock, TimeBase};
-use super::{percentile, wall_clock, Link, LinkError, LoopStats, Periodic, DRAIN_BUDGET};
+use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDGET};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
 use crate::tcu::inputs::InputCounters;
@@ -201,9 +201,10 @@ struct Shell<B: Bus> {
     sync: u64,
     fallback: u64,
     overruns: u64,
-    compute_us: Vec<u32>,
-    /// Gaps between the ends of consecutive computations' sends (µs).
-    send_gap_us: Vec<u32>,
+    /// Computation times.
+    compute: Micros,
+    /// Gaps between the ends of consecutive computations' sends.
+    send_gap: Micros,
     last_sent: Option<Instant>,
     last_sync: Option<Instant>,
     /// Time of the last frame received.
@@ -354,10 +355,8 @@ impl<B: Bus> Shell<B> {
         }
         let sent = Instant::now();
         if let Some(prev) = self.last_sent.replace(sent) {
-            if self.send_gap_us.len() < 1 << 20 {
-                let gap = sent.saturating_duration_since(prev).as_micros();
-                self.send_gap_us.push(gap.min(u128::from(u32::MAX)) as u32);
-            }
+            self.send_gap
+                .record(sent.saturating_duration_since(prev));
         }
         let took = t0.elapsed();
         if took > 5 * CYCLE {
@@ -379,10 +378,7 @@ impl<B: Bus> Shell<B> {
         if took > CYCLE {
             self.overruns += 1;
         }
-        if self.compute_us.len() < 1 << 20 {
-            self.compute_us
-                .push(took.as_micros().min(u128::from(u32::MAX)) as u32);
-        }
+        self.compute.record(took);
         if sync.is_some() {
             self.last_sync = Some(t0);
             self.last_sync_at = sync;
@@ -439,8 +435,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         sync: 0,
         fallback: 0,
         overruns: 0,
-        compute_us: Vec::new(),
-        send_gap_us: Vec::new(),
+        compute: Micros::default(),
+        send_gap: Micros::default(),
         last_sent: None,
         last_sync: None,
         last_at: Duration::ZERO,
@@ -515,11 +511,11 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         stall_total_s: stall_total.as_secs_f64(),
         stall_longest_s: stall_longest.as_secs_f64(),
         syncs_coalesced: shell.coalesced,
-        compute_p50_us: percentile(&shell.compute_us, 0.5),
-        compute_p99_us: percentile(&shell.compute_us, 0.99),
-        compute_max_us: percentile(&shell.compute_us, 1.0),
-        send_gap_p99_us: percentile(&shell.send_gap_us, 0.99),
-        send_gap_max_us: percentile(&shell.send_gap_us, 1.0),
+        compute_p50_us: shell.compute.percentile(0.5),
+        compute_p99_us: shell.compute.percentile(0.99),
+        compute_max_us: shell.compute.percentile(1.0),
+        send_gap_p99_us: shell.send_gap.percentile(0.99),
+        send_gap_max_us: shell.send_gap.percentile(1.0),
         frames_sent: shell.link.sent,
         send_errors: shell.link.send_errors,
         frames_received: shell.link.received,
