@@ -243,7 +243,7 @@ pub fn cumulative_energy(power: &[f64], e0: f64, dt: f64) -> Vec<f64> {
 /// Disk temperatures θ_c1, θ_c2 from (16c)/(16d) driven by the measured plate, central-disk and
 /// housing temperatures and the measured friction power (exact exponential update per sample,
 /// inputs at the interval midpoint). Effects act through the hooks' β and extra heat.
-pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
+pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec<f64>; 2] {
     let a = &p.thermal5;
     let mut out = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
     let s0 = m.thermal_at(0);
@@ -306,9 +306,9 @@ pub fn disk_estimate(p: &Params, h: &dyn Hooks, m: &Measured) -> [Vec<f64>; 2] {
 
 /// Equation-error torque of clutch `i` at sample `k` (N·m).
 #[inline]
-pub fn torque_eq(
+pub fn torque_eq<H: Hooks + ?Sized>(
     p: &Params,
-    h: &dyn Hooks,
+    h: &H,
     m: &Measured,
     theta_c: &[Vec<f64>; 2],
     i: usize,
@@ -331,9 +331,9 @@ fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
 /// `u` with β of both clutches at the state `s` of the step's start, held over the step like
 /// the other inputs (as [`disk_estimate`] does): β is a step function of x_to and θ_c, and the
 /// few mK an RK4 stage moves θ_c would only move where within a 10 ms step it switches.
-fn with_beta(
+fn with_beta<H: Hooks + ?Sized>(
     p: &Params,
-    h: &dyn Hooks,
+    h: &H,
     s: &Thermal5State,
     ctx: [ClutchContext; 2],
     u: ThermalInputs,
@@ -352,9 +352,9 @@ fn with_beta(
     }
 }
 
-fn thermal_derivative(
+fn thermal_derivative<H: Hooks + ?Sized>(
     t5: &Thermal5,
-    h: &dyn Hooks,
+    h: &H,
     s: &Thermal5State,
     u: &ThermalInputs,
 ) -> Thermal5State {
@@ -364,7 +364,7 @@ fn thermal_derivative(
 /// The thermal model (16) simulated over the record from the measured friction power and housing
 /// temperature (RK4 per sample, inputs held at the interval midpoint), starting from the measured
 /// temperatures at the first sample.
-pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5State> {
+pub fn thermal_replay<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> Vec<Thermal5State> {
     thermal_replay_every(p, h, m, 1)
 }
 
@@ -378,9 +378,9 @@ pub fn thermal_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Vec<Thermal5St
 /// moves the states by 0.6 % of their differences in a 0.3 s step — and the fast part, the
 /// heating α3·P, α7·P, α9·P, enters only through the energy, which the averaging keeps exact.
 /// A test bounds the difference to the per-sample replay at 0.3 s steps.
-pub fn thermal_replay_every(
+pub fn thermal_replay_every<H: Hooks + ?Sized>(
     p: &Params,
-    h: &dyn Hooks,
+    h: &H,
     m: &Measured,
     stride: usize,
 ) -> Vec<Thermal5State> {
@@ -425,7 +425,7 @@ pub struct Replay {
 
 /// Simulates torque (13) and temperatures (16) together: the model's own torque heats its own
 /// thermal state (explicit midpoint coupling per sample, RK4 for the temperatures).
-pub fn full_replay(p: &Params, h: &dyn Hooks, m: &Measured) -> Replay {
+pub fn full_replay<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> Replay {
     let t5 = Thermal5::new(p.thermal5);
     let mut s = m.thermal_at(0);
     let mut torque = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
