@@ -355,8 +355,7 @@ impl<B: Bus> Shell<B> {
         }
         let sent = Instant::now();
         if let Some(prev) = self.last_sent.replace(sent) {
-            self.send_gap
-                .record(sent.saturating_duration_since(prev));
+            self.send_gap.record(sent.saturating_duration_since(prev));
         }
         let took = t0.elapsed();
         if took > 5 * CYCLE {

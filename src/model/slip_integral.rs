@@ -110,7 +110,12 @@ pub fn p(y: f64) -> f64 {
 /// digits; the caller then integrates directly.
 #[inline]
 pub fn q(r1: f64, r2: f64, x: f64) -> Option<f64> {
-    if !(r2 - r1 >= 0.02 * (r2 + r1)) {
+    // A NaN radius compares as neither: `None` as well.
+    let wide_enough = matches!(
+        (r2 - r1).partial_cmp(&(0.02 * (r2 + r1))),
+        Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
+    );
+    if !wide_enough {
         return None;
     }
     if x == 0.0 {

@@ -81,8 +81,8 @@ impl EffectHooks {
     /// outputs `out` (`None` when [`Self::needs_outputs`] is false: only the bearings move).
     pub fn advance(&mut self, s: &State, out: Option<&Outputs>, dt: f64) {
         let x = [s.x1_mm, s.x2_mm];
-        for i in 0..2 {
-            self.bearing_mm[i] = effects::bearing_position(&self.set, self.bearing_mm[i], x[i]);
+        for (b, x) in self.bearing_mm.iter_mut().zip(x) {
+            *b = effects::bearing_position(&self.set, *b, x);
         }
         let Some(out) = out else {
             return;
