@@ -22,14 +22,14 @@ use super::params::ClutchParams;
 use super::slip_integral;
 
 /// Gauss–Legendre nodes (positive half) on [−1, 1], 8-point rule.
-const GL_X: [f64; 4] = [
+pub(super) const GL_X: [f64; 4] = [
     0.960_289_856_497_536_3,
     0.796_666_477_413_626_8,
     0.525_532_409_916_329,
     0.183_434_642_495_649_8,
 ];
 /// Gauss–Legendre weights matching [`GL_X`].
-const GL_W: [f64; 4] = [
+pub(super) const GL_W: [f64; 4] = [
     0.101_228_536_290_376_18,
     0.222_381_034_453_374_45,
     0.313_706_645_877_887_4,

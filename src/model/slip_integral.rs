@@ -32,19 +32,7 @@ struct Table {
     p_sat: f64,
 }
 
-/// Gauss–Legendre nodes and weights (positive half), 8-point rule.
-const GL_X: [f64; 4] = [
-    0.960_289_856_497_536_3,
-    0.796_666_477_413_626_8,
-    0.525_532_409_916_329,
-    0.183_434_642_495_649_8,
-];
-const GL_W: [f64; 4] = [
-    0.101_228_536_290_376_18,
-    0.222_381_034_453_374_45,
-    0.313_706_645_877_887_4,
-    0.362_683_783_378_362,
-];
+use super::clutch::{GL_W, GL_X};
 
 /// t(y) = (tanh y / y)^{1/3}, smooth and even, t(0) = 1.
 fn t(y: f64) -> f64 {
