@@ -17,6 +17,7 @@
 //! One evaluation costs two cube roots and two table lookups, against eight `tanh` and eight
 //! cube roots for the 8-node rule.
 
+use super::clutch::{GL_W, GL_X};
 use std::sync::LazyLock;
 
 /// Upper end of the table: tanh(22)^{1/3} differs from 1 by less than 1e-19.
@@ -31,8 +32,6 @@ struct Table {
     df: Vec<f64>,
     p_sat: f64,
 }
-
-use super::clutch::{GL_W, GL_X};
 
 /// t(y) = (tanh y / y)^{1/3}, smooth and even, t(0) = 1.
 fn t(y: f64) -> f64 {
