@@ -10,7 +10,7 @@ wall time, not CPU time):
             (400 k frames, 20 k with --short) of the rig plant, both written to /dev/null
   model     `cargo bench --bench model`: torque (13), its inverse, the plant derivative and the
             vectorised torque against the numpy peer in benches/model_peer.py
-  diagnose  `ddct gap diagnose` of a 30-minute rig log with a 10-minute validation log (the
+  diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7; the
             identification profile, 7 minutes, with --short); no peer
 
 --short (what CI runs) makes one run of each with small inputs and asserts nothing about time:
