@@ -10,8 +10,8 @@ wall time, not CPU time):
             (400 k frames, 20 k with --short) of the rig plant, both written to /dev/null
   model     `cargo bench --bench model`: torque (13), its inverse, the plant derivative and the
             vectorised torque against the numpy peer in benches/model_peer.py
-  diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7; the
-            identification profile, 7 minutes, with --short); no peer
+  diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7);
+            with --short the identification (7 min) and validation profiles; no peer
 
 --short (what CI runs) makes one run of each with small inputs and asserts nothing about time:
 it checks that every comparison still runs and that its outputs agree. The table goes to stdout,
