@@ -360,7 +360,7 @@ impl Plant {
             if self.steps == self.next_cycle * self.steps_per_cycle {
                 let t = self.time();
                 self.apply_rx_until(t);
-                self.refresh_outputs();
+                self.outputs_for_frames();
                 cycles.push(self.emit_cycle(t));
                 self.next_cycle += 1;
             }
@@ -369,7 +369,7 @@ impl Plant {
             }
             self.substep();
         }
-        self.refresh_outputs();
+        self.outputs_for_frames();
         let horizon = now + CYCLE;
         self.queue.sort_by_key(|f| f.due);
         let n_due = self.queue.partition_point(|f| f.due < horizon);
@@ -640,13 +640,8 @@ impl Plant {
         self.out_fresh = false;
         // Rig mode feeds the clutch torques back to the dyno every step.
         let every_step = self.cfg.mode == Mode::Rig || self.pt.hooks.needs_outputs();
-        if every_step {
-            self.refresh_outputs();
-        }
-        if finite(&self.s)
-            && self.last_out.t_fc1_nm.is_finite()
-            && self.last_out.t_fc2_nm.is_finite()
-        {
+        let outputs_ok = !every_step || self.refresh_outputs();
+        if finite(&self.s) && outputs_ok {
             self.last_finite = self.s;
             let out = every_step.then_some(&self.last_out);
             self.pt.hooks.advance(&self.s, out, self.dt);
@@ -664,11 +659,25 @@ impl Plant {
         self.stats.steps += 1;
     }
 
-    /// Computes the outputs of the current state once after a step (see `out_fresh`).
-    fn refresh_outputs(&mut self) {
-        if !self.out_fresh {
-            self.last_out = self.pt.outputs(&self.s, &self.u_last);
-            self.out_fresh = true;
+    /// Computes the outputs of the current state once after a step (see `out_fresh`). False
+    /// when its clutch torques are not finite: the last finite outputs are kept.
+    fn refresh_outputs(&mut self) -> bool {
+        if self.out_fresh {
+            return true;
+        }
+        self.out_fresh = true;
+        let out = self.pt.outputs(&self.s, &self.u_last);
+        let ok = out.t_fc1_nm.is_finite() && out.t_fc2_nm.is_finite();
+        if ok {
+            self.last_out = out;
+        }
+        ok
+    }
+
+    /// The outputs the frames of a cycle (and the truth) are made from.
+    fn outputs_for_frames(&mut self) {
+        if !self.refresh_outputs() {
+            self.stats.nonfinite_states += 1;
         }
     }
 
