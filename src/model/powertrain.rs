@@ -692,10 +692,10 @@ impl<H: Hooks> Powertrain<H> {
         &self,
         s: &mut State,
         u: &Inputs,
+        grade_nm: f64,
         fz: &mut Option<Frozen>,
         rep: &mut StepReport,
     ) {
-        let grade_nm = self.grade_torque(u);
         for _ in 0..2 {
             if !s.locked(0) && !s.locked(1) {
                 return;
@@ -740,8 +740,8 @@ impl<H: Hooks> Powertrain<H> {
         self.update_gears(s, u, dt, &mut rep);
         // The groups of the links, rebuilt only when an event changes them.
         let mut last = None;
-        self.check_breakaway(s, u, &mut last, &mut rep);
         let grade_nm = self.grade_torque(u);
+        self.check_breakaway(s, u, grade_nm, &mut last, &mut rep);
         // A slipping clutch sitting exactly at zero slip may lock at once.
         for i in 0..2 {
             if !s.locked(i) && s.slip(i) == 0.0 && self.try_lock(s, u, i) {
