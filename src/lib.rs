@@ -11,6 +11,7 @@ pub mod daemon;
 pub mod error_chain;
 pub mod gap;
 pub mod model;
+pub mod par;
 pub mod plant;
 pub mod plot;
 pub mod sim;

@@ -235,20 +235,11 @@ pub fn run(
     nominal: &Params,
     on_done: &(dyn Fn(&TrialResult) + Sync),
 ) -> Vec<TrialResult> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let results = std::sync::Mutex::new(Vec::with_capacity(indices.len()));
-    std::thread::scope(|s| {
-        for _ in 0..threads.clamp(1, indices.len().max(1)) {
-            s.spawn(|| loop {
-                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(&i) = indices.get(k) else { break };
-                let r = run_trial(seed, i, nominal);
-                on_done(&r);
-                results.lock().unwrap_or_else(|e| e.into_inner()).push(r);
-            });
-        }
+    let mut v = crate::par::map(threads, indices, |_, &i| {
+        let r = run_trial(seed, i, nominal);
+        on_done(&r);
+        r
     });
-    let mut v = results.into_inner().unwrap_or_else(|e| e.into_inner());
     v.sort_by_key(|r| r.index);
     v
 }

@@ -79,9 +79,11 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
         scenarios.len(),
         scenarios.iter().map(|s| s.duration_s).sum::<f64>()
     ));
-    let out = run_parallel(&scenarios, jobs, |sc| {
+    let out = ddct::par::map(jobs, &scenarios, |_, sc| {
         run_one(sc, &cfg, args.out.as_deref())
-    })?;
+    })
+    .into_iter()
+    .collect::<anyhow::Result<Vec<_>>>()?;
     pb.finish_and_clear();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -110,44 +112,6 @@ pub fn run(args: SimArgs) -> anyhow::Result<ExitCode> {
         eprintln!("FAIL: {}", failed.join(", "));
         Ok(ExitCode::FAILURE)
     }
-}
-
-/// Runs `f` on every scenario on `jobs` threads (each takes the next scenario not yet taken);
-/// the results in the scenarios' order, the first error if any.
-fn run_parallel<T: Send>(
-    scenarios: &[SimScenario],
-    jobs: usize,
-    f: impl Fn(&SimScenario) -> anyhow::Result<T> + Sync,
-) -> anyhow::Result<Vec<T>> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let slots: Vec<std::sync::Mutex<Option<anyhow::Result<T>>>> = scenarios
-        .iter()
-        .map(|_| std::sync::Mutex::new(None))
-        .collect();
-    std::thread::scope(|scope| {
-        for _ in 0..jobs {
-            scope.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(sc) = scenarios.get(i) else {
-                    break;
-                };
-                let r = f(sc);
-                if let Ok(mut slot) = slots[i].lock() {
-                    *slot = Some(r);
-                }
-            });
-        }
-    });
-    slots
-        .into_iter()
-        .zip(scenarios)
-        .map(|(slot, sc)| {
-            slot.into_inner()
-                .ok()
-                .flatten()
-                .unwrap_or_else(|| Err(anyhow::anyhow!("scenario {} did not run", sc.name)))
-        })
-        .collect()
 }
 
 /// One scenario: the lockstep run, its metrics and verdict, the figure and CSV under `dir`.

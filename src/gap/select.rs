@@ -779,38 +779,19 @@ fn refits_without(s: &Setup, base: &Model, current: &Model, chosen: &[ClassId]) 
     out.into_iter().map(|(_, m)| m).collect()
 }
 
-/// `f(i, item)` for every item on up to `threads` threads, with its index, in no particular
-/// order (`None` results dropped). A shared queue, not a fixed share per thread: a thermal
-/// class's fit replays the temperatures and costs several torque classes'.
+/// `f(i, item)` for every item on up to `threads` threads ([`crate::par::map`]: a shared queue,
+/// not a fixed share per thread — a thermal class's fit replays the temperatures and costs
+/// several torque classes'), with its index; `None` results dropped.
 fn on_cores<T: Sync, R: Send>(
     threads: usize,
     items: &[T],
     f: impl Fn(usize, &T) -> Option<R> + Sync,
 ) -> Vec<(usize, R)> {
-    let threads = threads.clamp(1, items.len().max(1));
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    std::thread::scope(|sc| {
-        let handles: Vec<_> = (0..threads)
-            .map(|_| {
-                let (next, f) = (&next, &f);
-                sc.spawn(move || {
-                    let mut mine = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(item) = items.get(i) else { break };
-                        if let Some(r) = f(i, item) {
-                            mine.push((i, r));
-                        }
-                    }
-                    mine
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap_or_default())
-            .collect()
-    })
+    crate::par::map(threads, items, f)
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, r)| r.map(|r| (i, r)))
+        .collect()
 }
 
 /// What a selected class is worth beside the others: the validation gain lost when it is taken
