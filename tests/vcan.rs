@@ -79,3 +79,59 @@ fn opening_a_missing_interface_is_a_clear_error() {
     let err = rt.block_on(async { SocketCanBus::open("nosuchcan7", false).err().unwrap() });
     assert!(err.to_string().contains("nosuchcan7"), "{err}");
 }
+
+/// `try_recv_many` (one `recvmmsg` per batch of up to 64): 150 queued frames of mixed kinds —
+/// standard, extended, remote — come out in order, with their payloads and kernel timestamps
+/// (not decreasing, near the wall clock), in batches of at most 64; an empty queue says so.
+#[tokio::test]
+#[ignore = "needs vcan0: run through scripts/vcan-run"]
+async fn queued_frames_are_read_in_batches_with_their_timestamps() {
+    use ddct::can::socketcan::MMSG_BATCH;
+    let mut a = SocketCanBus::open(&iface(), false).expect("open vcan0");
+    let mut b = SocketCanBus::open(&iface(), false).expect("open vcan0");
+    let mut empty_batch = Vec::new();
+    assert!(
+        b.try_recv_many(MMSG_BATCH, &mut empty_batch),
+        "nothing queued yet"
+    );
+    assert!(empty_batch.is_empty());
+    let sent: Vec<CanFrame> = (0..150u32)
+        .map(|k| match k % 3 {
+            0 => CanFrame::standard(0x100 + (k as u16 % 0x600), &[k as u8; 8]).unwrap(),
+            1 => CanFrame::extended(0x1000_0000 + k, &[k as u8, 1, 2]).unwrap(),
+            _ => CanFrame::remote(
+                embedded_can::Id::Standard(embedded_can::StandardId::new(0x7A0).unwrap()),
+                4,
+            )
+            .unwrap(),
+        })
+        .collect();
+    for f in &sent {
+        a.send(*f).await.unwrap();
+    }
+    let t_sent = SystemTime::now().duration_since(UNIX_EPOCH).unwrap();
+    let mut got = Vec::new();
+    let mut calls = 0;
+    loop {
+        let mut batch = Vec::new();
+        let empty = b.try_recv_many(MMSG_BATCH, &mut batch);
+        calls += 1;
+        assert!(batch.len() <= MMSG_BATCH);
+        got.extend(batch.into_iter().map(|r| r.unwrap()));
+        if empty {
+            break;
+        }
+        assert!(calls < 10, "more batches than frames allow");
+    }
+    assert_eq!(got.iter().map(|r| r.frame).collect::<Vec<_>>(), sent);
+    assert!(
+        calls >= 3,
+        "150 frames need three batches of 64 at least ({calls})"
+    );
+    assert!(got.windows(2).all(|w| w[0].timestamp <= w[1].timestamp));
+    let last = got.last().unwrap().timestamp;
+    assert!(
+        last <= t_sent && t_sent - last < Duration::from_secs(10),
+        "kernel timestamps"
+    );
+}

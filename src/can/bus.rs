@@ -48,6 +48,23 @@ pub trait Bus: Send {
     fn recv(&mut self) -> impl Future<Output = Result<Received, BusError>> + Send;
     /// The next frame if one is waiting.
     fn try_recv(&mut self) -> Result<Option<Received>, BusError>;
+    /// Up to `max` frames that are already waiting, appended to `out` in arrival order (a read
+    /// that fails is an `Err` in its place, and ends the batch); returns whether the receive
+    /// queue was found empty. One system call per batch where the bus can (SocketCAN's
+    /// `recvmmsg`); by default [`Bus::try_recv`] in a loop.
+    fn try_recv_many(&mut self, max: usize, out: &mut Vec<Result<Received, BusError>>) -> bool {
+        for _ in 0..max {
+            match self.try_recv() {
+                Ok(Some(rx)) => out.push(Ok(rx)),
+                Ok(None) => return true,
+                Err(e) => {
+                    out.push(Err(e));
+                    return false;
+                }
+            }
+        }
+        false
+    }
     /// Interface name for messages and logs.
     fn iface(&self) -> &str;
 }

@@ -114,6 +114,12 @@ impl Bus for AnyBus {
             AnyBus::Sim(b) => b.try_recv(),
         }
     }
+    fn try_recv_many(&mut self, max: usize, out: &mut Vec<Result<Received, BusError>>) -> bool {
+        match self {
+            AnyBus::Can(b) => b.try_recv_many(max, out),
+            AnyBus::Sim(b) => b.try_recv_many(max, out),
+        }
+    }
     fn iface(&self) -> &str {
         match self {
             AnyBus::Can(b) => b.iface(),
