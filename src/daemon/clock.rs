@@ -89,6 +89,12 @@ impl TimeBase {
         Some(added)
     }
 
+    /// The monotonic time at which live time reaches `live`, for a `live` after the last stall
+    /// (a deadline of the core): the inverse of [`TimeBase::live`] there.
+    pub fn mono_of(&self, live: Duration) -> Duration {
+        live + self.credit
+    }
+
     /// Live time (stall time taken out) of monotonic time `mono`. Monotone non-decreasing.
     pub fn live(&self, mono: Duration) -> Duration {
         match self.last_stall {

@@ -87,6 +87,10 @@ impl Periodic {
 /// under a flood the rest waits for the next wake-up, and the cycle's work goes on.
 pub const DRAIN_BUDGET: usize = 64;
 
+/// The period of bus reads while a daemon's inputs are flooded (more waiting than it reads at
+/// once): everything queued is read in batches on this pace instead of a wake-up per frame.
+pub const FLOOD_PACE: Duration = Duration::from_millis(2);
+
 /// Margin before a deadline below which [`sleep_until_precise`] blocks instead of using tokio's
 /// timer (whose granularity is 1 ms).
 pub const PRECISE_MARGIN: Duration = Duration::from_micros(1500);

@@ -5,7 +5,10 @@
 //!   misses, cycles whose work did not finish before the next deadline as overruns, and skipped
 //!   cycles are integrated (the core catches up to the simulated time of the deadline) but their
 //!   frames are sent late rather than dropped. Received frames are applied at their (scaled)
-//!   receive time; frames a fault delays are sent at their due time.
+//!   receive time; frames a fault delays are sent at their due time. The bus is read at the
+//!   deadlines (and before a delayed frame is sent, so the log stays in time order), up to
+//!   [`DRAIN_BUDGET`] frames in one batch; when more were waiting (a flood), the rest every
+//!   [`FLOOD_PACE`] until the queue is empty — never a wake-up per frame.
 //! - Lockstep ([`PlantDaemonConfig::lockstep`], real-time pacing): after sending cycle n the
 //!   plant waits for the answers (a frame of each lockstep message: the TCU's TCU_ClutchCmd, and
 //!   on a bench with a scripted driver its DRV_Pedal) before it
@@ -27,7 +30,9 @@
 //! either way.
 
 use super::clock::TimeBase;
-use super::{sleep_until_precise, wall_clock, Link, LinkError, LoopStats, Periodic, DRAIN_BUDGET};
+use super::{
+    sleep_until_precise, wall_clock, Link, LinkError, LoopStats, Periodic, DRAIN_BUDGET, FLOOD_PACE,
+};
 use crate::can::{Bus, BusError, ManualClock, Received};
 use crate::model::effects::EffectSet;
 use crate::plant::core::CYCLE;
@@ -199,6 +204,8 @@ struct Shell<B: Bus> {
     /// The first lockstep cycle without all its answers: its time and the ids missing.
     lockstep_first_timeout: Option<(Duration, Vec<u16>)>,
     pending: Vec<Received>,
+    /// The read batch (reused).
+    batch: Vec<Result<Received, BusError>>,
 }
 
 impl<B: Bus> Shell<B> {
@@ -214,17 +221,37 @@ impl<B: Bus> Shell<B> {
         self.time = TimeBase::new();
     }
 
-    /// Simulated arrival time of a frame with kernel (wall-clock) timestamp `stamp`, read now.
-    fn to_sim(&self, stamp: Duration) -> Duration {
-        self.time
-            .arrival(stamp, wall_clock(), self.mono())
-            .mul_f64(self.speed)
-    }
-
-    /// The receive queue was found empty now.
-    fn queue_empty(&mut self) {
-        let now = self.mono();
-        self.time.queue_empty(now);
+    /// Reads up to [`DRAIN_BUDGET`] frames that are already waiting, in one batch, each placed at
+    /// its simulated arrival time (its kernel timestamp's age against the clocks read once after
+    /// the batch); returns whether the receive queue was found empty.
+    fn drain(&mut self) -> Result<bool, PlantDaemonError> {
+        let mut batch = std::mem::take(&mut self.batch);
+        let empty = self.link.bus.try_recv_many(DRAIN_BUDGET, &mut batch);
+        let (wall, mono) = (wall_clock(), self.mono());
+        let mut result = Ok(());
+        for rx in batch.drain(..) {
+            result = match rx {
+                Ok(rx) => {
+                    let st = self
+                        .time
+                        .arrival(rx.timestamp, wall, mono)
+                        .mul_f64(self.speed);
+                    let lt = self.log_time(rx.timestamp, st);
+                    self.on_receive(rx, st, lt)
+                }
+                Err(e) => self.recv_error(e),
+            };
+            if result.is_err() {
+                break;
+            }
+        }
+        batch.clear();
+        self.batch = batch;
+        result?;
+        if empty {
+            self.time.queue_empty(mono);
+        }
+        Ok(empty)
     }
 
     /// Log timestamp of a frame received with kernel timestamp `stamp` at simulated time `sim`:
@@ -304,6 +331,7 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         lockstep_timeouts: 0,
         lockstep_first_timeout: None,
         pending: Vec::new(),
+        batch: Vec::with_capacity(DRAIN_BUDGET),
     };
     let wall0 = std::time::Instant::now();
     let mut stats = LoopStats::default();
@@ -389,6 +417,10 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
     let mut later: Vec<OutFrame> = Vec::new();
     let speed = shell.speed;
     let wall_of = move |sim: Duration| start + sim.div_f64(speed);
+    // More frames waiting at the last read than it took: read on the pace timer until the
+    // queue is found empty again.
+    let mut flooded = false;
+    let mut pace_at = start;
     loop {
         let next_tx = later.first().map(|f| wall_of(f.due));
         tokio::select! {
@@ -402,21 +434,9 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                     return Ok("duration");
                 }
                 // Frames that are already waiting (received before this deadline), at most a
-                // budget: under a flood the rest is read between deadlines.
-                for _ in 0..DRAIN_BUDGET {
-                    match shell.link.bus.try_recv() {
-                        Ok(Some(rx)) => {
-                            let st = shell.to_sim(rx.timestamp);
-                            let lt = shell.log_time(rx.timestamp, st);
-                            shell.on_receive(rx, st, lt)?;
-                        }
-                        Ok(None) => {
-                            shell.queue_empty();
-                            break;
-                        }
-                        Err(e) => { shell.recv_error(e)?; break; }
-                    }
-                }
+                // budget: under a flood the rest is read between deadlines, on the pace timer.
+                flooded = !shell.drain()?;
+                pace_at = Instant::now() + FLOOD_PACE;
                 let rx = std::mem::take(&mut shell.pending);
                 let out = shell.plant.step(sim_now, &rx);
                 for f in out.frames {
@@ -436,6 +456,8 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                 }
             }
             _ = async { if let Some(w) = next_tx { tokio::time::sleep_until(w).await } }, if next_tx.is_some() => {
+                // What arrived before is read first, so the log stays in time order.
+                flooded = !shell.drain()?;
                 let now_sim = Instant::now().saturating_duration_since(start).mul_f64(speed);
                 while later.first().is_some_and(|f| f.due <= now_sim) {
                     let f = later.remove(0);
@@ -443,15 +465,9 @@ async fn run_real_time<B: Bus, S: Future<Output = ()>>(
                     shell.send(&f, lt).await?;
                 }
             }
-            rx = shell.link.bus.recv() => {
-                match rx {
-                    Ok(rx) => {
-                        let st = shell.to_sim(rx.timestamp);
-                        let lt = shell.log_time(rx.timestamp, st);
-                        shell.on_receive(rx, st, lt)?;
-                    }
-                    Err(e) => shell.recv_error(e)?,
-                }
+            _ = tokio::time::sleep_until(pace_at), if flooded => {
+                flooded = !shell.drain()?;
+                pace_at = Instant::now() + FLOOD_PACE;
             }
         }
     }

@@ -17,6 +17,14 @@
 //!   [`MAX_SYNCS_PER_WAKE`] times, so the loop returns to its timer and to signals every cycle
 //!   whatever arrives; frames left queued are read on the next wake-ups (the kernel drops what
 //!   its receive queue cannot hold).
+//! - Paced reads under a flood: a cycle with more than [`FLOOD_FRAMES_PER_CYCLE`] frames received
+//!   switches the next cycle from a wake-up per frame to a read of everything queued every
+//!   [`FLOOD_PACE`] (a sync frame then waits up to that long). A wake-up costs the same system
+//!   calls (poll, a read that finds the queue empty, the clocks) whether it brings one frame or
+//!   twenty, so a flood no longer buys the flooder the TCU's CPU: under User-Mode Linux, where a
+//!   system call costs tens of µs, a 2 500 frames/s flood had the TCU take a third of the guest's
+//!   CPU and lose its priority to the scheduler. The clocks are read once per wake-up, not per
+//!   frame.
 //! - A computation whose work (step + sends) takes longer than a cycle counts as an overrun; late
 //!   fallback wake-ups count as deadline misses (`LoopStats`).
 //! - Bus time ([`TcuClock::Bus`], a lockstep bench: the plant run with `--lockstep`): the core's
@@ -28,7 +36,7 @@
 //!   the candump tap (`log`) is flushed either way.
 
 use super::clock::{BusClock, TimeBase};
-use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDGET};
+use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDGET, FLOOD_PACE};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
 use crate::tcu::inputs::InputCounters;
@@ -49,6 +57,13 @@ const BURST: Duration = Duration::from_millis(2);
 
 /// Computations per wake-up at most (a burst of sync frames delayed by the scheduler).
 pub const MAX_SYNCS_PER_WAKE: usize = 4;
+
+/// Stalls kept in the exit report's `stall_log`.
+pub const STALL_LOG_LEN: usize = 256;
+
+/// Frames received in one cycle above which the next cycle reads the bus on the pace timer (the
+/// four inputs send 4–5 frames a cycle; a scheduling delay's backlog is a few dozen at most).
+pub const FLOOD_FRAMES_PER_CYCLE: u64 = 48;
 
 /// Bus time: live time without a DCT_Sensors frame after which the fallback timer computes
 /// (and moves bus time on), so a dead plant still ends in the safe state.
@@ -118,6 +133,13 @@ pub struct TcuReport {
     pub stalls: u64,
     pub stall_total_s: f64,
     pub stall_longest_s: f64,
+    /// The first [`STALL_LOG_LEN`] stalls: when each was noticed (wall clock, s since the Unix
+    /// epoch, the clock of the bus's timestamps) and how long it was (s), so a bench can tell
+    /// whether the host held the TCU back at a given moment.
+    pub stall_log: Vec<(f64, f64)>,
+    /// Cycles whose bus reads were paced (more than [`FLOOD_FRAMES_PER_CYCLE`] frames in the
+    /// cycle before).
+    pub paced_cycles: u64,
     /// Sync frames that arrived within half a cycle of the previous computation (no computation
     /// of their own).
     pub syncs_coalesced: u64,
@@ -188,6 +210,14 @@ fn is_sync(f: &TimedFrame) -> bool {
     is_sync_frame(&f.frame)
 }
 
+/// The clocks as read once per wake-up (the wall clock and monotonic time since the start, at
+/// the same moment): every frame read in that wake-up is placed against them.
+#[derive(Debug, Clone, Copy, Default)]
+struct WakeClocks {
+    wall: Duration,
+    mono: Duration,
+}
+
 struct Shell<B: Bus> {
     link: Link<B>,
     tcu: Tcu,
@@ -215,6 +245,17 @@ struct Shell<B: Bus> {
     last_sync_at: Option<Duration>,
     last_now: Duration,
     last_state: (TcuState, FaultCode),
+    clocks: WakeClocks,
+    /// Frames received since the last timer tick.
+    cycle_frames: u64,
+    /// The bus is read on the pace timer, not on every frame (a flood).
+    paced: bool,
+    paced_cycles: u64,
+    /// The read batch (reused).
+    batch: Vec<Result<Received, BusError>>,
+    /// The core deadline whose wake-up has fired (each is armed once).
+    core_fired: Option<Instant>,
+    stall_log: Vec<(f64, f64)>,
 }
 
 impl<B: Bus> Shell<B> {
@@ -223,16 +264,50 @@ impl<B: Bus> Shell<B> {
         Instant::now().saturating_duration_since(self.start)
     }
 
-    /// Takes note of a stall (the timer's pending deadline long past) before any frame read now
-    /// is placed on the time base.
+    /// Reads the clocks for this wake-up and takes note of a stall (the timer's pending deadline
+    /// long past) before any frame read now is placed on the time base.
     fn woke(&mut self) {
-        let now = self.mono();
-        self.time.woke(now, self.deadline);
+        self.clocks = WakeClocks {
+            wall: wall_clock(),
+            mono: self.mono(),
+        };
+        if let Some(stall) = self.time.woke(self.clocks.mono, self.deadline) {
+            if self.stall_log.len() < STALL_LOG_LEN {
+                self.stall_log
+                    .push((self.clocks.wall.as_secs_f64(), stall.as_secs_f64()));
+            }
+        }
     }
 
-    /// Queues a received frame at its arrival on the TCU's time base.
+    /// At a timer tick: whether the cycle now starting reads the bus on the pace timer.
+    fn pace_next_cycle(&mut self) {
+        self.paced = self.cycle_frames > FLOOD_FRAMES_PER_CYCLE;
+        self.paced_cycles += u64::from(self.paced);
+        self.cycle_frames = 0;
+    }
+
+    /// When the core next needs to run by itself ([`Tcu::poll_timeout`] on the live time base),
+    /// as a monotonic instant.
+    fn core_deadline(&self) -> Instant {
+        self.start + self.time.mono_of(self.tcu.poll_timeout())
+    }
+
+    /// The core's own deadline has come (on the live time base), or a coalesced sync frame
+    /// waits: a fallback computation is due.
+    fn fallback_due(&self, mono: Duration) -> bool {
+        self.time.live(mono) >= self.tcu.poll_timeout() || self.sync_queued()
+    }
+
+    /// When the next paced read is due.
+    fn next_read(&self) -> Instant {
+        self.start + self.clocks.mono + FLOOD_PACE
+    }
+
+    /// Queues a received frame at its arrival on the TCU's time base (against the clocks of this
+    /// wake-up: call [`Self::woke`] first).
     fn on_receive(&mut self, rx: Received) -> Result<(), TcuDaemonError> {
         self.link.received(&rx)?;
+        self.cycle_frames += 1;
         let at = if let Some(bc) = &mut self.bus_clock {
             if is_sync_frame(&rx.frame) {
                 bc.sync()
@@ -240,8 +315,8 @@ impl<B: Bus> Shell<B> {
                 bc.stamp()
             }
         } else {
-            self.time
-                .live(self.time.arrival(rx.timestamp, wall_clock(), self.mono()))
+            let WakeClocks { wall, mono } = self.clocks;
+            self.time.live(self.time.arrival(rx.timestamp, wall, mono))
         };
         // Frames are read in the order they arrived: never place one before an earlier one (a
         // stall noted between two reads moves the live time base back).
@@ -254,22 +329,26 @@ impl<B: Bus> Shell<B> {
         Ok(())
     }
 
-    /// Reads up to [`DRAIN_BUDGET`] frames that are already waiting.
+    /// Reads up to [`DRAIN_BUDGET`] frames that are already waiting (after [`Self::woke`]), in
+    /// one batch.
     fn drain(&mut self) -> Result<(), TcuDaemonError> {
-        self.woke();
-        for _ in 0..DRAIN_BUDGET {
-            match self.link.bus.try_recv() {
-                Ok(Some(rx)) => self.on_receive(rx)?,
-                Ok(None) => {
-                    let now = self.mono();
-                    self.time.queue_empty(now);
-                    break;
-                }
-                Err(e) => {
-                    self.recv_error(e)?;
-                    break;
-                }
+        let mut batch = std::mem::take(&mut self.batch);
+        let empty = self.link.bus.try_recv_many(DRAIN_BUDGET, &mut batch);
+        let mut result = Ok(());
+        for rx in batch.drain(..) {
+            result = match rx {
+                Ok(rx) => self.on_receive(rx),
+                Err(e) => self.recv_error(e),
+            };
+            if result.is_err() {
+                break;
             }
+        }
+        batch.clear();
+        self.batch = batch;
+        result?;
+        if empty {
+            self.time.queue_empty(self.clocks.mono);
         }
         Ok(())
     }
@@ -326,6 +405,7 @@ impl<B: Bus> Shell<B> {
     async fn compute(&mut self, sync: Option<Duration>) -> Result<(), TcuDaemonError> {
         let t0 = Instant::now();
         // Frames already waiting belong to this computation too.
+        self.woke();
         self.drain()?;
         let now = match (sync, &mut self.bus_clock) {
             (Some(at), _) => at,
@@ -443,12 +523,23 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         last_sync_at: None,
         last_now: Duration::ZERO,
         last_state: (TcuState::Init, FaultCode::None),
+        clocks: WakeClocks::default(),
+        cycle_frames: 0,
+        paced: false,
+        paced_cycles: 0,
+        batch: Vec::with_capacity(DRAIN_BUDGET),
+        core_fired: None,
+        stall_log: Vec::new(),
     };
     let mut timer = Periodic::new(start, CYCLE);
     let mut stats = LoopStats::default();
     tokio::pin!(shutdown);
     let stopped_by = loop {
         shell.deadline = timer.next_deadline().saturating_duration_since(start);
+        let core_at = shell.core_deadline();
+        let core_armed = shell.bus_clock.is_none()
+            && core_at < timer.next_deadline()
+            && shell.core_fired != Some(core_at);
         tokio::select! {
             biased;
             _ = shutdown.as_mut() => break "shutdown",
@@ -458,7 +549,9 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
                 stats.record(&tick, CYCLE);
                 // Frames waiting in the socket are read on every tick too, not only when the
                 // receive future is woken, so no queued frame waits longer than a cycle.
+                shell.woke();
                 shell.drain()?;
+                shell.pace_next_cycle();
                 shell.deadline = timer.next_deadline().saturating_duration_since(start);
                 if config.duration.is_some_and(|d| now.saturating_duration_since(start) >= d) {
                     break "duration";
@@ -471,16 +564,30 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
                     } else if shell.bus_silent(now.saturating_duration_since(start)) {
                         shell.compute(None).await?;
                     }
-                } else {
+                } else if shell.fallback_due(now.saturating_duration_since(start)) {
                     // The core's own deadline (the sensors silent), or a coalesced sync frame
                     // still queued: computed on this deadline.
-                    let live = shell.time.live(now.saturating_duration_since(start));
-                    if live >= shell.tcu.poll_timeout() || shell.sync_queued() {
-                        shell.compute(None).await?;
-                    }
+                    shell.compute(None).await?;
                 }
             }
-            rx = shell.link.bus.recv() => {
+            // The core's own deadline between two ticks (the sensors silent for two cycles): at
+            // that time, not at the next tick, so the TCU's frames are never more than the
+            // silence apart. Armed once per deadline.
+            _ = tokio::time::sleep_until(core_at), if core_armed => {
+                shell.core_fired = Some(core_at);
+                shell.woke();
+                shell.drain()?;
+                if shell.fallback_due(shell.clocks.mono) {
+                    shell.compute(None).await?;
+                }
+            }
+            // A flood: everything queued, every FLOOD_PACE.
+            _ = tokio::time::sleep_until(shell.next_read()), if shell.paced => {
+                shell.woke();
+                shell.drain()?;
+                shell.run_syncs().await?;
+            }
+            rx = shell.link.bus.recv(), if !shell.paced => {
                 shell.woke();
                 match rx {
                     Ok(rx) => shell.on_receive(rx)?,
@@ -509,6 +616,8 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         stalls,
         stall_total_s: stall_total.as_secs_f64(),
         stall_longest_s: stall_longest.as_secs_f64(),
+        paced_cycles: shell.paced_cycles,
+        stall_log: std::mem::take(&mut shell.stall_log),
         syncs_coalesced: shell.coalesced,
         compute_p50_us: shell.compute.percentile(0.5),
         compute_p99_us: shell.compute.percentile(0.99),
@@ -526,4 +635,63 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
         log: config.log,
         log_frames,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::can::bus::{EndpointConfig, InProcessBus};
+
+    fn ms(v: u32) -> Duration {
+        Duration::from_millis(u64::from(v))
+    }
+
+    /// The plant's sensor frames (at 3, 13, …, 73 ms: out of phase with the TCU's own 10 ms
+    /// timer) stop: the TCU runs by itself at its core's deadline, two cycles after the last one
+    /// (93 ms) and every cycle from there (103, 113 …), not at its next timer tick (100 ms): its
+    /// frames are never more than the silence apart.
+    #[tokio::test(start_paused = true)]
+    async fn the_core_deadline_is_kept_between_timer_ticks() {
+        let bus = InProcessBus::new("sim");
+        let tcu_end = bus.endpoint(EndpointConfig::default());
+        let mut plant = bus.endpoint(EndpointConfig::default());
+        let config = TcuDaemonConfig {
+            tcu: TcuConfig::default(),
+            duration: Some(ms(150)),
+            log: None,
+            clock: TcuClock::Monotonic,
+        };
+        let start = Instant::now();
+        let plant_side = async {
+            let mut cmd_at = Vec::new();
+            let mut k = 0u32;
+            loop {
+                let next_sync = start + ms(3) + ms(10) * k;
+                tokio::select! {
+                    biased;
+                    _ = tokio::time::sleep_until(start + ms(145)) => break cmd_at,
+                    _ = tokio::time::sleep_until(next_sync), if k < 8 => {
+                        let f = CanFrame::standard(ids::DCT_SENSORS, &[0; 8]).unwrap();
+                        plant.send(f).await.unwrap();
+                        k += 1;
+                    }
+                    rx = plant.recv() => {
+                        if rx.unwrap().frame.standard_id() == Some(ids::TCU_CLUTCH_CMD) {
+                            cmd_at.push(Instant::now() - start);
+                        }
+                    }
+                }
+            }
+        };
+        let (report, cmd_at) = tokio::join!(
+            run(tcu_end, std::future::pending::<()>(), config),
+            plant_side
+        );
+        let report = report.unwrap();
+        assert_eq!(report.sync_computations, 8, "{cmd_at:?}");
+        let after: Vec<Duration> = cmd_at.iter().copied().filter(|t| *t > ms(73)).collect();
+        assert_eq!(&after[..3], &[ms(93), ms(103), ms(113)], "{cmd_at:?}");
+        let gap = cmd_at.windows(2).map(|w| w[1] - w[0]).max().unwrap();
+        assert!(gap <= crate::tcu::SENSOR_SILENCE, "{cmd_at:?}");
+    }
 }
