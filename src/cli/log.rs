@@ -9,6 +9,7 @@ use ddct::can::columnar::{SignalRow, SignalWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
 use ddct::can::e2e::E2eConfig;
 use ddct::can::runtime_dbc::{self, RuntimeDbc};
+use ddct::can::socketcan::MMSG_BATCH;
 use ddct::can::Bus;
 use indicatif::ProgressBar;
 use serde_json::json;
@@ -834,6 +835,15 @@ fn monitor(
 /// Receive queue asked for by `ddct log record` (bytes).
 const RECORD_RCVBUF: usize = 16 << 20;
 
+/// After a wake-up the recorder reads everything queued (in `recvmmsg` batches) and then waits
+/// this long before it looks again: it needs no latency (every frame carries its kernel
+/// timestamp, and the queue holds minutes), and a wake-up per frame of a flood took the CPU the
+/// daemons under test need (User-Mode Linux: tens of µs per system call, one CPU).
+const RECORD_PACE: Duration = Duration::from_millis(5);
+
+/// Frames read per recorder wake-up at most (the rest on the next one).
+const RECORD_BATCH: usize = 1024;
+
 fn record(
     iface: &str,
     out: &PathBuf,
@@ -858,6 +868,7 @@ fn record(
         let mut n = 0u64;
         let mut per_id: BTreeMap<u32, u64> = BTreeMap::new();
         let mut last_flush = Instant::now();
+        let mut batch = Vec::with_capacity(RECORD_BATCH);
         loop {
             if count.is_some_and(|c| n >= c) {
                 break;
@@ -871,14 +882,22 @@ fn record(
             let flush_tick = tokio::time::sleep(Duration::from_millis(200));
             tokio::select! {
                 rx = bus.recv() => {
-                    let rx = rx?;
-                    writer.write_frame(rx.timestamp, iface, &rx.frame, None)?;
-                    n += 1;
-                    *per_id.entry(rx.frame.raw_id()).or_default() += 1;
+                    batch.push(rx);
+                    while !bus.try_recv_many(MMSG_BATCH, &mut batch) && batch.len() < RECORD_BATCH {}
+                    for rx in batch.drain(..) {
+                        if count.is_some_and(|c| n >= c) {
+                            break;
+                        }
+                        let rx = rx?;
+                        writer.write_frame(rx.timestamp, iface, &rx.frame, None)?;
+                        n += 1;
+                        *per_id.entry(rx.frame.raw_id()).or_default() += 1;
+                    }
                     if last_flush.elapsed() > Duration::from_millis(200) {
                         writer.flush()?;
                         last_flush = Instant::now();
                     }
+                    tokio::time::sleep(RECORD_PACE).await;
                 }
                 _ = flush_tick => { writer.flush()?; last_flush = Instant::now(); }
                 _ = until_deadline => break,
