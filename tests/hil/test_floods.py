@@ -3,7 +3,8 @@
 in silence, it recovers when the flood ends, sends only valid, in-range frames and stops on SIGTERM.
 
 Each run: a launch at 40 % pedal in real time (scripts/launch.py), and from FLOOD_FROM_S for
-FLOOD_S seconds cangen on the same bus at 2 500 frames/s:
+FLOOD_S seconds cangen on the same bus, asked for 3 500 frames/s (its sleeps in the guest run late:
+it reaches about 2 000–2 800):
 
 - ``bad_crc``: random payloads on one input id (a wrong CRC but for 1 frame in 256);
 - ``frozen``: a genuine frame of the input, captured from the bus, repeated (valid CRC, a frozen
@@ -11,12 +12,14 @@ FLOOD_S seconds cangen on the same bus at 2 500 frames/s:
 - ``all_ids``: random ids and payloads (the TCU must not care, beyond keeping its cycle).
 
 Timing in User-Mode Linux has a noisy tail (the guest has one CPU the host shares), so the
-frame period, the detection time and the exit time are always printed. Asserted when the guest
-ran (the TCU's own report: stalls under 10 % of the run, as in test_hil.py): the flood's rate,
-detection within 80 ms of the flood's first frame (the exact 3-cycle contract is asserted in bus
-time, in-process and by test_hil.py), exit within 100 ms of SIGTERM, and — when the host never
-stalled the TCU (its report counts every timer wake-up late beyond tolerance) — its frames at
-most 30 ms apart. What must hold under any load is asserted always: the safe state with the
+TCU_ClutchCmd gaps on the bus during the flood, the detection time and the exit time are always
+printed. Asserted when the guest ran (the TCU's own report: stalls under 10 % of the run, and no
+DRV_Pedal timeout at the plant, as in test_hil.py), the flood reached 2 000 frames/s and the TCU
+was not stalled during it (its exit report's stall_log):
+TCU_ClutchCmd at most 30 ms apart on the bus (the recorder's kernel timestamps) from the flood's
+first frame to its last, detection within 80 ms of the flood's first frame (the exact 3-cycle
+contract is asserted in bus time, in-process and by test_hil.py), no other fault code, and exit
+within 100 ms of SIGTERM. What must hold under any load is asserted always: the safe state with the
 right code during a flood on a needed input, recovery after it, every TCU frame with a valid CRC
 and inside the DBC's ranges (a NaN cannot be encoded: it would show there), exit status 0 with a
 report.
@@ -37,7 +40,9 @@ from test_hil import CYCLE_MS, MAX_STALL_SHARE, starved
 FLOOD_FROM_S = 3.5  # after run_bench starts (the plant starts about 0.6 s later): mid-launch
 FLOOD_S = 1.0
 RUN_S = 7.0
-RATE_HZ = 2500.0
+RATE_HZ = 3500.0
+# The rate a judged run must reach (issue 12: a flood of at least 2 k frames/s).
+JUDGED_RATE_HZ = 2000.0
 # Measured from the flood's first frame to the first TCU_Status carrying the code.
 DETECT_MS = 8 * CYCLE_MS
 MAX_GAP_MS = 3 * CYCLE_MS
@@ -125,6 +130,22 @@ class FrozenFlood(Flood):
     def is_flood_frame(self, fid: int, data: bytes) -> bool:
         return fid == self.fid and data == self.payload
 
+    def window(self, records) -> tuple:
+        """As Flood.window, but the genuine sender sends this very payload again every 16 of its
+        frames (a 4-bit counter, a constant pedal or speed), so a copy of it before cangen's first
+        frame is not the flood's start: the flood starts at the first of two copies less than a
+        cycle apart."""
+        first, last, n = super().window(records)
+        if first is None:
+            return first, last, n
+        lo, hi = first, last + 0.05
+        ts = [t for t, _, fid, _, d in records if lo <= t <= hi and self.is_flood_frame(fid, bytes(d))]
+        start = next((a for a, b in zip(ts, ts[1:]) if b - a < CYCLE_MS / 2e3), None)
+        if start is None:
+            return (None, None, 0)
+        flood = [t for t in ts if t >= start]
+        return (flood[0], flood[-1], len(flood))
+
 
 # (flood, input id, the code it must raise, other codes it may raise in the safe state). A
 # bad-CRC flood is the input's CRC fault; the 1 in 256 random payloads whose CRC happens to be
@@ -141,6 +162,34 @@ CASES = [
 ]
 # A flood at all (any load) / at the rate asked (when the guest ran).
 MIN_RATE_HZ = 500.0
+
+
+def clutch_cmd_gaps_ms(records, t_first: float, t_last: float) -> list:
+    """Gaps (ms) between consecutive TCU_ClutchCmd frames with a valid CRC on the bus (the
+    recorder's kernel timestamps) from the flood's first frame to its last, the frames just
+    before and after it included."""
+    cmd = hil.frame_id("TCU_ClutchCmd")
+    e2e = hil.ddct_can.e2e
+    ts = [t for t, _, fid, _, d in records if fid == cmd and e2e.e2e_crc(fid, bytes(d)) == d[-1]]
+    before = [t for t in ts if t < t_first][-1:]
+    after = [t for t in ts if t > t_last][:1]
+    inside = before + [t for t in ts if t_first <= t <= t_last] + after
+    return [(b - a) * 1e3 for a, b in zip(inside, inside[1:])]
+
+
+def stalls_between(report: dict, t_first: float, t_last: float) -> list:
+    """Lengths (s) of the TCU's stalls (its timer woke more than 5 ms late: the host did not run
+    it) that overlap the flood, from its exit report's stall_log (wall-clock time each was
+    noticed, length)."""
+    return [length for at, length in report.get("stall_log", []) if at >= t_first and at - length <= t_last]
+
+
+def percentile(values: list, q: float) -> float:
+    """The q-quantile (nearest rank) of values; NaN when empty."""
+    if not values:
+        return float("nan")
+    s = sorted(values)
+    return s[min(len(s) - 1, int(q * len(s)))]
 
 
 def status_rows(records):
@@ -186,6 +235,9 @@ def test_a_flood_keeps_the_cycle_and_ends_in_the_safe_state(ddct, out_dir, kind,
     print(f"\n== flood {kind} on {message or 'random ids'}: {n_flood} frames recorded in "
           f"{t_last - t_first:.2f} s ({rate:.0f}/s); codes during it {sorted({c for _, c, _ in during})}; detected after {detect_ms} ms; "
           f"normal again {recover_ms} ms after it")
+    cmd_gap_ms = clutch_cmd_gaps_ms(run.records, t_first, t_last)
+    print(f"TCU_ClutchCmd on the bus during the flood: {len(cmd_gap_ms) + 1} frames, gap p99 "
+          f"{percentile(cmd_gap_ms, 0.99):.1f} ms, max {max(cmd_gap_ms, default=float('nan')):.1f} ms")
     print(f"TCU frames every p99 {r.get('send_gap_p99_us')} us, max {r.get('send_gap_max_us')} us; "
           f"computations {r['computations']}, stalls {r['stall_total_s']:.3f} s of {r['wall_time_s']:.2f} s, "
           f"received {r['frames_received']}; recorder: {len(run.records)} frames; SIGTERM to exit "
@@ -202,18 +254,22 @@ def test_a_flood_keeps_the_cycle_and_ends_in_the_safe_state(ddct, out_dir, kind,
         assert flagged, f"no safe state with {codes} during the flood: {sorted({c for _, c, _ in during})}"
         assert normal_after, f"the TCU did not recover after the flood: {after[-3:]}"
     why = starved(r, p)
+    if not why and rate < JUDGED_RATE_HZ:
+        why = f"the flood reached {rate:.0f} frames/s, not {JUDGED_RATE_HZ:.0f} (cangen in the guest)"
     if why:
         print(f"timing NOT JUDGED: {why}")
         return
-    assert rate >= 0.8 * RATE_HZ, f"the flood reached {rate:.0f}/s only"
     assert run.tcu_stop_ms is not None and run.tcu_stop_ms <= EXIT_MS, f"exit {run.tcu_stop_ms} ms after SIGTERM"
     # No other code: a starved guest also times out the plant's frames (not the flood's doing).
     others_seen = sorted({c for _, c, _ in during if c not in codes | {"None"}})
     assert others_seen == [], f"the flood raised {others_seen} too"
+    held = stalls_between(r, t_first, t_last)
+    if held:
+        print(f"detection and frame gap not judged: the host held the TCU back during the flood "
+              f"(stalls of {', '.join(f'{s * 1e3:.0f} ms' for s in held)})")
+        return
     if codes:
         assert detect_ms <= DETECT_MS, f"detected {detect_ms:.1f} ms after the flood's first frame"
-    if r["stalls"] == 0:
-        assert r["send_gap_max_us"] <= MAX_GAP_MS * 1e3, f"the TCU missed cycles: frames {r['send_gap_max_us']} us apart"
-    else:
-        print(f"frame period max not judged: the host stalled the TCU {r['stalls']} times (longest "
-              f"{r['stall_longest_s'] * 1e3:.0f} ms)")
+    # The TCU keeps its cycle on the bus through the flood (issue 12: at most 30 ms apart).
+    assert cmd_gap_ms and max(cmd_gap_ms) <= MAX_GAP_MS, \
+        f"TCU_ClutchCmd frames {max(cmd_gap_ms, default=float('nan')):.1f} ms apart on the bus during the flood"
