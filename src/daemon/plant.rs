@@ -228,24 +228,18 @@ impl<B: Bus> Shell<B> {
         let mut batch = std::mem::take(&mut self.batch);
         let empty = self.link.bus.try_recv_many(DRAIN_BUDGET, &mut batch);
         let (wall, mono) = (wall_clock(), self.mono());
-        let mut result = Ok(());
-        for rx in batch.drain(..) {
-            result = match rx {
-                Ok(rx) => {
-                    let st = self
-                        .time
-                        .arrival(rx.timestamp, wall, mono)
-                        .mul_f64(self.speed);
-                    let lt = self.log_time(rx.timestamp, st);
-                    self.on_receive(rx, st, lt)
-                }
-                Err(e) => self.recv_error(e),
-            };
-            if result.is_err() {
-                break;
+        // In order, up to the first error (the rest of the batch is dropped with the drain).
+        let result = batch.drain(..).try_for_each(|rx| match rx {
+            Ok(rx) => {
+                let st = self
+                    .time
+                    .arrival(rx.timestamp, wall, mono)
+                    .mul_f64(self.speed);
+                let lt = self.log_time(rx.timestamp, st);
+                self.on_receive(rx, st, lt)
             }
-        }
-        batch.clear();
+            Err(e) => self.recv_error(e),
+        });
         self.batch = batch;
         result?;
         if empty {

@@ -334,17 +334,11 @@ impl<B: Bus> Shell<B> {
     fn drain(&mut self) -> Result<(), TcuDaemonError> {
         let mut batch = std::mem::take(&mut self.batch);
         let empty = self.link.bus.try_recv_many(DRAIN_BUDGET, &mut batch);
-        let mut result = Ok(());
-        for rx in batch.drain(..) {
-            result = match rx {
-                Ok(rx) => self.on_receive(rx),
-                Err(e) => self.recv_error(e),
-            };
-            if result.is_err() {
-                break;
-            }
-        }
-        batch.clear();
+        // In order, up to the first error (the rest of the batch is dropped with the drain).
+        let result = batch.drain(..).try_for_each(|rx| match rx {
+            Ok(rx) => self.on_receive(rx),
+            Err(e) => self.recv_error(e),
+        });
         self.batch = batch;
         result?;
         if empty {
