@@ -79,20 +79,14 @@ impl SocketCanBus {
             .collect();
         self.socket
             .set_filters(&filters)
-            .map_err(|source| BusError::Io {
-                iface: self.iface.clone(),
-                source,
-            })
+            .map_err(|e| self.io_error(e))
     }
 
     /// Asks the kernel for a receive queue of `bytes` (`SO_RCVBUFFORCE` where permitted — root —
     /// else `SO_RCVBUF`, which the kernel caps at `net.core.rmem_max`), so a reader the host
     /// deschedules for a while (a recorder) loses no frame. Returns the size the kernel granted.
     pub fn set_recv_buffer(&self, bytes: usize) -> Result<usize, BusError> {
-        let io_err = |source| BusError::Io {
-            iface: self.iface.clone(),
-            source,
-        };
+        let io_err = |e| self.io_error(e);
         let val = libc::c_int::try_from(bytes).unwrap_or(libc::c_int::MAX);
         self.socket
             .set_socket_option_int(libc::SOL_SOCKET, libc::SO_RCVBUFFORCE, val)
@@ -127,10 +121,7 @@ impl SocketCanBus {
             )
         };
         if rc != 0 {
-            return Err(BusError::Io {
-                iface: self.iface.clone(),
-                source: io::Error::last_os_error(),
-            });
+            return Err(self.io_error(io::Error::last_os_error()));
         }
         Ok(u64::from(info[libc::SK_MEMINFO_DROPS as usize]))
     }
@@ -153,6 +144,7 @@ impl SocketCanBus {
         None
     }
 
+    /// An I/O error on this interface, with its source.
     fn io_error(&self, source: io::Error) -> BusError {
         BusError::Io {
             iface: self.iface.clone(),
@@ -201,10 +193,7 @@ impl Bus for SocketCanBus {
             self.socket
                 .write_frame(f)
                 .await
-                .map_err(|source| BusError::Io {
-                    iface: self.iface.clone(),
-                    source,
-                })
+                .map_err(|e| self.io_error(e))
         }
     }
 
@@ -216,10 +205,7 @@ impl Bus for SocketCanBus {
                 .socket
                 .read_frame_with_timestamp()
                 .await
-                .map_err(|source| BusError::Io {
-                    iface: self.iface.clone(),
-                    source,
-                })?;
+                .map_err(|e| self.io_error(e))?;
             self.convert(f, ts)
         }
     }
@@ -228,10 +214,7 @@ impl Bus for SocketCanBus {
         match self.now.read_frame_with_timestamp() {
             Ok((f, ts)) => self.convert(f, ts).map(Some),
             Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(None),
-            Err(source) => Err(BusError::Io {
-                iface: self.iface.clone(),
-                source,
-            }),
+            Err(e) => Err(self.io_error(e)),
         }
     }
 
