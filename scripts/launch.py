@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -406,6 +407,13 @@ class Run:
     lockstep: bool = False
     # Time from the TCU's SIGTERM to its exit, measured by the harness (ms).
     tcu_stop_ms: float | None = None
+    # `ddct log record`'s summary (frames per id, frames the kernel dropped from its queue).
+    recorder_stderr: str = ""
+
+    def recorder_drops(self) -> int | None:
+        """Frames the kernel dropped from the recorder's receive queue (None: not reported)."""
+        m = re.search(r"dropped by the kernel \(receive queue full\): (\d+)", self.recorder_stderr)
+        return int(m.group(1)) if m else None
 
 
 def wait_ready(proc, ready: Path, what: str, timeout: float = 60.0) -> None:
@@ -460,6 +468,7 @@ def run_bench(
         text=True,
     )
     bench = bus = None
+    rec_err = ""
     try:
         wait_ready(rec, rec_ready, "the recorder")
         if lockstep:
@@ -511,7 +520,7 @@ def run_bench(
             bench.wait_plant(timeout=600 if lockstep else 30)
             bench.stop()
         rec.send_signal(signal.SIGTERM)
-        rec.communicate(timeout=30)
+        _, rec_err = rec.communicate(timeout=30)
     finally:
         if bench is not None and bench.tcu is not None:
             for d in (bench.plant, bench.tcu):
@@ -523,10 +532,10 @@ def run_bench(
             rec.wait()
     records = ddct_can.read_candump(log)
     if bench is None:
-        return Run(log, records, None, "", "", n, plant_start, None, lockstep)
+        return Run(log, records, None, "", "", n, plant_start, None, lockstep, recorder_stderr=rec_err)
     stop_s = bench.tcu.stop_s
     return Run(log, records, bench.tcu_report, bench.plant.stderr(), bench.tcu.stderr(), n, plant_start,
-               bench.plant_report, lockstep, None if stop_s is None else stop_s * 1e3)
+               bench.plant_report, lockstep, None if stop_s is None else stop_s * 1e3, rec_err)
 
 
 def fmt(v, p=2):

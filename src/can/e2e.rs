@@ -34,6 +34,11 @@ pub fn e2e_crc(id: u16, data: &[u8; 8]) -> u8 {
     d.finalize()
 }
 
+/// Whether a frame's data carry the right E2E CRC for `id` (eight bytes, CRC in the last).
+pub fn crc_ok(id: u16, data: &[u8]) -> bool {
+    <&[u8; 8]>::try_from(data).is_ok_and(|d| d[CRC_BYTE] == e2e_crc(id, d))
+}
+
 /// Writes the alive counter (mod 16) and the CRC into an encoded payload.
 pub fn protect(id: u16, data: &mut [u8; 8], counter: u8) {
     data[COUNTER_BYTE] = (data[COUNTER_BYTE] & 0x0F) | ((counter % COUNTER_MODULUS) << 4);

@@ -665,7 +665,9 @@ mod tests {
                     biased;
                     _ = tokio::time::sleep_until(start + ms(145)) => break cmd_at,
                     _ = tokio::time::sleep_until(next_sync), if k < 8 => {
-                        let f = CanFrame::standard(ids::DCT_SENSORS, &[0; 8]).unwrap();
+                        let mut data = [0u8; 8];
+                        crate::can::e2e::protect(ids::DCT_SENSORS, &mut data, k as u8);
+                        let f = CanFrame::standard(ids::DCT_SENSORS, &data).unwrap();
                         plant.send(f).await.unwrap();
                         k += 1;
                     }

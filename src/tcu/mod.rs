@@ -40,9 +40,13 @@ pub mod strategy;
 
 pub use config::{TcuConfig, TcuConfigError};
 
-/// A DCT_Sensors frame: the plant's sensor message, the trigger of a TCU cycle (the sync).
+/// A DCT_Sensors frame with its E2E CRC right: the plant's sensor message, the trigger of a TCU
+/// cycle (the sync). A frame whose CRC is wrong (corrupted, or a flood of garbage on that id)
+/// triggers nothing: it is checked and counted by the inputs at the next computation, so a
+/// bad-CRC flood cannot drive the TCU at the flood's rate.
 pub fn is_sync_frame(f: &CanFrame) -> bool {
     f.standard_id() == Some(ids::DCT_SENSORS)
+        && crate::can::e2e::crc_ok(ids::DCT_SENSORS, f.bytes())
 }
 
 /// The TCU's computation cycle: TCU_ClutchCmd's cycle time in the DBC.
@@ -475,11 +479,50 @@ mod tests {
         Duration::from_millis(v)
     }
 
-    fn sensors(at: Duration) -> TimedFrame {
+    /// A DCT_Sensors frame at `at`, its E2E CRC right or (`crc_ok` false) wrong.
+    fn sensors_with(at: Duration, crc_ok: bool) -> TimedFrame {
+        let mut data = [0u8; 8];
+        crate::can::e2e::protect(ids::DCT_SENSORS, &mut data, 1);
+        if !crc_ok {
+            data[7] ^= 0x5A;
+        }
         TimedFrame {
             at,
-            frame: CanFrame::standard(ids::DCT_SENSORS, &[0; 8]).unwrap(),
+            frame: CanFrame::standard(ids::DCT_SENSORS, &data).unwrap(),
         }
+    }
+
+    fn sensors(at: Duration) -> TimedFrame {
+        sensors_with(at, true)
+    }
+
+    /// A DCT_Sensors frame with a wrong CRC (a garbage flood on that id) is no sync: it neither
+    /// triggers nor moves the deadline, so a flood cannot drive the TCU at its own rate.
+    #[test]
+    fn only_a_sensor_frame_with_its_crc_right_is_a_sync() {
+        assert!(is_sync_frame(&sensors(ms(0)).frame));
+        assert!(!is_sync_frame(&sensors_with(ms(0), false).frame));
+        let short = CanFrame::standard(ids::DCT_SENSORS, &[0; 4]).unwrap();
+        assert!(!is_sync_frame(&short));
+        let mut tcu = Tcu::new(TcuConfig::default(), ms(5));
+        tcu.step(
+            ms(5),
+            &TcuInputs {
+                frames: &[sensors(ms(5))],
+            },
+        );
+        assert_eq!(tcu.poll_timeout(), ms(25));
+        tcu.step(
+            ms(12),
+            &TcuInputs {
+                frames: &[sensors_with(ms(12), false)],
+            },
+        );
+        assert_eq!(
+            tcu.poll_timeout(),
+            ms(25),
+            "a bad-CRC frame moved the deadline"
+        );
     }
 
     /// The timing policy: at once before the first step; two cycles after the last sensor frame;

@@ -177,6 +177,12 @@ def clutch_cmd_gaps_ms(records, t_first: float, t_last: float) -> list:
     return [(b - a) * 1e3 for a, b in zip(inside, inside[1:])]
 
 
+def tcu_frames_recorded(records) -> int:
+    """The TCU's frames in the recording (all five messages; the random-id flood may add some)."""
+    ids = {hil.frame_id(name) for name in hil.TCU_MESSAGES}
+    return sum(1 for _, _, fid, _, _ in records if fid in ids)
+
+
 def stalls_between(report: dict, t_first: float, t_last: float) -> list:
     """Lengths (s) of the TCU's stalls (its timer woke more than 5 ms late: the host did not run
     it) that overlap the flood, from its exit report's stall_log (wall-clock time each was
@@ -240,8 +246,9 @@ def test_a_flood_keeps_the_cycle_and_ends_in_the_safe_state(ddct, out_dir, kind,
           f"{percentile(cmd_gap_ms, 0.99):.1f} ms, max {max(cmd_gap_ms, default=float('nan')):.1f} ms")
     print(f"TCU frames every p99 {r.get('send_gap_p99_us')} us, max {r.get('send_gap_max_us')} us; "
           f"computations {r['computations']}, stalls {r['stall_total_s']:.3f} s of {r['wall_time_s']:.2f} s, "
-          f"received {r['frames_received']}; recorder: {len(run.records)} frames; SIGTERM to exit "
-          f"{run.tcu_stop_ms} ms")
+          f"received {r['frames_received']}, send errors {r['send_errors']}; recorder: {len(run.records)} frames, "
+          f"{run.recorder_drops()} dropped by the kernel; TCU frames sent {r['frames_sent']}, recorded "
+          f"{tcu_frames_recorded(run.records)}; SIGTERM to exit {run.tcu_stop_ms} ms")
     # Under any load.
     assert r["stopped_by"] == "shutdown" and r["computations"] > 0, r
     assert rate >= MIN_RATE_HZ, f"the flood reached {rate:.0f}/s only"
