@@ -471,7 +471,12 @@ fn predict_inner(
             }
             let mut series: Vec<f64> = tr.iter().map(|s| [s.pp1, s.pp2, s.cd][j]).collect();
             if t.temp_lag_s > 0.0 {
-                series = terms::lag(&series, t.temp_lag_s, stride as f64 * m.dt);
+                series = terms::lag2(
+                    &series,
+                    t.temp_lag_s,
+                    t.temp_lag2_share,
+                    stride as f64 * m.dt,
+                );
             }
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {

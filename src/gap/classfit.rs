@@ -210,7 +210,10 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
         ActuatorTransfer => m.terms.transfer = None,
         SensorTorque => m.terms.torque_sensor = None,
         SensorTorqueSkew => m.terms.torque_skew_s = 0.0,
-        SensorTemperatureLag => m.terms.temp_lag_s = 0.0,
+        SensorTemperatureLag => {
+            m.terms.temp_lag_s = 0.0;
+            m.terms.temp_lag2_share = 0.0;
+        }
         SensorTemperature => m.terms.temp_sensor = None,
         SensorPosition => m.terms.pos_sensor = None,
         _ => {}
@@ -299,13 +302,12 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             0.2,
             0.01,
         )],
-        SensorTemperatureLag => vec![ParamSpec::new(
-            "sensor_temperature_lag.tau_s",
-            1.0,
-            0.0,
-            60.0,
-            1.0,
-        )],
+        // The lags' sum, and the second lag's share of it (0: a single lag; at most half,
+        // since two lags in series commute).
+        SensorTemperatureLag => vec![
+            ParamSpec::new("sensor_temperature_lag.tau_s", 6.0, 0.0, 60.0, 1.0),
+            ParamSpec::new("sensor_temperature_lag.second_share", 0.2, 0.0, 0.5, 0.1),
+        ],
         SensorTemperature => {
             let mut v = vec![ParamSpec::new(
                 "sensor_temperature.offset_c",
@@ -372,7 +374,10 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         ActuatorTransfer => m.terms.transfer = Some(go(v)),
         SensorTorque => m.terms.torque_sensor = Some(go(v)),
         SensorTorqueSkew => m.terms.torque_skew_s = v[0],
-        SensorTemperatureLag => m.terms.temp_lag_s = v[0],
+        SensorTemperatureLag => {
+            m.terms.temp_lag_s = v[0];
+            m.terms.temp_lag2_share = v.get(1).copied().unwrap_or(0.0);
+        }
         SensorTemperature => m.terms.temp_sensor = reading(knots, Variable::Measurement, v),
         SensorPosition => m.terms.pos_sensor = Some(go(v)),
         ConvectionSpeed => {

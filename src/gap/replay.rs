@@ -63,6 +63,13 @@ pub struct Measured {
     /// Samples that inform the torque characteristic of each clutch (near or past the kiss
     /// point, or with measurable torque), valid only.
     pub torque_idx: [Arc<[usize]>; 2],
+    /// The (16) state the free replays start from: [`Self::thermal_at`] the first sample of the
+    /// thermocouples as read. Sensor corrections (a thermocouple lag undone, θ + τ·dθ/dt) leave
+    /// it as it is: undoing a lag of seconds multiplies the readings' noise by τ over the
+    /// derivative's ±1 s window, and an error in the slow states' start (the disks, the central
+    /// disk: time constants of minutes) lasts the whole record. The lag term is applied to the
+    /// replay from this reading on (the sensor settled at the start).
+    pub start: Thermal5State,
 }
 
 impl Measured {
@@ -108,7 +115,7 @@ impl Measured {
         };
         let series = |v: [Vec<f64>; 2]| v.map(Shared::from);
         let rig = is_rig_record(d);
-        Measured {
+        let mut m = Measured {
             rig,
             source: d.source.clone(),
             n,
@@ -130,7 +137,10 @@ impl Measured {
             valid: d.valid.as_slice().into(),
             seg: segment(d, seg),
             torque_idx: torque_idx.map(Arc::from),
-        }
+            start: Thermal5State::default(),
+        };
+        m.start = m.thermal_at(0);
+        m
     }
 
     /// Prepares files given in time order, carrying the friction energy across them.
@@ -386,7 +396,7 @@ pub fn thermal_replay_every<H: Hooks + ?Sized>(
 ) -> Vec<Thermal5State> {
     let stride = stride.max(1);
     let t5 = Thermal5::new(p.thermal5);
-    let mut s = m.thermal_at(0);
+    let mut s = m.start;
     let mut out = Vec::with_capacity(m.n.div_ceil(stride));
     let mut k0 = 0;
     loop {
@@ -427,7 +437,7 @@ pub struct Replay {
 /// thermal state (explicit midpoint coupling per sample, RK4 for the temperatures).
 pub fn full_replay<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> Replay {
     let t5 = Thermal5::new(p.thermal5);
-    let mut s = m.thermal_at(0);
+    let mut s = m.start;
     let mut torque = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
     let mut thermal = Vec::with_capacity(m.n);
     let mut e = [m.e_cum[0][0], m.e_cum[1][0]];
