@@ -174,7 +174,7 @@ pub fn range(t: Target) -> MagnitudeRange {
             C::HeatPartition => (0.003, 0.5, "1", false, SHAPES, "share of the plate's friction heat moved to the clutch disk at 30 kW"),
             C::SensorTorque => (0.15, 20.0, "N·m", true, SHAPES, "torque reading error: characteristic part share·m·f(T/100 N·m), offset part ±(1 − share)·m"),
             C::SensorTorqueSkew => (0.0005, 0.1, "s", true, SCALAR, "torque channel delay (when positive, part of it a first-order filter's)"),
-            C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple response time: two first-order lags in series"),
+            C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple response time: a transport delay and two first-order lags in series"),
             C::SensorTemperature => (0.15, 20.0, "K", true, SHAPES, "thermocouple reading error: characteristic part share·m·f((θ − 25 °C)/175 K), offset part ±(1 − share)·m"),
             C::SensorPosition => (0.004, 0.3, "mm", true, SHAPES, "position reading error: characteristic part share·m·f(x/6 mm), offset part ±(1 − share)·m"),
             _ => (0.0, 0.0, "", false, SCALAR, "not injected"),
@@ -290,8 +290,15 @@ impl Effect {
                 aux.push(("offset_sign", rng.sign()));
             }
             Target::Class(C::SensorTemperatureLag) => {
-                // Sheath and junction: the first lag's share of the response time.
+                // Sheath and junction: the first lag's share of the lags' time; a transport delay
+                // (heat crossing the plate to a buried junction) taking up to 30 % of the
+                // response time in half the trials — a form no lag (one or two) contains.
                 aux.push(("first_share", rng.range(0.5, 1.0)));
+                let delayed = rng.uniform() < 0.5;
+                aux.push((
+                    "delay_share",
+                    if delayed { rng.range(0.05, 0.3) } else { 0.0 },
+                ));
             }
             Target::Class(C::SensorTorqueSkew) => {
                 // Share of a positive delay made by an anti-aliasing filter's group delay.

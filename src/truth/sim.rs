@@ -162,7 +162,8 @@ struct Fx<'a> {
     /// Torque channel: pure delay and first-order filter time constant.
     skew: f64,
     torque_filter: f64,
-    /// Thermocouples: two first-order lags in series.
+    /// Thermocouples: a transport delay (s), then two first-order lags in series.
+    tc_delay: f64,
     tc_lag: [f64; 2],
     s_temp: ReadingError<'a>,
     s_pos: ReadingError<'a>,
@@ -216,7 +217,9 @@ impl<'a> Fx<'a> {
                     C::SensorTemperatureLag => {
                         let m = e.magnitude.max(0.0);
                         let s = e.aux("first_share");
-                        f.tc_lag = [s * m, (1.0 - s) * m];
+                        let delay = e.aux("delay_share") * m;
+                        f.tc_delay = delay;
+                        f.tc_lag = [s * (m - delay), (1.0 - s) * (m - delay)];
                     }
                     C::SensorTemperature => f.s_temp = e.reading_error(25.0, 200.0),
                     C::SensorPosition => f.s_pos = e.reading_error(0.0, 6.0),
@@ -448,6 +451,10 @@ pub fn simulate(
     let mut p_prev = 0.0;
     let h = STEP_S;
     let tc_lag = rig.fx.tc_lag;
+    // The true temperatures the thermocouples see, `tc_delay` late (the pack at rest before t = 0).
+    let delay_steps = (rig.fx.tc_delay / h).round() as usize;
+    let mut seen: [std::collections::VecDeque<f64>; 3] =
+        std::array::from_fn(|_| std::collections::VecDeque::from(vec![rec.theta0_c; delay_steps]));
     let dead = rig.fx.dead_time;
     for j in 0..=steps {
         let t = j as f64 * h;
@@ -493,7 +500,9 @@ pub fn simulate(
             d.t_eng[i] = if out.beta[i] { d.t_eng[i] + h } else { 0.0 };
         }
         for (k, j5) in [0usize, 1, 4].into_iter().enumerate() {
-            d.tc[k][0] = lag_step(d.tc[k][0], s.th[j5], h, tc_lag[0]);
+            seen[k].push_back(s.th[j5]);
+            let x = seen[k].pop_front().unwrap_or(s.th[j5]);
+            d.tc[k][0] = lag_step(d.tc[k][0], x, h, tc_lag[0]);
             d.tc[k][1] = lag_step(d.tc[k][1], d.tc[k][0], h, tc_lag[1]);
         }
         if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
