@@ -857,7 +857,7 @@ fn none_never_stands_beside_a_flagged_subsystem() {
         let spec = CaseSpec {
             targets,
             family: None,
-            magnitude: None,
+            magnitudes: vec![],
             detune,
             variants: Variants::default(),
             seed,

@@ -87,7 +87,7 @@ fn a_nominal_record_is_matched_by_the_nominal_model_within_noise() {
     let spec = CaseSpec {
         targets: vec![],
         family: None,
-        magnitude: None,
+        magnitudes: vec![],
         detune: 0.0,
         variants: Variants::default(),
         seed: 11,

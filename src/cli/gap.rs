@@ -185,10 +185,11 @@ pub struct TruthArgs {
     /// piecewise_linear, or scalar for effects without a driving variable (default: drawn).
     #[arg(long, value_parser = parse_family)]
     family: Option<Family>,
-    /// Magnitude of the (first) effect, signed, in its unit (`ddct gap truth --class C` prints
-    /// the meaning, unit and range; default: drawn log-uniform over the range).
+    /// Magnitude of the effect, signed, in its unit (`ddct gap truth --class C` prints the
+    /// meaning, unit and range; default: drawn log-uniform over the range); give it twice for a
+    /// pair, in the order of the classes.
     #[arg(long, allow_hyphen_values = true)]
-    magnitude: Option<f64>,
+    magnitude: Vec<f64>,
     /// Detune the baseline's recalibratable parameters by up to this relative error (0.2 =
     /// ±20 %, as the blind test does; default 0: the nominal parameters).
     #[arg(long, default_value_t = 0.0)]
@@ -555,13 +556,20 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
             if targets.len() > 2 {
                 bail!("at most two classes");
             }
+            if a.magnitude.len() > targets.len() {
+                bail!(
+                    "{} --magnitude for {} effect(s)",
+                    a.magnitude.len(),
+                    targets.len()
+                );
+            }
             if !(0.0..1.0).contains(&a.detune) {
                 bail!("--detune must lie in 0 ≤ r < 1");
             }
             let spec = CaseSpec {
                 targets,
                 family: a.family,
-                magnitude: a.magnitude,
+                magnitudes: a.magnitude.clone(),
                 detune: a.detune,
                 variants: Variants {
                     only_req1: a.only_req1,

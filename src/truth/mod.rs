@@ -222,8 +222,9 @@ pub struct CaseSpec {
     pub targets: Vec<Target>,
     /// Form family of the (first) effect (default: drawn among the target's families).
     pub family: Option<Family>,
-    /// Magnitude of the (first) effect, signed, in its unit (default: drawn).
-    pub magnitude: Option<f64>,
+    /// Magnitudes of the effects in the order of `targets`, signed, in their units (missing:
+    /// drawn).
+    pub magnitudes: Vec<f64>,
     /// Largest relative detuning of the baseline (0: the nominal parameters).
     pub detune: f64,
     pub variants: Variants,
@@ -267,11 +268,8 @@ pub fn build(spec: &CaseSpec, nominal: &Params) -> Result<Truth, String> {
         .iter()
         .enumerate()
         .map(|(k, t)| {
-            if k == 0 {
-                Effect::draw(*t, spec.family, spec.magnitude, &mut rng)
-            } else {
-                Effect::draw(*t, None, None, &mut rng)
-            }
+            let family = if k == 0 { spec.family } else { None };
+            Effect::draw(*t, family, spec.magnitudes.get(k).copied(), &mut rng)
         })
         .collect();
     let (plant, factors) = if spec.detune > 0.0 {
@@ -627,7 +625,7 @@ mod tests {
         let spec = CaseSpec {
             targets: vec![],
             family: None,
-            magnitude: None,
+            magnitudes: vec![],
             detune: 0.0,
             variants: Variants::default(),
             seed: 4,
@@ -641,7 +639,7 @@ mod tests {
         let spec = CaseSpec {
             targets: vec![Target::Class(ClassId::KissPointTemperature)],
             family: Some(Family::Saturating),
-            magnitude: Some(0.1),
+            magnitudes: vec![0.1],
             detune: 0.2,
             variants: Variants::default(),
             seed: 4,
