@@ -40,7 +40,7 @@ use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDG
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
 use crate::tcu::inputs::InputCounters;
-use crate::tcu::{is_sync_frame, Tcu, TcuConfig, TcuInputs, TimedFrame};
+use crate::tcu::{is_cycle_frame, is_sync_frame, Tcu, TcuConfig, TcuInputs, TimedFrame};
 use serde::Serialize;
 use std::future::Future;
 use std::path::PathBuf;
@@ -206,10 +206,6 @@ impl TcuReport {
     }
 }
 
-fn is_sync(f: &TimedFrame) -> bool {
-    is_sync_frame(&f.frame)
-}
-
 /// The clocks as read once per wake-up (the wall clock and monotonic time since the start, at
 /// the same moment): every frame read in that wake-up is placed against them.
 #[derive(Debug, Clone, Copy, Default)]
@@ -309,7 +305,7 @@ impl<B: Bus> Shell<B> {
         self.link.received(&rx)?;
         self.cycle_frames += 1;
         let at = if let Some(bc) = &mut self.bus_clock {
-            if is_sync_frame(&rx.frame) {
+            if is_cycle_frame(&rx.frame) {
                 bc.sync()
             } else {
                 bc.stamp()
@@ -353,7 +349,7 @@ impl<B: Bus> Shell<B> {
         let last = self.last_sync_at;
         self.inbox
             .iter()
-            .filter(|f| is_sync(f))
+            .filter(|f| self.is_sync(f))
             .find(|f| last.is_none_or(|t| f.at >= t + CYCLE / 2))
             .map(|f| f.at)
     }
@@ -378,9 +374,20 @@ impl<B: Bus> Shell<B> {
         self.time.live(mono).saturating_sub(self.time.live(since)) >= BUS_SILENCE
     }
 
+    /// A frame that triggers a computation: in real time a DCT_Sensors frame with its CRC right
+    /// (a garbage flood on that id drives nothing); on a lockstep bench every DCT_Sensors frame,
+    /// since each is a plant cycle the plant waits on (a corrupted one is the inputs' to judge).
+    fn is_sync(&self, f: &TimedFrame) -> bool {
+        if self.bus_clock.is_some() {
+            is_cycle_frame(&f.frame)
+        } else {
+            is_sync_frame(&f.frame)
+        }
+    }
+
     /// A DCT_Sensors frame is queued (coalesced, not yet computed).
     fn sync_queued(&self) -> bool {
-        self.inbox.iter().any(is_sync)
+        self.inbox.iter().any(|f| self.is_sync(f))
     }
 
     /// Computes for each queued DCT_Sensors frame that is due one (a burst after a scheduling
@@ -415,7 +422,7 @@ impl<B: Bus> Shell<B> {
         let (inbox, later): (Vec<TimedFrame>, Vec<TimedFrame>) =
             self.inbox.drain(..).partition(|f| f.at <= horizon);
         self.inbox = later;
-        let syncs_in = inbox.iter().filter(|f| is_sync(f)).count() as u64;
+        let syncs_in = inbox.iter().filter(|f| self.is_sync(f)).count() as u64;
         self.coalesced += syncs_in.saturating_sub(u64::from(sync.is_some()));
         let t_recv = t0.elapsed();
         let out = self.tcu.step(now, &TcuInputs { frames: &inbox });

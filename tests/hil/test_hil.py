@@ -100,6 +100,9 @@ FAULTS = [
     ("ENG_Status", "stop", "EngStatusTimeout"),
     ("ENG_Status", "corrupt_crc", "EngStatusCrc"),
     ("ENG_Status", "freeze_counter", "EngStatusCounter"),
+    # The plant's cycle marker itself: a corrupted one triggers no real-time computation, but on
+    # a lockstep bench each is still a cycle the plant waits on.
+    ("DCT_Sensors", "corrupt_crc", "SensorsCrc"),
 ]
 
 
