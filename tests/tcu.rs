@@ -379,6 +379,17 @@ fn eng_status_counter_frozen_gives_a_counter_fault() {
     );
 }
 
+/// A corrupted DCT_Sensors frame triggers no computation (a garbage flood on that id must not
+/// drive the TCU), so the core runs on its own deadline and still flags it within 3 cycles.
+#[test]
+fn sensors_crc_corrupted_gives_a_crc_fault_on_the_fallback_deadline() {
+    check_safety(
+        ids::DCT_SENSORS,
+        InjectionKind::CorruptCrc,
+        FaultCode::SensorsCrc,
+    );
+}
+
 #[test]
 fn sensors_stopped_still_run_the_tcu_on_its_fallback_deadline() {
     check_safety(
