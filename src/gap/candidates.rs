@@ -344,33 +344,30 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
 }
 
 /// The measured inputs of the replays as the sensor terms say they really were: thermocouple
-/// readings un-lagged (θ + τ·dθ/dt, derivative over ±1 s) and corrected for gain and offset,
-/// the friction power and energy from the corrected torque. `None` without sensor terms.
+/// readings corrected for their reading error, then un-lagged (θ + τ·dθ/dt, derivative over
+/// ±1 s), the friction power and energy from the corrected torque. `None` without sensor
+/// terms. The free replays start from the corrected readings before the un-lag
+/// ([`Measured::start`]: the un-lag's noise would last in the slow states).
 fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
     if t.temp_lag_s <= 0.0 && t.temp_sensor.is_none() && t.torque_sensor.is_none() {
         return None;
     }
     let mut c = m.clone();
-    let fix_temp = |v: &Shared| -> Shared {
-        let mut v = v.to_vec();
-        if t.temp_lag_s > 0.0 {
-            let half = ((1.0 / m.dt).round() as usize).max(1);
-            let d = replay::derivative(&v, m.dt, half);
-            for (x, dx) in v.iter_mut().zip(&d) {
-                *x += t.temp_lag_s * dx;
-            }
-        }
-        if let Some(g) = &t.temp_sensor {
-            let inv = g.inverse();
-            for x in v.iter_mut() {
-                *x = inv.eval(*x);
-            }
-        }
-        v.into()
-    };
-    if t.temp_lag_s > 0.0 || t.temp_sensor.is_some() {
-        c.pp = [fix_temp(&m.pp[0]), fix_temp(&m.pp[1])];
-        c.cd = fix_temp(&m.cd);
+    if let Some(g) = &t.temp_sensor {
+        let inv = g.inverse();
+        let read = |v: &Shared| -> Shared { v.iter().map(|x| inv.eval(*x)).collect() };
+        c.pp = [read(&m.pp[0]), read(&m.pp[1])];
+        c.cd = read(&m.cd);
+        c.start = c.thermal_at(0);
+    }
+    if t.temp_lag_s > 0.0 {
+        let half = ((1.0 / m.dt).round() as usize).max(1);
+        let unlag = |v: &Shared| -> Shared {
+            let d = replay::derivative(v, m.dt, half);
+            v.iter().zip(&d).map(|(x, dx)| x + t.temp_lag_s * dx).collect()
+        };
+        c.pp = [unlag(&c.pp[0]), unlag(&c.pp[1])];
+        c.cd = unlag(&c.cd);
     }
     if let Some(g) = &t.torque_sensor {
         for i in 0..2 {

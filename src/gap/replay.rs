@@ -64,11 +64,11 @@ pub struct Measured {
     /// point, or with measurable torque), valid only.
     pub torque_idx: [Arc<[usize]>; 2],
     /// The (16) state the free replays start from: [`Self::thermal_at`] the first sample of the
-    /// thermocouples as read. Sensor corrections (a thermocouple lag undone, θ + τ·dθ/dt) leave
-    /// it as it is: undoing a lag of seconds multiplies the readings' noise by τ over the
-    /// derivative's ±1 s window, and an error in the slow states' start (the disks, the central
-    /// disk: time constants of minutes) lasts the whole record. The lag term is applied to the
-    /// replay from this reading on (the sensor settled at the start).
+    /// thermocouples as read (corrected for a reading error where a term says so). A lag undone
+    /// (θ + τ·dθ/dt) leaves it as it is: undoing a lag of seconds multiplies the readings' noise
+    /// by τ over the derivative's ±1 s window, and an error in the slow states' start (the
+    /// disks, the central disk: time constants of minutes) lasts the whole record. The lag term
+    /// is applied to the replay from this reading on (the sensor settled at the start).
     pub start: Thermal5State,
 }
 
