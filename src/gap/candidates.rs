@@ -364,7 +364,10 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         let half = ((1.0 / m.dt).round() as usize).max(1);
         let unlag = |v: &Shared| -> Shared {
             let d = replay::derivative(v, m.dt, half);
-            v.iter().zip(&d).map(|(x, dx)| x + t.temp_lag_s * dx).collect()
+            v.iter()
+                .zip(&d)
+                .map(|(x, dx)| x + t.temp_lag_s * dx)
+                .collect()
         };
         c.pp = [unlag(&c.pp[0]), unlag(&c.pp[1])];
         c.cd = unlag(&c.cd);
