@@ -291,14 +291,11 @@ impl Effect {
             }
             Target::Class(C::SensorTemperatureLag) => {
                 // Sheath and junction: the first lag's share of the lags' time; a transport delay
-                // (heat crossing the plate to a buried junction) taking up to 30 % of the
-                // response time in half the trials — a form no lag (one or two) contains.
+                // (heat crossing the plate to a buried junction) taking 5–30 % of the response
+                // time in every trial — a form no lag (one or two) contains, so no lag truth is
+                // the diagnosis's own form.
                 aux.push(("first_share", rng.range(0.5, 1.0)));
-                let delayed = rng.uniform() < 0.5;
-                aux.push((
-                    "delay_share",
-                    if delayed { rng.range(0.05, 0.3) } else { 0.0 },
-                ));
+                aux.push(("delay_share", rng.range(0.05, 0.3)));
             }
             Target::Class(C::SensorTorqueSkew) => {
                 // Share of a positive delay made by an anti-aliasing filter's group delay.
