@@ -425,8 +425,8 @@ fn candidate(
     if gain < need {
         why.push(if gain >= s.min_gain * excess && gain < half_tol {
             format!(
-                "closes {:.1} % of the gap left, but less than half the practical tolerance \
-                 (an implementation difference, not an effect)",
+                "closes {:.1} % of the gap left, but {gain:.1} is less than half the practical \
+                 tolerance {tol:.1} (an implementation difference, not an effect)",
                 100.0 * gain / excess.max(1e-9)
             )
         } else {
