@@ -124,6 +124,7 @@ fn generate(messages: &[DbcMessage]) -> String {
         .unwrap();
     }
     writeln!(w, "}}\n").unwrap();
+    e2e_layout(w, messages);
 
     // Enums for value tables.
     let mut enums = String::new();
@@ -273,6 +274,10 @@ fn generate(messages: &[DbcMessage]) -> String {
             writeln!(ws, "        def.put({si}, &mut raw, {val})?;").unwrap();
         }
         writeln!(ws, "        Ok(raw.to_le_bytes())\n    }}").unwrap();
+        // per-signal constants and accessors by name (as dbc-codegen does)
+        for (si, s, k) in &fields {
+            signal_items(ws, *si, s, k);
+        }
         // setters
         for (si, s, k) in &fields {
             let f = snake(&s.name);
@@ -345,4 +350,79 @@ fn generate(messages: &[DbcMessage]) -> String {
     }
     writeln!(o, "        }}\n    }}\n}}").unwrap();
     o
+}
+
+/// Per-signal items of a message's `impl`: the DBC's range, factor, offset and unit as typed
+/// constants, the signal's definition by name, and for a physical value a saturating
+/// constructor (clamped into the DBC range, a non-finite value taken as 0 first), so no code
+/// outside the generated file addresses a signal by its position or copies its range.
+fn signal_items(ws: &mut String, si: usize, s: &DbcSignal, k: &Kind) {
+    let f = snake(&s.name);
+    let c = f.to_uppercase();
+    let unit = if s.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" [{}]", s.unit)
+    };
+    writeln!(ws, "    /// `{}`{unit}: smallest value in the DBC.", s.name).unwrap();
+    writeln!(ws, "    pub const {c}_MIN: f64 = {};", lit(s.min)).unwrap();
+    writeln!(ws, "    /// `{}`{unit}: largest value in the DBC.", s.name).unwrap();
+    writeln!(ws, "    pub const {c}_MAX: f64 = {};", lit(s.max)).unwrap();
+    writeln!(ws, "    /// `{}`: physical value per raw count (its quantisation step).", s.name).unwrap();
+    writeln!(ws, "    pub const {c}_FACTOR: f64 = {};", lit(s.factor)).unwrap();
+    writeln!(ws, "    /// `{}`: physical value at raw 0.", s.name).unwrap();
+    writeln!(ws, "    pub const {c}_OFFSET: f64 = {};", lit(s.offset)).unwrap();
+    writeln!(ws, "    /// `{}`: unit in the DBC.", s.name).unwrap();
+    writeln!(ws, "    pub const {c}_UNIT: &'static str = {:?};", s.unit).unwrap();
+    writeln!(ws, "    /// The DBC definition of `{}`.", s.name).unwrap();
+    writeln!(
+        ws,
+        "    pub fn {f}_def() -> &'static SignalDef {{ &Self::def().signals[{si}] }}"
+    )
+    .unwrap();
+    if *k == Kind::F64 {
+        writeln!(
+            ws,
+            "    /// `v` saturated into `{}`'s DBC range ({}..={}); a non-finite `v` counts as 0.",
+            s.name, s.min, s.max
+        )
+        .unwrap();
+        writeln!(
+            ws,
+            "    pub fn saturate_{f}(v: f64) -> f64 {{ (if v.is_finite() {{ v }} else {{ 0.0 }}).clamp(Self::{c}_MIN, Self::{c}_MAX) }}"
+        )
+        .unwrap();
+    }
+}
+
+/// The E2E layout, taken from the DBC: the byte of the `AliveCounter` (in its high nibble) and of
+/// the `Crc`, the same in every protected message (the build fails if a message differs).
+fn e2e_layout(w: &mut String, messages: &[DbcMessage]) {
+    let mut layout: Option<(u32, u32)> = None;
+    for m in messages {
+        let find = |name: &str| m.signals.iter().find(|s| s.name == name);
+        let (Some(counter), Some(crc)) = (find("AliveCounter"), find("Crc")) else {
+            continue;
+        };
+        assert!(
+            counter.length == 4 && counter.start_bit % 8 == 4 && crc.length == 8 && crc.start_bit % 8 == 0,
+            "{DBC_PATH}: {}: AliveCounter must be the high nibble of a byte and Crc a whole byte",
+            m.name
+        );
+        let here = (counter.start_bit / 8, crc.start_bit / 8);
+        assert!(
+            layout.is_none_or(|l| l == here),
+            "{DBC_PATH}: {}: E2E bytes {here:?} differ from the other protected messages' {layout:?}",
+            m.name
+        );
+        layout = Some(here);
+    }
+    let (counter, crc) = layout.unwrap_or_else(|| panic!("{DBC_PATH}: no E2E-protected message"));
+    writeln!(w, "/// The E2E layout of the protected messages, from the DBC.").unwrap();
+    writeln!(w, "pub mod e2e_layout {{").unwrap();
+    writeln!(w, "    /// Byte holding the alive counter in its high nibble.").unwrap();
+    writeln!(w, "    pub const COUNTER_BYTE: usize = {counter};").unwrap();
+    writeln!(w, "    /// Byte holding the CRC.").unwrap();
+    writeln!(w, "    pub const CRC_BYTE: usize = {crc};").unwrap();
+    writeln!(w, "}}\n").unwrap();
 }

@@ -469,3 +469,93 @@ async fn in_process_bus_carries_protected_frames_between_nodes() {
         .timeout(Duration::from_millis(1020), ids::DCT_SENSORS)
         .is_some());
 }
+
+/// Library sources outside the generated contract, each without its unit-test module and with
+/// comments removed: what the DBC-is-the-only-source check reads.
+fn library_code() -> Vec<(std::path::PathBuf, String)> {
+    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    walk(&src, &mut files);
+    files.sort();
+    files
+        .into_iter()
+        .filter(|p| !p.ends_with("can/messages.rs"))
+        .map(|p| {
+            let text = std::fs::read_to_string(&p).unwrap();
+            let code = text.split("#[cfg(test)]").next().unwrap_or("");
+            let code: Vec<&str> = code
+                .lines()
+                .map(|l| l.split("//").next().unwrap_or(""))
+                .collect();
+            (p, code.join("\n"))
+        })
+        .collect()
+}
+
+/// Issue 15: the DBC is the single source of truth. Outside the generated contract no code
+/// addresses a signal by its position (`signals[2]`, `def(), 0, …`), writes a contract id as a
+/// literal (hex or decimal), or copies the E2E byte positions; the checker is shown to catch each
+/// pattern on a line written for the purpose.
+#[test]
+fn no_positional_signal_access_or_literal_id_outside_the_generated_contract() {
+    let ids: Vec<u16> = MESSAGES.iter().map(|m| m.id).collect();
+    let offences = |code: &str| -> Vec<String> {
+        let mut found = Vec::new();
+        for (n, line) in code.lines().enumerate() {
+            let compact: String = line.split_whitespace().collect();
+            let positional = compact.contains("signals[")
+                && compact
+                    .split("signals[")
+                    .skip(1)
+                    .any(|rest| rest.starts_with(|c: char| c.is_ascii_digit()))
+                || compact.contains("def(),") && {
+                    let rest = compact.split("def(),").nth(1).unwrap_or("");
+                    rest.starts_with(|c: char| c.is_ascii_digit())
+                };
+            let id_literal = ids.iter().any(|id| {
+                let hex = format!("0x{id:x}");
+                let dec = id.to_string();
+                let words: Vec<&str> = line
+                    .split(|c: char| !c.is_ascii_alphanumeric() && c != '_')
+                    .collect();
+                words
+                    .iter()
+                    .any(|w| w.eq_ignore_ascii_case(&hex) || (*w == dec && line.contains("id")))
+            });
+            let e2e_bytes = compact.contains("data[6]") || compact.contains("data[7]");
+            if positional || id_literal || e2e_bytes {
+                found.push(format!("{}: {}", n + 1, line.trim()));
+            }
+        }
+        found
+    };
+    // The checker catches what it is meant to.
+    for bad in [
+        "let s = &def.signals[2];",
+        "fit(TcuClutchCmd::def(), 0, x)",
+        "let id = 0x130;",
+        "if frame.id == 304 {",
+        "data[7] ^= 1;",
+    ] {
+        assert!(!offences(bad).is_empty(), "the check misses `{bad}`");
+    }
+    let mut all = Vec::new();
+    let files = library_code();
+    assert!(files.len() > 50, "{} files", files.len());
+    for (p, code) in &files {
+        for o in offences(code) {
+            all.push(format!("{}:{o}", p.display()));
+        }
+    }
+    assert!(all.is_empty(), "outside the generated contract:\n{}", all.join("\n"));
+}

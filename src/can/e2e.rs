@@ -11,10 +11,7 @@ use super::messages::{message_def, MESSAGES};
 use std::time::Duration;
 use thiserror::Error;
 
-/// Byte holding the alive counter in its high nibble.
-pub const COUNTER_BYTE: usize = 6;
-/// Byte holding the CRC.
-pub const CRC_BYTE: usize = 7;
+pub use super::messages::e2e_layout::{COUNTER_BYTE, CRC_BYTE};
 /// Alive counter modulus.
 pub const COUNTER_MODULUS: u8 = 16;
 

@@ -273,10 +273,14 @@ fn sum_rows(rows: &[Vec<f64>], chans: &[Channel]) -> Vec<f64> {
 fn quantum(c: Channel) -> f64 {
     use crate::can::messages::{BenchTemps, BenchTorque, DctActuators, EngStatus};
     match c {
-        Channel::Torque(_) => BenchTorque::def().signals[0].factor,
-        Channel::Temp(_) => BenchTemps::def().signals[0].factor,
-        Channel::Pos(_) => DctActuators::def().signals[0].factor,
-        Channel::Engine => EngStatus::def().signals[1].factor,
+        Channel::Torque(0) => BenchTorque::CLUTCH1_TORQUE_FACTOR,
+        Channel::Torque(_) => BenchTorque::CLUTCH2_TORQUE_FACTOR,
+        Channel::Temp(0) => BenchTemps::PRESSURE_PLATE1_TEMP_FACTOR,
+        Channel::Temp(1) => BenchTemps::PRESSURE_PLATE2_TEMP_FACTOR,
+        Channel::Temp(_) => BenchTemps::CENTRAL_DISK_TEMP_FACTOR,
+        Channel::Pos(0) => DctActuators::CLUTCH1_POS_FACTOR,
+        Channel::Pos(_) => DctActuators::CLUTCH2_POS_FACTOR,
+        Channel::Engine => EngStatus::ENG_TORQUE_ACT_FACTOR,
     }
 }
 

@@ -44,8 +44,8 @@ use std::path::Path;
 pub const RPM_TO_RADPS: f64 = std::f64::consts::PI / 30.0;
 /// Longest interval (s) over which a signal is interpolated before grid points are invalid.
 pub const MAX_HOLD_S: f64 = 0.055;
-/// Default resampling step (s): the contract's 10 ms cycle.
-pub const DEFAULT_DT_S: f64 = 0.01;
+/// Default resampling step (s): the cycle of the plant's sensor frames in the contract.
+pub const DEFAULT_DT_S: f64 = crate::can::messages::DctSensors::CYCLE_MS as f64 * 1e-3;
 /// Shortest step (s) between two CSV rows: closer samples (or a median step below it) are not a
 /// bench record (a duplicated row, a time column in the wrong unit).
 pub const MIN_STEP_S: f64 = 1e-4;
@@ -183,10 +183,9 @@ impl Col {
     /// The DBC signal whose value table a gear column follows (`DCT_Actuators.GearOddAct`,
     /// `GearEvenAct`, from the generated contract).
     pub fn gear_signal(self) -> Option<&'static SignalDef> {
-        let def = DctActuators::def();
         match self {
-            Col::GearOdd => Some(&def.signals[2]),
-            Col::GearEven => Some(&def.signals[3]),
+            Col::GearOdd => Some(DctActuators::gear_odd_act_def()),
+            Col::GearEven => Some(DctActuators::gear_even_act_def()),
             _ => None,
         }
     }
@@ -1229,8 +1228,7 @@ struct SeriesRef<'a> {
 
 /// A bench measurement sitting at its DBC range limit is clipped, not measured: NaN (the grid
 /// points around it become invalid).
-fn unsaturated(def: &crate::can::codec::MessageDef, si: usize, v: f64) -> f64 {
-    let s = &def.signals[si];
+fn unsaturated(s: &SignalDef, v: f64) -> f64 {
     let half = 0.5 * s.factor.abs();
     if v >= s.max - half || v <= s.min + half {
         f64::NAN
@@ -1278,20 +1276,20 @@ impl CandumpColumns {
                     .push(t, f64::from(a.gear_even_act as u8));
             }
             Message::BenchTorque(b) => {
-                let d = crate::can::messages::BenchTorque::def();
+                use crate::can::messages::BenchTorque as B;
                 self.col(Col::T1)
-                    .push(t, unsaturated(d, 0, b.clutch1_torque));
+                    .push(t, unsaturated(B::clutch1_torque_def(), b.clutch1_torque));
                 self.col(Col::T2)
-                    .push(t, unsaturated(d, 1, b.clutch2_torque));
+                    .push(t, unsaturated(B::clutch2_torque_def(), b.clutch2_torque));
             }
             Message::BenchTemps(b) => {
-                let d = crate::can::messages::BenchTemps::def();
+                use crate::can::messages::BenchTemps as B;
                 self.col(Col::Pp1)
-                    .push(t, unsaturated(d, 0, b.pressure_plate1_temp));
+                    .push(t, unsaturated(B::pressure_plate1_temp_def(), b.pressure_plate1_temp));
                 self.col(Col::Pp2)
-                    .push(t, unsaturated(d, 1, b.pressure_plate2_temp));
+                    .push(t, unsaturated(B::pressure_plate2_temp_def(), b.pressure_plate2_temp));
                 self.col(Col::Cd)
-                    .push(t, unsaturated(d, 2, b.central_disk_temp));
+                    .push(t, unsaturated(B::central_disk_temp_def(), b.central_disk_temp));
             }
             Message::TcuClutchCmd(c) => {
                 self.col(Col::X1Req).push(t, c.clutch1_pos_req);
@@ -1814,7 +1812,7 @@ mod tests {
                 s.name
             );
         }
-        let p = &DrvPedal::def().signals[0];
+        let p = DrvPedal::accel_pedal_def();
         assert_eq!((p.min, p.max), (0.0, 100.0));
     }
 

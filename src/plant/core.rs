@@ -200,15 +200,6 @@ pub struct Plant {
     stats: PlantStats,
 }
 
-fn sat(def_id: u16, signal: usize, v: f64) -> f64 {
-    let Some(def) = message_def(u32::from(def_id)) else {
-        return 0.0;
-    };
-    let s = &def.signals[signal];
-    let v = if v.is_finite() { v } else { 0.0 };
-    v.clamp(s.min, s.max)
-}
-
 fn finite(s: &State) -> bool {
     [
         s.w_f,
@@ -698,51 +689,27 @@ impl Plant {
         let n = self.cfg.sensors;
         let rpm = |w: f64| w / RPM;
         let eng = EngStatus {
-            eng_speed: sat(
-                ids::ENG_STATUS,
-                0,
-                rpm(s.w_f) + self.noise(k, ch::ENG_SPEED, n.speed_rpm),
+            eng_speed: EngStatus::saturate_eng_speed(rpm(s.w_f) + self.noise(k, ch::ENG_SPEED, n.speed_rpm),
             ),
-            eng_torque_act: sat(
-                ids::ENG_STATUS,
-                1,
-                self.engine_reported() + self.noise(k, ch::ENG_TORQUE, n.engine_torque_nm),
+            eng_torque_act: EngStatus::saturate_eng_torque_act(self.engine_reported() + self.noise(k, ch::ENG_TORQUE, n.engine_torque_nm),
             ),
             ..Default::default()
         };
         let sensors = DctSensors {
-            in_shaft1_speed: sat(
-                ids::DCT_SENSORS,
-                0,
-                rpm(s.w_c1) + self.noise(k, ch::SHAFT1, n.speed_rpm),
+            in_shaft1_speed: DctSensors::saturate_in_shaft1_speed(rpm(s.w_c1) + self.noise(k, ch::SHAFT1, n.speed_rpm),
             ),
-            in_shaft2_speed: sat(
-                ids::DCT_SENSORS,
-                1,
-                rpm(s.w_c2) + self.noise(k, ch::SHAFT2, n.speed_rpm),
+            in_shaft2_speed: DctSensors::saturate_in_shaft2_speed(rpm(s.w_c2) + self.noise(k, ch::SHAFT2, n.speed_rpm),
             ),
-            out_shaft_speed: sat(
-                ids::DCT_SENSORS,
-                2,
-                rpm(s.w_out) + self.noise(k, ch::OUT, n.speed_rpm),
+            out_shaft_speed: DctSensors::saturate_out_shaft_speed(rpm(s.w_out) + self.noise(k, ch::OUT, n.speed_rpm),
             ),
-            housing_temp: sat(
-                ids::DCT_SENSORS,
-                3,
-                self.theta_h + self.noise(k, ch::HOUSING, n.housing_c),
+            housing_temp: DctSensors::saturate_housing_temp(self.theta_h + self.noise(k, ch::HOUSING, n.housing_c),
             ),
             ..Default::default()
         };
         let actuators = DctActuators {
-            clutch1_pos: sat(
-                ids::DCT_ACTUATORS,
-                0,
-                s.x1_mm + self.noise(k, ch::POS1, n.position_mm),
+            clutch1_pos: DctActuators::saturate_clutch1_pos(s.x1_mm + self.noise(k, ch::POS1, n.position_mm),
             ),
-            clutch2_pos: sat(
-                ids::DCT_ACTUATORS,
-                1,
-                s.x2_mm + self.noise(k, ch::POS2, n.position_mm),
+            clutch2_pos: DctActuators::saturate_clutch2_pos(s.x2_mm + self.noise(k, ch::POS2, n.position_mm),
             ),
             gear_odd_act: GearOddAct::from_raw(u64::from(s.gear_odd.engaged)).unwrap_or_default(),
             gear_even_act: GearEvenAct::from_raw(u64::from(s.gear_even.engaged))
@@ -750,32 +717,17 @@ impl Plant {
             ..Default::default()
         };
         let torque = BenchTorque {
-            clutch1_torque: sat(
-                ids::BENCH_TORQUE,
-                0,
-                o.t_fc1_nm + self.noise(k, ch::TORQUE1, n.torque_nm),
+            clutch1_torque: BenchTorque::saturate_clutch1_torque(o.t_fc1_nm + self.noise(k, ch::TORQUE1, n.torque_nm),
             ),
-            clutch2_torque: sat(
-                ids::BENCH_TORQUE,
-                1,
-                o.t_fc2_nm + self.noise(k, ch::TORQUE2, n.torque_nm),
+            clutch2_torque: BenchTorque::saturate_clutch2_torque(o.t_fc2_nm + self.noise(k, ch::TORQUE2, n.torque_nm),
             ),
         };
         let temps = BenchTemps {
-            pressure_plate1_temp: sat(
-                ids::BENCH_TEMPS,
-                0,
-                s.thermal.pp1 + self.noise(k, ch::PP1, n.temperature_c),
+            pressure_plate1_temp: BenchTemps::saturate_pressure_plate1_temp(s.thermal.pp1 + self.noise(k, ch::PP1, n.temperature_c),
             ),
-            pressure_plate2_temp: sat(
-                ids::BENCH_TEMPS,
-                1,
-                s.thermal.pp2 + self.noise(k, ch::PP2, n.temperature_c),
+            pressure_plate2_temp: BenchTemps::saturate_pressure_plate2_temp(s.thermal.pp2 + self.noise(k, ch::PP2, n.temperature_c),
             ),
-            central_disk_temp: sat(
-                ids::BENCH_TEMPS,
-                2,
-                s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
+            central_disk_temp: BenchTemps::saturate_central_disk_temp(s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
             ),
         };
         // The driver at this instant (the last step used the one of its start).
@@ -784,21 +736,18 @@ impl Plant {
             _ => self.driver,
         };
         let vehicle = BenchVehicle {
-            vehicle_speed: sat(ids::BENCH_VEHICLE, 0, o.vehicle_speed_mps * 3.6),
-            vehicle_accel: sat(
-                ids::BENCH_VEHICLE,
-                1,
-                o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
+            vehicle_speed: BenchVehicle::saturate_vehicle_speed(o.vehicle_speed_mps * 3.6),
+            vehicle_accel: BenchVehicle::saturate_vehicle_accel(o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
             ),
-            road_grade: sat(ids::BENCH_VEHICLE, 2, driver.grade * 100.0),
+            road_grade: BenchVehicle::saturate_road_grade(driver.grade * 100.0),
         };
         let truth = SimTruth {
-            clutch1_temp_true: sat(ids::SIM_TRUTH, 0, s.thermal.c1),
-            clutch2_temp_true: sat(ids::SIM_TRUTH, 1, s.thermal.c2),
+            clutch1_temp_true: SimTruth::saturate_clutch1_temp_true(s.thermal.c1),
+            clutch2_temp_true: SimTruth::saturate_clutch2_temp_true(s.thermal.c2),
         };
         let pedal =
             (self.cfg.mode == Mode::Vehicle && self.cfg.scenario.is_some()).then(|| DrvPedal {
-                accel_pedal: sat(ids::DRV_PEDAL, 0, driver.pedal * 100.0),
+                accel_pedal: DrvPedal::saturate_accel_pedal(driver.pedal * 100.0),
                 brake_switch: driver.brake > 0.0,
                 gear_lever: driver.lever,
                 ..Default::default()

@@ -63,7 +63,6 @@ pub const SENSOR_SILENCE: Duration = Duration::from_millis(2 * TcuClutchCmd::CYC
 
 pub use inputs::{Input, Measurements, TimedFrame, Verdict};
 
-use crate::can::codec::MessageDef;
 use crate::can::e2e::E2eSender;
 use crate::can::messages::{
     ids, FaultCode, GearActive, GearEvenReq, GearOddReq, TcuClutchCmd, TcuEngineReq, TcuEstimates,
@@ -411,12 +410,12 @@ impl Tcu {
         trace: TcuTrace,
     ) -> TcuOutputs {
         let clutch_cmd = TcuClutchCmd {
-            clutch1_pos_req: fit(TcuClutchCmd::def(), 0, cmd.x_ref[0]),
-            clutch2_pos_req: fit(TcuClutchCmd::def(), 1, cmd.x_ref[1]),
+            clutch1_pos_req: TcuClutchCmd::saturate_clutch1_pos_req(cmd.x_ref[0]),
+            clutch2_pos_req: TcuClutchCmd::saturate_clutch2_pos_req(cmd.x_ref[1]),
             ..Default::default()
         };
         let engine_req = TcuEngineReq {
-            eng_torque_req: fit(TcuEngineReq::def(), 0, cmd.engine_req.unwrap_or(0.0)),
+            eng_torque_req: TcuEngineReq::saturate_eng_torque_req(cmd.engine_req.unwrap_or(0.0)),
             eng_torque_req_active: cmd.engine_req.is_some(),
             ..Default::default()
         };
@@ -433,10 +432,10 @@ impl Tcu {
             ..Default::default()
         };
         let estimates = TcuEstimates {
-            clutch1_temp_est: fit(TcuEstimates::def(), 0, theta[0]),
-            clutch2_temp_est: fit(TcuEstimates::def(), 1, theta[1]),
-            clutch1_torque_req: fit(TcuEstimates::def(), 2, cmd.t_ref[0]),
-            clutch2_torque_req: fit(TcuEstimates::def(), 3, cmd.t_ref[1]),
+            clutch1_temp_est: TcuEstimates::saturate_clutch1_temp_est(theta[0]),
+            clutch2_temp_est: TcuEstimates::saturate_clutch2_temp_est(theta[1]),
+            clutch1_torque_req: TcuEstimates::saturate_clutch1_torque_req(cmd.t_ref[0]),
+            clutch2_torque_req: TcuEstimates::saturate_clutch2_torque_req(cmd.t_ref[1]),
         };
         let mut frames = Vec::with_capacity(5);
         let encoded = [
@@ -468,14 +467,6 @@ impl Tcu {
     }
 }
 
-/// A value made finite and clamped into signal `si`'s DBC range (NaN → the range's value nearest
-/// zero).
-fn fit(def: &MessageDef, si: usize, v: f64) -> f64 {
-    let s = &def.signals[si];
-    let v = if v.is_finite() { v } else { 0.0 };
-    v.clamp(s.min, s.max)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -489,7 +480,7 @@ mod tests {
         let mut data = [0u8; 8];
         crate::can::e2e::protect(ids::DCT_SENSORS, &mut data, 1);
         if !crc_ok {
-            data[7] ^= 0x5A;
+            data[crate::can::e2e::CRC_BYTE] ^= 0x5A;
         }
         TimedFrame {
             at,
