@@ -349,7 +349,7 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
 /// terms. The free replays start from the corrected readings before the un-lag
 /// ([`Measured::start`]: the un-lag's noise would last in the slow states).
 fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
-    if t.temp_lag_s <= 0.0 && t.temp_sensor.is_none() && t.torque_sensor.is_none() {
+    if !corrects_inputs(t) {
         return None;
     }
     let mut c = m.clone();
@@ -396,6 +396,13 @@ pub fn predict_with_disk_ref(
     disk: &[Vec<f64>; 2],
 ) -> Predictions {
     predict_inner(model, m, s, chans, Some(disk))
+}
+
+/// Whether the sensor terms change the measured inputs of the replays (a thermocouple lag or
+/// reading error, a torque reading error): then a disk estimate cached from the readings as
+/// read does not hold for the model.
+pub fn corrects_inputs(t: &Terms) -> bool {
+    t.temp_lag_s > 0.0 || t.temp_sensor.is_some() || t.torque_sensor.is_some()
 }
 
 fn want_torque(s: &Samples, chans: &[Channel]) -> bool {

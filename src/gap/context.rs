@@ -129,7 +129,8 @@ pub fn for_each_residual(
 }
 
 /// Predictions of a model on every record (with each record's cached disk estimate when
-/// `cached_disk`).
+/// `cached_disk`, unless the model's sensor terms correct the inputs the estimate was made from:
+/// a torque class fitted beside a thermocouple lag must see the disk of the un-lagged readings).
 pub fn predictions(
     model: &Model,
     files: &[File],
@@ -141,7 +142,10 @@ pub fn predictions(
         .iter()
         .map(|f| {
             let s = if fit { &f.fit } else { &f.all };
-            match (&f.disk, cached_disk) {
+            match (
+                &f.disk,
+                cached_disk && !candidates::corrects_inputs(&model.terms),
+            ) {
                 (Some(d), true) => candidates::predict_with_disk_ref(model, &f.m, s, chans, d),
                 _ => candidates::predict(model, &f.m, s, chans),
             }
