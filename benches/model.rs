@@ -6,6 +6,7 @@
 
 use ddct::model::clutch;
 use ddct::model::driveline::{self, GearShaft};
+use ddct::model::gear::Gear;
 use ddct::model::powertrain::{Inputs, Powertrain, State};
 use ddct::model::thermal::Thermal5State;
 use ddct::model::Params;
@@ -75,7 +76,7 @@ fn main() {
     });
 
     let pt = Powertrain::new(p);
-    let k1 = driveline::overall_ratio(&p.driveline, 1).unwrap();
+    let k1 = driveline::overall_ratio(&p.driveline, Gear::G1).unwrap();
     let mut s = State::at_rest(0.0, 25.0);
     s.w_f = 250.0;
     s.w_c1 = 250.0;
@@ -85,7 +86,7 @@ fn main() {
     s.x2_mm = 4.6;
     s.engine_torque_nm = 80.0;
     s.lock1 = true;
-    s.gear_odd = GearShaft::engaged(1);
+    s.gear_odd = GearShaft::engaged(Gear::G1);
     s.thermal = Thermal5State {
         pp1: 90.0,
         pp2: 80.0,
@@ -96,7 +97,7 @@ fn main() {
     let u = Inputs {
         x1_ref_mm: 6.5,
         x2_ref_mm: 4.7,
-        gear_odd_req: 1,
+        gear_odd_req: Gear::G1,
         pedal: 0.4,
         grade: 0.05,
         theta_h_c: 40.0,

@@ -489,7 +489,12 @@ fn library_code() -> Vec<(std::path::PathBuf, String)> {
     files.sort();
     files
         .into_iter()
-        .filter(|p| !p.ends_with("can/messages.rs"))
+        .filter(|p| {
+            // The generated contract, and the gear type with its conversion to the DBC's codes.
+            !["can/messages.rs", "can/gear.rs", "model/gear.rs"]
+                .iter()
+                .any(|g| p.ends_with(g))
+        })
         .map(|p| {
             let text = std::fs::read_to_string(&p).unwrap();
             let code = text.split("#[cfg(test)]").next().unwrap_or("");
@@ -504,10 +509,10 @@ fn library_code() -> Vec<(std::path::PathBuf, String)> {
 
 /// Issue 15: the DBC is the single source of truth. Outside the generated contract no code
 /// addresses a signal by its position (`signals[2]`, `def(), 0, …`), writes a contract id as a
-/// literal (hex or decimal), or copies the E2E byte positions; the checker is shown to catch each
-/// pattern on a line written for the purpose.
+/// literal (hex or decimal), copies the E2E byte positions or a cycle time, or handles a gear as
+/// a number; the checker is shown to catch each pattern on a line written for the purpose.
 #[test]
-fn no_positional_signal_access_or_literal_id_outside_the_generated_contract() {
+fn no_positional_signal_access_literal_id_cycle_or_gear_number_outside_the_contract() {
     let ids: Vec<u16> = MESSAGES.iter().map(|m| m.id).collect();
     let offences = |code: &str| -> Vec<String> {
         let mut found = Vec::new();
@@ -533,7 +538,31 @@ fn no_positional_signal_access_or_literal_id_outside_the_generated_contract() {
                     .any(|w| w.eq_ignore_ascii_case(&hex) || (*w == dec && line.contains("id")))
             });
             let e2e_bytes = compact.contains("data[6]") || compact.contains("data[7]");
-            if positional || id_literal || e2e_bytes {
+            // A cycle time written out (the DBC's GenMsgCycleTime is the only source).
+            let cycle_literal =
+                compact.contains("from_millis(10)") || compact.contains("from_secs_f64(0.01)");
+            // A gear compared with or written as a number (the `Gear` type and the DBC's
+            // value tables are the only sources of gear codes).
+            let gearish = |left: &str| {
+                let token: String = left
+                    .chars()
+                    .rev()
+                    .take_while(|c| c.is_ascii_alphanumeric() || "_.[]()".contains(*c))
+                    .collect::<String>()
+                    .to_lowercase();
+                token.contains("raeg") && !token.contains("revel")
+            };
+            let gear_number = ["==", "!=", "<=", ">=", "<", ">"].iter().any(|op| {
+                let parts: Vec<&str> = compact.split(op).collect();
+                parts
+                    .windows(2)
+                    .any(|w| gearish(w[0]) && w[1].starts_with(|c: char| c.is_ascii_digit()))
+            }) || compact.contains("(1..=6).contains(&g")
+                || {
+                    let parts: Vec<&str> = compact.split("asu8").collect();
+                    parts[..parts.len() - 1].iter().any(|l| gearish(l))
+                };
+            if positional || id_literal || e2e_bytes || cycle_literal || gear_number {
                 found.push(format!("{}: {}", n + 1, line.trim()));
             }
         }
@@ -546,6 +575,11 @@ fn no_positional_signal_access_or_literal_id_outside_the_generated_contract() {
         "let id = 0x130;",
         "if frame.id == 304 {",
         "data[7] ^= 1;",
+        "let period = Duration::from_millis(10);",
+        "if r.gear_active == 7 {",
+        "if !(1..=6).contains(&gear) {",
+        "let up = gear < 6;",
+        "r.gear_req = [m.gear_odd_req as u8, m.gear_even_req as u8];",
     ] {
         assert!(!offences(bad).is_empty(), "the check misses `{bad}`");
     }
@@ -557,5 +591,9 @@ fn no_positional_signal_access_or_literal_id_outside_the_generated_contract() {
             all.push(format!("{}:{o}", p.display()));
         }
     }
-    assert!(all.is_empty(), "outside the generated contract:\n{}", all.join("\n"));
+    assert!(
+        all.is_empty(),
+        "outside the generated contract:\n{}",
+        all.join("\n")
+    );
 }

@@ -230,6 +230,7 @@ fn thermal3_relaxes_with_analytic_rates_when_open() {
 
 use ddct::model::driveline::{self, GearShaft};
 use ddct::model::engine::RPM;
+use ddct::model::gear::Gear;
 use ddct::model::powertrain::{Inputs, Powertrain, State};
 
 /// Runs `secs` seconds at the default 1 ms step; `inputs(t)` gives the inputs at time t.
@@ -255,12 +256,12 @@ fn launch_case(p: &Params, capacity_nm: f64) -> (State, Inputs) {
     let x = clutch::invert(&p.clutch, capacity_nm, 0.0, 25.0).unwrap();
     assert!(!x.saturated);
     let mut s = State::at_rest(3000.0, 25.0);
-    s.gear_odd = GearShaft::engaged(1);
+    s.gear_odd = GearShaft::engaged(Gear::G1);
     s.x1_mm = x.x_to_mm;
     s.engine_torque_nm = 60.0;
     let u = Inputs {
         x1_ref_mm: x.x_to_mm,
-        gear_odd_req: 1,
+        gear_odd_req: Gear::G1,
         engine_torque_request_nm: Some(60.0),
         grade: 0.10,
         ..Default::default()
@@ -332,13 +333,13 @@ fn clutch_above_capacity_keeps_slipping() {
 fn rising_engine_torque_breaks_a_locked_clutch_away_once() {
     let p = Params::default();
     let pt = Powertrain::new(p);
-    let k3 = driveline::overall_ratio(&p.driveline, 3).unwrap();
+    let k3 = driveline::overall_ratio(&p.driveline, Gear::G3).unwrap();
     let x = clutch::invert(&p.clutch, 100.0, 0.0, 25.0).unwrap().x_to_mm;
     let mut s = State::at_rest(2000.0, 25.0);
     s.w_c1 = s.w_f;
     s.w_out = s.w_f / k3;
     s.lock1 = true;
-    s.gear_odd = GearShaft::engaged(3);
+    s.gear_odd = GearShaft::engaged(Gear::G3);
     s.x1_mm = x;
     s.engine_torque_nm = 40.0;
     let mut t_break = None;
@@ -348,7 +349,7 @@ fn rising_engine_torque_breaks_a_locked_clutch_away_once() {
         10.0,
         |t| Inputs {
             x1_ref_mm: x,
-            gear_odd_req: 3,
+            gear_odd_req: Gear::G3,
             engine_torque_request_nm: Some(40.0 + 12.0 * t),
             ..Default::default()
         },
@@ -370,19 +371,19 @@ fn rising_engine_torque_breaks_a_locked_clutch_away_once() {
 fn locked_in_one_gear_accelerates_as_a_rigid_body() {
     let p = Params::default();
     let pt = Powertrain::new(p);
-    let k = driveline::overall_ratio(&p.driveline, 3).unwrap();
+    let k = driveline::overall_ratio(&p.driveline, Gear::G3).unwrap();
     let mut s = State::at_rest(2000.0, 25.0);
     s.w_c1 = s.w_f;
     s.w_c2 = s.w_f;
     s.w_out = s.w_f / k;
     s.lock1 = true;
     s.lock2 = true;
-    s.gear_odd = GearShaft::engaged(3);
+    s.gear_odd = GearShaft::engaged(Gear::G3);
     s.engine_torque_nm = 120.0;
     s.x1_mm = 7.2;
     s.x2_mm = 7.2;
     let u = Inputs {
-        gear_odd_req: 3,
+        gear_odd_req: Gear::G3,
         grade: 0.03,
         ..Default::default()
     };
@@ -483,9 +484,9 @@ fn gear_selection_waits_and_synchronises() {
     let pt = Powertrain::new(p);
     let mut s = State::at_rest(1500.0, 25.0);
     s.w_out = 20.0;
-    let k = driveline::overall_ratio(&p.driveline, 3).unwrap();
+    let k = driveline::overall_ratio(&p.driveline, Gear::G3).unwrap();
     let u = Inputs {
-        gear_odd_req: 3,
+        gear_odd_req: Gear::G3,
         ..Default::default()
     };
     let mut engaged_at = None;
@@ -509,7 +510,7 @@ fn gear_selection_waits_and_synchronises() {
     assert!(
         t >= p.driveline.gear_select_time_s - 1e-9 && t < p.driveline.gear_select_time_s + 0.05
     );
-    assert_eq!(s.gear_odd.engaged, 3);
+    assert_eq!(s.gear_odd.engaged, Gear::G3);
     assert!((s.w_c1 - k * s.w_out).abs() < 1e-9);
 }
 

@@ -15,6 +15,7 @@ use ddct::can::{Bus, CanFrame, EndpointConfig, InProcessBus, ManualClock, Receiv
 use ddct::model::clutch;
 use ddct::model::effects::{EffectId, EffectSet};
 use ddct::model::engine::RPM;
+use ddct::model::gear::Gear;
 use ddct::plant::config::SensorNoise;
 use ddct::plant::{FaultKind, Mode, OutFrame, Plant, PlantConfig, RigProfile, Truth};
 use std::path::Path;
@@ -593,7 +594,7 @@ fn sliding_acceleration_friction_acts_only_while_the_slip_accelerates() {
     };
     let mut cfg = vehicle_config(single(EffectId::SlidingAccelerationFriction, &[g, a_ref]));
     cfg.initial.engine_rpm = 2000.0;
-    cfg.initial.gear_odd = 1;
+    cfg.initial.gear_odd = Gear::G1;
     let r = run_with(cfg, 1.5, frames);
     let p = hot_params();
     let r_m = 0.5 * (p.r1_m + p.r2_m);
@@ -1169,7 +1170,7 @@ fn initial_conditions_are_applied() {
     let mut cfg = PlantConfig::default();
     cfg.sensors = SensorNoise::default();
     cfg.initial.vehicle_kmh = 50.0;
-    cfg.initial.gear_odd = 3;
+    cfg.initial.gear_odd = Gear::G3;
     cfg.initial.engine_rpm = 1500.0;
     cfg.initial.c1_c = Some(180.0);
     cfg.initial.cd_c = Some(120.0);
@@ -1178,7 +1179,7 @@ fn initial_conditions_are_applied() {
     let pd = &cfg.params.driveline;
     assert!((s.w_out * pd.wheel_radius_m * 3.6 - 50.0).abs() < 1e-9);
     assert!((s.w_c1 - pd.ratio_g3 * pd.final_drive * s.w_out).abs() < 1e-9);
-    assert_eq!(s.gear_odd.engaged, 3);
+    assert_eq!(s.gear_odd.engaged, Gear::G3);
     assert_eq!(
         (s.thermal.c1, s.thermal.cd, s.thermal.pp1),
         (180.0, 120.0, 25.0)

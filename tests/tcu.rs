@@ -9,6 +9,7 @@
 use ddct::can::e2e::{E2eChecker, E2eConfig};
 use ddct::can::messages::{ids, FaultCode, TcuClutchCmd, TcuEngineReq, TcuState, TcuStatus};
 use ddct::can::CanFrame;
+use ddct::model::gear::Gear;
 use ddct::sim::metrics::{self, LaunchMetrics, Metrics};
 use ddct::sim::{self, Injection, InjectionKind, SimOptions, SimRun, SimScenario};
 use ddct::tcu::TcuConfig;
@@ -67,10 +68,14 @@ fn flat_launches_lock_up_in_time_without_stall_flare_or_spike() {
 #[test]
 fn upshifts_at_half_pedal_keep_the_vehicle_accelerating_and_downshifts_complete() {
     let (_, m) = run("shifts_50", &SimOptions::default());
-    let ups: Vec<_> = m.shifts.iter().filter(|s| s.up && s.from < 3).collect();
+    let ups: Vec<_> = m
+        .shifts
+        .iter()
+        .filter(|s| s.up && Gear::G3.above(s.from))
+        .collect();
     assert_eq!(
         ups.iter().map(|s| (s.from, s.to)).collect::<Vec<_>>(),
-        vec![(1, 2), (2, 3)]
+        vec![(Gear::G1, Gear::G2), (Gear::G2, Gear::G3)]
     );
     for s in &ups {
         assert!(s.completed, "{s:?}");
@@ -78,7 +83,10 @@ fn upshifts_at_half_pedal_keep_the_vehicle_accelerating_and_downshifts_complete(
         assert!(s.duration_s < 1.5, "{s:?}");
     }
     let downs: Vec<_> = m.shifts.iter().filter(|s| !s.up).collect();
-    assert!(downs.iter().any(|s| (s.from, s.to) == (2, 1)), "{downs:?}");
+    assert!(
+        downs.iter().any(|s| (s.from, s.to) == (Gear::G2, Gear::G1)),
+        "{downs:?}"
+    );
     assert!(downs.iter().all(|s| s.completed), "{downs:?}");
     // Back to a standstill in creep/hold, engine alive.
     assert!(

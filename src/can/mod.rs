@@ -12,6 +12,7 @@ pub mod dbc;
 pub mod decode;
 pub mod e2e;
 pub mod frame;
+pub mod gear;
 pub mod messages;
 pub mod monitor;
 pub mod replay;

@@ -36,6 +36,7 @@ use crate::can::candump::{parse_line, LineError, LogRecord};
 use crate::can::codec::{CodecError, SignalDef};
 use crate::can::e2e::{is_protected, E2eChecker, E2eConfig, E2eError};
 use crate::can::messages::{ids, message_def, DctActuators, Message};
+use crate::model::gear::Gear;
 use embedded_can::Frame as _;
 use std::io::BufRead;
 use std::path::Path;
@@ -1271,9 +1272,9 @@ impl CandumpColumns {
                 self.col(Col::X1).push(t, a.clutch1_pos);
                 self.col(Col::X2).push(t, a.clutch2_pos);
                 self.col(Col::GearOdd)
-                    .push(t, f64::from(a.gear_odd_act as u8));
+                    .push(t, f64::from(Gear::from(a.gear_odd_act).code()));
                 self.col(Col::GearEven)
-                    .push(t, f64::from(a.gear_even_act as u8));
+                    .push(t, f64::from(Gear::from(a.gear_even_act).code()));
             }
             Message::BenchTorque(b) => {
                 use crate::can::messages::BenchTorque as B;
@@ -1284,12 +1285,18 @@ impl CandumpColumns {
             }
             Message::BenchTemps(b) => {
                 use crate::can::messages::BenchTemps as B;
-                self.col(Col::Pp1)
-                    .push(t, unsaturated(B::pressure_plate1_temp_def(), b.pressure_plate1_temp));
-                self.col(Col::Pp2)
-                    .push(t, unsaturated(B::pressure_plate2_temp_def(), b.pressure_plate2_temp));
-                self.col(Col::Cd)
-                    .push(t, unsaturated(B::central_disk_temp_def(), b.central_disk_temp));
+                self.col(Col::Pp1).push(
+                    t,
+                    unsaturated(B::pressure_plate1_temp_def(), b.pressure_plate1_temp),
+                );
+                self.col(Col::Pp2).push(
+                    t,
+                    unsaturated(B::pressure_plate2_temp_def(), b.pressure_plate2_temp),
+                );
+                self.col(Col::Cd).push(
+                    t,
+                    unsaturated(B::central_disk_temp_def(), b.central_disk_temp),
+                );
             }
             Message::TcuClutchCmd(c) => {
                 self.col(Col::X1Req).push(t, c.clutch1_pos_req);

@@ -20,6 +20,7 @@ use crate::can::messages::{
 };
 use crate::can::{CanFrame, Received};
 use crate::model::effects::{EffectId, EffectSet};
+use crate::model::gear::Gear;
 use crate::model::params::Params;
 use crate::plant::core::CYCLE;
 use crate::plant::{Mode, Plant, PlantConfig};
@@ -186,8 +187,8 @@ pub fn launches(mut cfg: PlantConfig, plan: &LaunchPlan) -> Vec<LogRecord> {
     cfg.scenario = None;
     cfg.rig_profile = None;
     cfg.initial.temperature_c = plan.theta0_c;
-    cfg.initial.gear_odd = 1;
-    cfg.initial.gear_even = 0;
+    cfg.initial.gear_odd = Gear::G1;
+    cfg.initial.gear_even = Gear::N;
     let plan = plan.clone();
     run_plant(cfg, plan.duration(), move |t| {
         let (pedal, brake, x1) = plan.command(t);

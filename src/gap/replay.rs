@@ -543,8 +543,11 @@ pub fn driveline_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
     Some(
         (0..m.n)
             .map(|k| {
-                let k_odd = crate::model::driveline::overall_ratio(dl, gears[0][k].round() as u8);
-                let k_even = crate::model::driveline::overall_ratio(dl, gears[1][k].round() as u8);
+                let ratio = |code: f64| {
+                    let g = crate::model::gear::Gear::from_code(code.round()).ok()?;
+                    crate::model::driveline::overall_ratio(dl, g)
+                };
+                let (k_odd, k_even) = (ratio(gears[0][k]), ratio(gears[1][k]));
                 let t1 = m.torque[0][k];
                 let t2 = m.torque[1][k];
                 let mut tw = 0.0;

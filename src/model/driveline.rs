@@ -14,6 +14,7 @@
 //! T_load = f0·s(v) + f1·v + f2·v|v| + m·g·sin(atan(grade))·R_w + T_brake·s(v), v = R_w·ω_out,
 //! where s(v) = tanh(v/v_ε) regularises the sign so a car at rest is held, not pushed backwards.
 
+use super::gear::Gear;
 use super::params::DrivelineParams;
 use serde::{Deserialize, Serialize};
 
@@ -23,31 +24,18 @@ pub const C1: usize = 1;
 pub const C2: usize = 2;
 pub const OUT: usize = 3;
 
-/// Gear codes as on the bus: 0 neutral, 1–6 forward, 7 reverse (even shaft).
-pub const REVERSE: u8 = 7;
-
-/// Which input shaft a gear code lives on: `Some(0)` odd (clutch 1), `Some(1)` even (clutch 2),
-/// `None` for neutral or an invalid code.
-pub fn shaft_of(gear: u8) -> Option<usize> {
-    match gear {
-        1 | 3 | 5 => Some(0),
-        2 | 4 | 6 | REVERSE => Some(1),
-        _ => None,
-    }
-}
-
-/// Overall ratio k = i_g·i_f of a gear (ω_c = k·ω_out); negative for reverse; `None` for neutral
-/// or an invalid code.
-pub fn overall_ratio(p: &DrivelineParams, gear: u8) -> Option<f64> {
+/// Overall ratio k = i_g·i_f of a gear (ω_c = k·ω_out); negative for reverse; `None` for
+/// neutral.
+pub fn overall_ratio(p: &DrivelineParams, gear: Gear) -> Option<f64> {
     let ig = match gear {
-        1 => p.ratio_g1,
-        2 => p.ratio_g2,
-        3 => p.ratio_g3,
-        4 => p.ratio_g4,
-        5 => p.ratio_g5,
-        6 => p.ratio_g6,
-        REVERSE => -p.ratio_reverse,
-        _ => return None,
+        Gear::G1 => p.ratio_g1,
+        Gear::G2 => p.ratio_g2,
+        Gear::G3 => p.ratio_g3,
+        Gear::G4 => p.ratio_g4,
+        Gear::G5 => p.ratio_g5,
+        Gear::G6 => p.ratio_g6,
+        Gear::R => -p.ratio_reverse,
+        Gear::N => return None,
     };
     Some(ig * p.final_drive)
 }
@@ -253,21 +241,21 @@ impl Groups {
 }
 
 /// Gear selector of one input shaft. While the fork moves towards `target` the shaft is in
-/// neutral (`engaged == 0`) and the synchroniser pulls the shaft towards the gear's speed; the dog
+/// neutral (`engaged == Gear::N`) and the synchroniser pulls the shaft towards the gear's speed; the dog
 /// engages once `select_time` has elapsed and the speeds match within `sync_tolerance`.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct GearShaft {
-    /// Engaged gear code (0 = neutral).
-    pub engaged: u8,
-    /// Requested gear code.
-    pub target: u8,
+    /// Engaged gear (`N`: none).
+    pub engaged: Gear,
+    /// Requested gear.
+    pub target: Gear,
     /// Time since the current selection started (s).
     pub timer_s: f64,
 }
 
 impl GearShaft {
     /// A shaft with `gear` engaged and nothing pending.
-    pub fn engaged(gear: u8) -> Self {
+    pub fn engaged(gear: Gear) -> Self {
         Self {
             engaged: gear,
             target: gear,
@@ -277,14 +265,14 @@ impl GearShaft {
 
     /// True while the synchroniser works (a gear is being selected).
     pub fn syncing(&self) -> bool {
-        self.target != 0 && self.engaged != self.target
+        self.target != Gear::N && self.engaged != self.target
     }
 
     /// Takes a new request; a change disengages the current gear at once.
-    pub fn request(&mut self, gear: u8) {
+    pub fn request(&mut self, gear: Gear) {
         if gear != self.target {
             self.target = gear;
-            self.engaged = 0;
+            self.engaged = Gear::N;
             self.timer_s = 0.0;
         }
     }
@@ -305,7 +293,7 @@ mod tests {
     fn groups_and_rigid_acceleration() {
         let p = Params::default().driveline;
         let j = inertias(&p);
-        let k = overall_ratio(&p, 1).unwrap();
+        let k = overall_ratio(&p, Gear::G1).unwrap();
         let g = Groups::new(Links {
             clutch1: true,
             k_odd: Some(k),
@@ -330,8 +318,8 @@ mod tests {
         let l = Links {
             clutch1: true,
             clutch2: true,
-            k_odd: overall_ratio(&p, 1),
-            k_even: overall_ratio(&p, 2),
+            k_odd: overall_ratio(&p, Gear::G1),
+            k_even: overall_ratio(&p, Gear::G2),
         };
         assert_eq!(Groups::new(l), Err(TieUp));
     }

@@ -10,6 +10,7 @@ pub mod driveline;
 pub mod effects;
 pub mod engine;
 pub mod figures;
+pub mod gear;
 pub mod integrator;
 pub mod params;
 pub mod powertrain;

@@ -28,6 +28,7 @@ use super::actuator;
 use super::clutch;
 use super::driveline::{self, GearShaft, Groups, Links, C1, C2, F, OUT};
 use super::engine::{self, EngineInputs};
+use super::gear::Gear;
 use super::integrator::{rk4_step_from, OdeState, OdeSystem};
 use super::params::{ClutchParams, Params};
 use super::thermal::{self, Thermal5, Thermal5State, ThermalInputs};
@@ -246,10 +247,10 @@ pub struct Inputs {
     pub x1_ref_mm: f64,
     /// Clutch 2 actuator request (mm).
     pub x2_ref_mm: f64,
-    /// Odd-shaft gear request (0, 1, 3, 5; anything else means neutral).
-    pub gear_odd_req: u8,
-    /// Even-shaft gear request (0, 2, 4, 6, 7 = reverse; anything else means neutral).
-    pub gear_even_req: u8,
+    /// Odd-shaft gear request (N, 1, 3, 5; an even gear or reverse here means neutral).
+    pub gear_odd_req: Gear,
+    /// Even-shaft gear request (N, 2, 4, 6, R; an odd gear here means neutral).
+    pub gear_even_req: Gear,
     /// Accelerator pedal, fraction 0..1.
     pub pedal: f64,
     /// External engine torque request (N·m), `None` when inactive.
@@ -267,8 +268,8 @@ impl Default for Inputs {
         Inputs {
             x1_ref_mm: 0.0,
             x2_ref_mm: 0.0,
-            gear_odd_req: 0,
-            gear_even_req: 0,
+            gear_odd_req: Gear::N,
+            gear_even_req: Gear::N,
             pedal: 0.0,
             engine_torque_request_nm: None,
             brake: 0.0,
@@ -644,12 +645,10 @@ impl<H: Hooks> Powertrain<H> {
 
     /// Gear selectors: requests, select timers, dog engagement when synchronised.
     fn update_gears(&self, s: &mut State, u: &Inputs, dt: f64, rep: &mut StepReport) {
-        let valid_odd = matches!(u.gear_odd_req, 0 | 1 | 3 | 5);
-        let valid_even = matches!(u.gear_even_req, 0 | 2 | 4 | 6 | driveline::REVERSE);
-        s.gear_odd
-            .request(if valid_odd { u.gear_odd_req } else { 0 });
-        s.gear_even
-            .request(if valid_even { u.gear_even_req } else { 0 });
+        // A gear of the other shaft cannot be selected here: the fork stays in neutral.
+        let on = |g: Gear, shaft: usize| if g.shaft() == Some(shaft) { g } else { Gear::N };
+        s.gear_odd.request(on(u.gear_odd_req, 0));
+        s.gear_even.request(on(u.gear_even_req, 1));
         for shaft in 0..2 {
             let gs = if shaft == 0 { s.gear_odd } else { s.gear_even };
             if !gs.syncing() {

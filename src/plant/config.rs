@@ -9,6 +9,7 @@ use super::profile::{RigProfile, Scenario};
 use super::{parse_toml, read_text, PlantError};
 use crate::can::messages::ids;
 use crate::model::effects::EffectSet;
+use crate::model::gear::Gear;
 use crate::model::Params;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -67,9 +68,10 @@ pub struct Initial {
     pub engine_rpm: f64,
     /// Vehicle speed (km/h).
     pub vehicle_kmh: f64,
-    /// Engaged odd / even gear (0 neutral; 7 reverse on the even shaft).
-    pub gear_odd: u8,
-    pub gear_even: u8,
+    /// Engaged odd / even gear, as its bus code (0 neutral, 1–6, 7 reverse on the even shaft) or
+    /// label (`"N"`, `"G3"`, `"R"`).
+    pub gear_odd: Gear,
+    pub gear_even: Gear,
     /// All five thermal masses (°C), unless overridden below.
     pub temperature_c: f64,
     pub pp1_c: Option<f64>,
@@ -86,8 +88,8 @@ impl Default for Initial {
         Self {
             engine_rpm: 800.0,
             vehicle_kmh: 0.0,
-            gear_odd: 0,
-            gear_even: 0,
+            gear_odd: Gear::N,
+            gear_even: Gear::N,
             temperature_c: 25.0,
             pp1_c: None,
             pp2_c: None,
@@ -158,9 +160,9 @@ impl Default for InputOptions {
 pub struct RigOptions {
     /// Dyno speed holding the input side (rpm) when no profile gives one.
     pub input_speed_rpm: f64,
-    /// Gears engaged on the output side (the output is braked).
-    pub gear_odd: u8,
-    pub gear_even: u8,
+    /// Gears engaged on the output side (the output is braked), as in `[initial]`.
+    pub gear_odd: Gear,
+    pub gear_even: Gear,
     /// Wheel-brake fraction holding the output.
     pub brake: f64,
 }
@@ -169,8 +171,8 @@ impl Default for RigOptions {
     fn default() -> Self {
         Self {
             input_speed_rpm: 2000.0,
-            gear_odd: 5,
-            gear_even: 6,
+            gear_odd: Gear::G5,
+            gear_even: Gear::G6,
             brake: 1.0,
         }
     }
@@ -366,20 +368,7 @@ impl PlantConfig {
             }
         }
         check(path, "initial.housing_c", i.housing_c, -40.0, 200.0)?;
-        if !matches!(i.gear_odd, 0 | 1 | 3 | 5) {
-            return Err(PlantError::key(
-                path,
-                "initial.gear_odd",
-                "must be 0, 1, 3 or 5",
-            ));
-        }
-        if !matches!(i.gear_even, 0 | 2 | 4 | 6 | 7) {
-            return Err(PlantError::key(
-                path,
-                "initial.gear_even",
-                "must be 0, 2, 4, 6 or 7 (reverse)",
-            ));
-        }
+        check_shafts(path, "initial", i.gear_odd, i.gear_even)?;
         check(
             path,
             "housing.target_c",
@@ -422,22 +411,9 @@ impl PlantConfig {
             6000.0,
         )?;
         check(path, "rig.brake", self.rig.brake, 0.0, 1.0)?;
-        if !matches!(self.rig.gear_odd, 0 | 1 | 3 | 5) {
-            return Err(PlantError::key(
-                path,
-                "rig.gear_odd",
-                "must be 0, 1, 3 or 5",
-            ));
-        }
-        if !matches!(self.rig.gear_even, 0 | 2 | 4 | 6 | 7) {
-            return Err(PlantError::key(
-                path,
-                "rig.gear_even",
-                "must be 0, 2, 4, 6 or 7",
-            ));
-        }
+        check_shafts(path, "rig", self.rig.gear_odd, self.rig.gear_even)?;
         let dt = self.params.integrator.dt_s;
-        let per_cycle = 0.01 / dt;
+        let per_cycle = super::core::CYCLE.as_secs_f64() / dt;
         if (per_cycle - per_cycle.round()).abs() > 1e-9 {
             return Err(PlantError::key(
                 path,
@@ -484,6 +460,27 @@ impl PlantConfig {
     }
 }
 
+/// `TABLE.gear_odd` must be neutral or an odd gear, `TABLE.gear_even` neutral, an even gear or
+/// reverse (the DBC's `GearOddAct` and `GearEvenAct` tables).
+fn check_shafts(path: &Path, table: &str, odd: Gear, even: Gear) -> Result<(), PlantError> {
+    use crate::can::messages::{GearEvenAct, GearOddAct};
+    if GearOddAct::try_from(odd).is_err() {
+        return Err(PlantError::key(
+            path,
+            format!("{table}.gear_odd"),
+            format!("gear {odd} is not on the odd shaft (N, 1, 3 or 5)"),
+        ));
+    }
+    if GearEvenAct::try_from(even).is_err() {
+        return Err(PlantError::key(
+            path,
+            format!("{table}.gear_even"),
+            format!("gear {even} is not on the even shaft (N, 2, 4, 6 or R)"),
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -527,5 +524,31 @@ mod tests {
         let e = PlantConfig::from_toml_str(p, "[plant]\nparams = \"/nonexistent.toml\"\n", None)
             .unwrap_err();
         assert!(matches!(&e, PlantError::Params { .. }), "{e}");
+    }
+
+    /// Gears are read as bus codes or labels; a code outside the DBC's table and a gear on the
+    /// wrong shaft are errors naming the key, never neutral.
+    #[test]
+    fn gears_are_checked_at_the_boundary() {
+        let p = Path::new("p.toml");
+        let ok =
+            PlantConfig::from_toml_str(p, "[initial]\ngear_odd = 3\ngear_even = \"R\"\n", None)
+                .unwrap();
+        assert_eq!(
+            (ok.initial.gear_odd, ok.initial.gear_even),
+            (Gear::G3, Gear::R)
+        );
+        for (text, key) in [
+            ("[initial]\ngear_odd = 8\n", "initial.gear_odd"),
+            ("[initial]\ngear_odd = 2\n", "initial.gear_odd"),
+            ("[initial]\ngear_even = \"G5\"\n", "initial.gear_even"),
+            ("[rig]\ngear_even = 1.5\n", "rig.gear_even"),
+        ] {
+            let e = PlantConfig::from_toml_str(p, text, None).unwrap_err();
+            assert!(
+                matches!(&e, PlantError::Key { key: k, .. } if k == key),
+                "{text}: {e}"
+            );
+        }
     }
 }

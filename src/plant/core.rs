@@ -575,7 +575,7 @@ impl Plant {
                 // Gear requests are held after a timeout (a gear actuator keeps its position).
                 Self::fresh(&mut self.latch.gear, t, limit, "TCU_GearCmd", stats);
                 let (go, ge) = match self.latch.gear.msg {
-                    Some(m) => (m.gear_odd_req as u8, m.gear_even_req as u8),
+                    Some(m) => (m.gear_odd_req.into(), m.gear_even_req.into()),
                     None => (self.cfg.initial.gear_odd, self.cfg.initial.gear_even),
                 };
                 u.gear_odd_req = go;
@@ -689,45 +689,59 @@ impl Plant {
         let n = self.cfg.sensors;
         let rpm = |w: f64| w / RPM;
         let eng = EngStatus {
-            eng_speed: EngStatus::saturate_eng_speed(rpm(s.w_f) + self.noise(k, ch::ENG_SPEED, n.speed_rpm),
+            eng_speed: EngStatus::saturate_eng_speed(
+                rpm(s.w_f) + self.noise(k, ch::ENG_SPEED, n.speed_rpm),
             ),
-            eng_torque_act: EngStatus::saturate_eng_torque_act(self.engine_reported() + self.noise(k, ch::ENG_TORQUE, n.engine_torque_nm),
+            eng_torque_act: EngStatus::saturate_eng_torque_act(
+                self.engine_reported() + self.noise(k, ch::ENG_TORQUE, n.engine_torque_nm),
             ),
             ..Default::default()
         };
         let sensors = DctSensors {
-            in_shaft1_speed: DctSensors::saturate_in_shaft1_speed(rpm(s.w_c1) + self.noise(k, ch::SHAFT1, n.speed_rpm),
+            in_shaft1_speed: DctSensors::saturate_in_shaft1_speed(
+                rpm(s.w_c1) + self.noise(k, ch::SHAFT1, n.speed_rpm),
             ),
-            in_shaft2_speed: DctSensors::saturate_in_shaft2_speed(rpm(s.w_c2) + self.noise(k, ch::SHAFT2, n.speed_rpm),
+            in_shaft2_speed: DctSensors::saturate_in_shaft2_speed(
+                rpm(s.w_c2) + self.noise(k, ch::SHAFT2, n.speed_rpm),
             ),
-            out_shaft_speed: DctSensors::saturate_out_shaft_speed(rpm(s.w_out) + self.noise(k, ch::OUT, n.speed_rpm),
+            out_shaft_speed: DctSensors::saturate_out_shaft_speed(
+                rpm(s.w_out) + self.noise(k, ch::OUT, n.speed_rpm),
             ),
-            housing_temp: DctSensors::saturate_housing_temp(self.theta_h + self.noise(k, ch::HOUSING, n.housing_c),
+            housing_temp: DctSensors::saturate_housing_temp(
+                self.theta_h + self.noise(k, ch::HOUSING, n.housing_c),
             ),
             ..Default::default()
         };
         let actuators = DctActuators {
-            clutch1_pos: DctActuators::saturate_clutch1_pos(s.x1_mm + self.noise(k, ch::POS1, n.position_mm),
+            clutch1_pos: DctActuators::saturate_clutch1_pos(
+                s.x1_mm + self.noise(k, ch::POS1, n.position_mm),
             ),
-            clutch2_pos: DctActuators::saturate_clutch2_pos(s.x2_mm + self.noise(k, ch::POS2, n.position_mm),
+            clutch2_pos: DctActuators::saturate_clutch2_pos(
+                s.x2_mm + self.noise(k, ch::POS2, n.position_mm),
             ),
-            gear_odd_act: GearOddAct::from_raw(u64::from(s.gear_odd.engaged)).unwrap_or_default(),
-            gear_even_act: GearEvenAct::from_raw(u64::from(s.gear_even.engaged))
-                .unwrap_or_default(),
+            // A selector engages only gears of its own shaft (`Powertrain::update_gears`, the
+            // config's `check_shafts`): the conversions cannot fail.
+            gear_odd_act: GearOddAct::try_from(s.gear_odd.engaged).unwrap_or_default(),
+            gear_even_act: GearEvenAct::try_from(s.gear_even.engaged).unwrap_or_default(),
             ..Default::default()
         };
         let torque = BenchTorque {
-            clutch1_torque: BenchTorque::saturate_clutch1_torque(o.t_fc1_nm + self.noise(k, ch::TORQUE1, n.torque_nm),
+            clutch1_torque: BenchTorque::saturate_clutch1_torque(
+                o.t_fc1_nm + self.noise(k, ch::TORQUE1, n.torque_nm),
             ),
-            clutch2_torque: BenchTorque::saturate_clutch2_torque(o.t_fc2_nm + self.noise(k, ch::TORQUE2, n.torque_nm),
+            clutch2_torque: BenchTorque::saturate_clutch2_torque(
+                o.t_fc2_nm + self.noise(k, ch::TORQUE2, n.torque_nm),
             ),
         };
         let temps = BenchTemps {
-            pressure_plate1_temp: BenchTemps::saturate_pressure_plate1_temp(s.thermal.pp1 + self.noise(k, ch::PP1, n.temperature_c),
+            pressure_plate1_temp: BenchTemps::saturate_pressure_plate1_temp(
+                s.thermal.pp1 + self.noise(k, ch::PP1, n.temperature_c),
             ),
-            pressure_plate2_temp: BenchTemps::saturate_pressure_plate2_temp(s.thermal.pp2 + self.noise(k, ch::PP2, n.temperature_c),
+            pressure_plate2_temp: BenchTemps::saturate_pressure_plate2_temp(
+                s.thermal.pp2 + self.noise(k, ch::PP2, n.temperature_c),
             ),
-            central_disk_temp: BenchTemps::saturate_central_disk_temp(s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
+            central_disk_temp: BenchTemps::saturate_central_disk_temp(
+                s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
             ),
         };
         // The driver at this instant (the last step used the one of its start).
@@ -737,7 +751,8 @@ impl Plant {
         };
         let vehicle = BenchVehicle {
             vehicle_speed: BenchVehicle::saturate_vehicle_speed(o.vehicle_speed_mps * 3.6),
-            vehicle_accel: BenchVehicle::saturate_vehicle_accel(o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
+            vehicle_accel: BenchVehicle::saturate_vehicle_accel(
+                o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
             ),
             road_grade: BenchVehicle::saturate_road_grade(driver.grade * 100.0),
         };

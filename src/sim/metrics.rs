@@ -16,6 +16,7 @@
 
 use super::Row;
 use crate::can::messages::{FaultCode, TcuState};
+use crate::model::gear::Gear;
 use crate::tcu::TcuConfig;
 use serde::Serialize;
 
@@ -60,8 +61,8 @@ pub struct SlipBin {
 pub struct ShiftMetrics {
     pub t_start_s: f64,
     pub up: bool,
-    pub from: u8,
-    pub to: u8,
+    pub from: Gear,
+    pub to: Gear,
     pub duration_s: f64,
     pub completed: bool,
     pub min_accel_mps2: f64,
@@ -100,11 +101,8 @@ pub struct Metrics {
 }
 
 fn launch_clutch(r: &Row) -> usize {
-    if r.gear_active == 7 {
-        1
-    } else {
-        0
-    }
+    // Reverse launches on the even shaft's clutch, forward on the odd one's.
+    usize::from(r.gear_active.is_reverse())
 }
 
 /// Metrics of a run's rows.

@@ -28,6 +28,7 @@ use crate::can::messages::{
     FaultCode, SimTruth, TcuClutchCmd, TcuEngineReq, TcuEstimates, TcuGearCmd, TcuState, TcuStatus,
 };
 use crate::can::{CanFrame, Received};
+use crate::model::gear::Gear;
 use crate::plant::Plant;
 use crate::tcu::{Tcu, TcuConfig, TcuInputs, TimedFrame};
 use serde::Serialize;
@@ -88,13 +89,13 @@ pub struct Row {
     pub n_out_rpm: f64,
     pub housing_c: f64,
     pub x_mm: [f64; 2],
-    pub gear_act: [u8; 2],
+    pub gear_act: [Gear; 2],
     pub x_ref_mm: [f64; 2],
     pub eng_req_nm: Option<f64>,
-    pub gear_req: [u8; 2],
+    pub gear_req: [Gear; 2],
     pub state: TcuState,
     pub fault: FaultCode,
-    pub gear_active: u8,
+    pub gear_active: Gear,
     pub theta_est_c: [f64; 2],
     pub t_ref_nm: [f64; 2],
     pub t_act_nm: [f64; 2],
@@ -150,7 +151,7 @@ impl BusView {
             Some(ids::DCT_ACTUATORS) => {
                 if let Ok(m) = DctActuators::decode(d) {
                     r.x_mm = [m.clutch1_pos, m.clutch2_pos];
-                    r.gear_act = [m.gear_odd_act as u8, m.gear_even_act as u8];
+                    r.gear_act = [m.gear_odd_act.into(), m.gear_even_act.into()];
                 }
             }
             Some(ids::BENCH_TORQUE) => {
@@ -188,14 +189,14 @@ impl BusView {
             }
             Some(ids::TCU_GEAR_CMD) => {
                 if let Ok(m) = TcuGearCmd::decode(d) {
-                    r.gear_req = [m.gear_odd_req as u8, m.gear_even_req as u8];
+                    r.gear_req = [m.gear_odd_req.into(), m.gear_even_req.into()];
                 }
             }
             Some(ids::TCU_STATUS) => {
                 if let Ok(m) = TcuStatus::decode(d) {
                     r.state = m.tcu_state;
                     r.fault = m.fault_code;
-                    r.gear_active = m.gear_active as u8;
+                    r.gear_active = m.gear_active.into();
                 }
             }
             Some(ids::TCU_ESTIMATES) => {
@@ -430,9 +431,9 @@ pub fn rows_csv(rows: &[Row]) -> String {
             r.fault.label(),
             r.pedal_pct,
             u8::from(r.brake),
-            r.gear_active,
-            r.gear_act[0],
-            r.gear_act[1],
+            r.gear_active.code(),
+            r.gear_act[0].code(),
+            r.gear_act[1].code(),
             r.n_e_rpm,
             r.n_e_ref_rpm,
             r.n_c_rpm[0],

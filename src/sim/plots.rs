@@ -147,21 +147,17 @@ pub fn run_figure(title: &str, rows: &[Row]) -> String {
             .steps()
             .color(c(6)),
     );
-    let gear_index = |g: u8| {
-        GearActive::ALL
-            .iter()
-            .position(|x| *x as u8 == g)
-            .unwrap_or(0) as f64
-    };
+    let gear_index =
+        |g: GearActive| GearActive::ALL.iter().position(|x| *x == g).unwrap_or(0) as f64;
     let mut gear = lanes(
         "Active gear",
         GearActive::ALL
             .iter()
-            .map(|g| (gear_index(*g as u8), g.label().to_string()))
+            .map(|g| (gear_index(*g), g.label().to_string()))
             .collect(),
     );
     gear.add(
-        series(rows, "gear", |r| gear_index(r.gear_active))
+        series(rows, "gear", |r| gear_index(r.gear_active.into()))
             .steps()
             .color(c(3)),
     );

@@ -306,8 +306,8 @@ mod tests {
             shifts: vec![ShiftMetrics {
                 t_start_s: 4.0,
                 up: true,
-                from: 1,
-                to: 2,
+                from: crate::model::gear::Gear::G1,
+                to: crate::model::gear::Gear::G2,
                 duration_s: 0.8,
                 completed: shift_done,
                 min_accel_mps2: 0.5,

@@ -21,6 +21,7 @@ use super::config::Compensation;
 use crate::model::clutch;
 use crate::model::driveline;
 use crate::model::effects::{self, EffectSet, TorqueContext};
+use crate::model::gear::Gear;
 use crate::model::params::{ClutchParams, DrivelineParams, EngineParams};
 
 /// The TCU's model of one dry clutch: the torque characteristic (13) and its inverse, optionally
@@ -185,7 +186,7 @@ pub struct Reduced {
 }
 
 impl Reduced {
-    pub fn new(d: &DrivelineParams, gear_odd: u8, gear_even: u8) -> Self {
+    pub fn new(d: &DrivelineParams, gear_odd: Gear, gear_even: Gear) -> Self {
         let k_odd = driveline::overall_ratio(d, gear_odd).unwrap_or(0.0);
         let k_even = driveline::overall_ratio(d, gear_even).unwrap_or(0.0);
         let j = driveline::inertias(d);
@@ -321,13 +322,13 @@ mod tests {
     #[test]
     fn decoupling_law_inverts_the_reduced_model() {
         let d = Params::default().driveline;
-        let r = Reduced::new(&d, 1, 2);
+        let r = Reduced::new(&d, Gear::G1, Gear::G2);
         // (26) with T_fc1 from (27) must give back v_c1.
         let (v_c, t2, tl) = (120.0, 30.0, 50.0);
         let t1 = r.decouple(0, v_c, t2, tl);
         assert!((r.k[0] * t1 + r.k[1] * t2 - tl - v_c).abs() < 1e-9);
         // A neutral even shaft leaves J_eq2 = k_odd² J_c1 + J_d.
-        let r1 = Reduced::new(&d, 1, 0);
+        let r1 = Reduced::new(&d, Gear::G1, Gear::N);
         assert!(r1.j_eq2 < r.j_eq2 && r1.k[1] == 0.0);
     }
 

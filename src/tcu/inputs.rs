@@ -27,6 +27,7 @@ use crate::can::messages::{
 use crate::can::CanFrame;
 use crate::model::driveline;
 use crate::model::engine::RPM;
+use crate::model::gear::Gear;
 use crate::model::params::DrivelineParams;
 use std::time::Duration;
 
@@ -125,8 +126,8 @@ pub struct Measurements {
     pub theta_h: f64,
     /// Measured bearing positions (mm).
     pub x_mm: [f64; 2],
-    /// Engaged gear per shaft (odd, even); 0 neutral, 7 reverse.
-    pub gear: [u8; 2],
+    /// Engaged gear per shaft (odd, even).
+    pub gear: [Gear; 2],
 }
 
 impl Default for Measurements {
@@ -141,7 +142,7 @@ impl Default for Measurements {
             w_out: 0.0,
             theta_h: f64::NAN,
             x_mm: [0.0; 2],
-            gear: [0; 2],
+            gear: [Gear::N; 2],
         }
     }
 }
@@ -408,7 +409,7 @@ impl InputMonitor {
                     return Err(FaultCode::ImplausiblePosition);
                 }
                 self.meas.x_mm = [m.clutch1_pos, m.clutch2_pos];
-                self.meas.gear = [m.gear_odd_act as u8, m.gear_even_act as u8];
+                self.meas.gear = [m.gear_odd_act.into(), m.gear_even_act.into()];
             }
         }
         Ok(())

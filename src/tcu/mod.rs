@@ -65,8 +65,8 @@ pub use inputs::{Input, Measurements, TimedFrame, Verdict};
 
 use crate::can::e2e::E2eSender;
 use crate::can::messages::{
-    ids, FaultCode, GearActive, GearEvenReq, GearOddReq, TcuClutchCmd, TcuEngineReq, TcuEstimates,
-    TcuGearCmd, TcuState, TcuStatus,
+    ids, FaultCode, GearEvenReq, GearOddReq, TcuClutchCmd, TcuEngineReq, TcuEstimates, TcuGearCmd,
+    TcuState, TcuStatus,
 };
 use crate::can::CanFrame;
 use control::{approach, ClutchModel};
@@ -420,13 +420,14 @@ impl Tcu {
             ..Default::default()
         };
         let gear_cmd = TcuGearCmd {
-            gear_odd_req: GearOddReq::from_raw(u64::from(cmd.gear_req[0])).unwrap_or(GearOddReq::N),
-            gear_even_req: GearEvenReq::from_raw(u64::from(cmd.gear_req[1]))
-                .unwrap_or(GearEvenReq::N),
+            // The strategy requests each shaft's gears only on that shaft (`safe_gear_req`, the
+            // shift's from/to on their clutches' shafts): the conversions cannot fail.
+            gear_odd_req: GearOddReq::try_from(cmd.gear_req[0]).unwrap_or(GearOddReq::N),
+            gear_even_req: GearEvenReq::try_from(cmd.gear_req[1]).unwrap_or(GearEvenReq::N),
             ..Default::default()
         };
         let status = TcuStatus {
-            gear_active: GearActive::from_raw(u64::from(cmd.gear_active)).unwrap_or(GearActive::N),
+            gear_active: cmd.gear_active.into(),
             tcu_state: cmd.state,
             fault_code: fault,
             ..Default::default()

@@ -34,6 +34,7 @@ use super::inputs::Measurements;
 use crate::can::messages::{GearLever, TcuState};
 use crate::model::driveline;
 use crate::model::engine::RPM;
+use crate::model::gear::Gear;
 
 /// What the strategy asks for in one cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -45,9 +46,9 @@ pub struct Command {
     /// Engine torque request, `None` when released.
     pub engine_req: Option<f64>,
     /// Gear requests (odd, even shaft).
-    pub gear_req: [u8; 2],
-    /// Gear transmitting torque (0 neutral, 7 reverse).
-    pub gear_active: u8,
+    pub gear_req: [Gear; 2],
+    /// Gear transmitting torque (`N` when none).
+    pub gear_active: Gear,
     pub state: TcuState,
     /// References for diagnostics (rad/s).
     pub w_e_ref: f64,
@@ -76,7 +77,7 @@ impl Ctx<'_> {
     fn reduced(&self) -> Reduced {
         Reduced::new(&self.cfg.physics.driveline, self.m.gear[0], self.m.gear[1])
     }
-    fn k(&self, gear: u8) -> f64 {
+    fn k(&self, gear: Gear) -> f64 {
         driveline::overall_ratio(&self.cfg.physics.driveline, gear).unwrap_or(0.0)
     }
     /// Vehicle speed (km/h, signed).
@@ -147,11 +148,11 @@ impl Ctx<'_> {
     }
 }
 
-/// The start gear of a lever position: 1 (odd shaft) for D, reverse (even shaft) for R.
-pub fn start_gear(lever: GearLever) -> Option<u8> {
+/// The start gear of a lever position: 1st (odd shaft) for D, reverse (even shaft) for R.
+pub fn start_gear(lever: GearLever) -> Option<Gear> {
     match lever {
-        GearLever::D => Some(1),
-        GearLever::R => Some(driveline::REVERSE),
+        GearLever::D => Some(Gear::G1),
+        GearLever::R => Some(Gear::R),
         _ => None,
     }
 }
@@ -166,48 +167,51 @@ const MIN_ONCOMING_NM: f64 = 10.0;
 /// Largest rise of the creep torque (N·m/s).
 const CREEP_TORQUE_RATE_NM_PER_S: f64 = 80.0;
 
-fn shaft(gear: u8) -> usize {
-    driveline::shaft_of(gear).unwrap_or(0)
+fn shaft(gear: Gear) -> usize {
+    gear.shaft().unwrap_or(0)
 }
 
 /// Shift schedule: the gear the tables want from gear `g` at speed `v_kmh` and pedal `p` (0..1);
 /// one step at a time.
-pub fn scheduled_gear(cfg: &TcuConfig, g: u8, v_kmh: f64, p: f64) -> u8 {
-    if !(1..=6).contains(&g) {
+pub fn scheduled_gear(cfg: &TcuConfig, g: Gear, v_kmh: f64, p: f64) -> Gear {
+    let Some(n) = g.number() else {
         return g;
-    }
+    };
     let s = &cfg.shift;
     let lerp = |a: f64, b: f64| a + (b - a) * p.clamp(0.0, 1.0);
-    let gi = usize::from(g);
-    if g < 6 && v_kmh > lerp(s.up_kmh_0[gi - 1], s.up_kmh_100[gi - 1]) {
-        return g + 1;
+    let gi = usize::from(n);
+    if let Some(up) = g.up() {
+        if v_kmh > lerp(s.up_kmh_0[gi - 1], s.up_kmh_100[gi - 1]) {
+            return up;
+        }
     }
-    if g > 1 && v_kmh < lerp(s.down_kmh_0[gi - 2], s.down_kmh_100[gi - 2]) {
-        return g - 1;
+    if let Some(down) = g.down() {
+        if v_kmh < lerp(s.down_kmh_0[gi - 2], s.down_kmh_100[gi - 2]) {
+            return down;
+        }
     }
     g
 }
 
 /// The gear to preselect on the idle shaft while driving in `g`.
-fn preselect(cfg: &TcuConfig, g: u8, v_kmh: f64, p: f64) -> u8 {
-    if g == driveline::REVERSE {
-        return 1;
-    }
-    if g <= 1 {
-        return 2;
-    }
-    if g >= 6 {
-        return 5;
-    }
+fn preselect(cfg: &TcuConfig, g: Gear, v_kmh: f64, p: f64) -> Gear {
+    let (Some(n), Some(lower), Some(higher)) = (g.number(), g.down(), g.up()) else {
+        // Reverse: 1st beside it; 1st (or neutral): 2nd; 6th: 5th.
+        return match g {
+            Gear::R => Gear::G1,
+            Gear::G6 => Gear::G5,
+            _ => Gear::G2,
+        };
+    };
     let s = &cfg.shift;
     let lerp = |a: f64, b: f64| a + (b - a) * p.clamp(0.0, 1.0);
-    let gi = usize::from(g);
+    let gi = usize::from(n);
     let up = lerp(s.up_kmh_0[gi - 1], s.up_kmh_100[gi - 1]);
     let down = lerp(s.down_kmh_0[gi - 2], s.down_kmh_100[gi - 2]);
     if v_kmh >= 0.5 * (up + down) {
-        g + 1
+        higher
     } else {
-        g - 1
+        lower
     }
 }
 
@@ -221,7 +225,7 @@ struct Sync {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Launch {
     a: usize,
-    gear: u8,
+    gear: Gear,
     /// Clutch-shaft speed at the start (rad/s).
     w_c0: f64,
     w_c_ref: f64,
@@ -235,7 +239,7 @@ struct Launch {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Drive {
     a: usize,
-    gear: u8,
+    gear: Gear,
     cap: f64,
     blend: Option<f64>,
     since_s: f64,
@@ -245,7 +249,7 @@ struct Drive {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Creep {
     a: usize,
-    gear: u8,
+    gear: Gear,
     w_c_ref: f64,
     t_ref: f64,
 }
@@ -261,10 +265,10 @@ struct Shift {
     up: bool,
     /// Off-going clutch and gear.
     a: usize,
-    from: u8,
+    from: Gear,
     /// On-coming clutch and gear.
     o: usize,
-    to: u8,
+    to: Gear,
     phase: ShiftPhase,
     tau: f64,
     /// Torque the shift hands over (N·m, ≥ 0).
@@ -370,16 +374,16 @@ impl Strategy {
             w_c_ref: ctx.m.w_c[a],
             t_ref: 0.0,
         });
-        if ctx.v_kmh().abs() < 2.0 * ctx.cfg.creep.standstill_kmh.max(1.0) || g0 != 1 {
+        if ctx.v_kmh().abs() < 2.0 * ctx.cfg.creep.standstill_kmh.max(1.0) || g0 != Gear::G1 {
             return creep;
         }
         // Moving forward: engage the engaged gear closest to the schedule's, else creep/wait.
         let want = scheduled_from_speed(ctx);
-        let mut best: Option<(u8, usize)> = None;
+        let mut best: Option<(Gear, usize)> = None;
+        let steps = |g: Gear| Some(g.number()?.abs_diff(want.number()?));
         for (i, &g) in ctx.m.gear.iter().enumerate() {
-            if (1..=6).contains(&g) {
-                let d = (i32::from(g) - i32::from(want)).unsigned_abs();
-                if best.is_none_or(|(bg, _)| d < (i32::from(bg) - i32::from(want)).unsigned_abs()) {
+            if let Some(d) = steps(g) {
+                if best.is_none_or(|(bg, _)| steps(bg).is_none_or(|bd| d < bd)) {
                     best = Some((g, i));
                 }
             }
@@ -399,14 +403,10 @@ impl Strategy {
             (Mode::Neutral, None) => {}
             (_, None) => self.mode = Mode::Neutral,
             (Mode::Creep(c), Some(g0)) if c.gear != g0 => self.mode = Mode::Neutral,
-            (Mode::Launch(l), Some(g0))
-                if (g0 == driveline::REVERSE) != (l.gear == driveline::REVERSE) =>
-            {
+            (Mode::Launch(l), Some(g0)) if g0.is_reverse() != l.gear.is_reverse() => {
                 self.mode = Mode::Neutral
             }
-            (Mode::Drive(d), Some(g0))
-                if (g0 == driveline::REVERSE) != (d.gear == driveline::REVERSE) =>
-            {
+            (Mode::Drive(d), Some(g0)) if g0.is_reverse() != d.gear.is_reverse() => {
                 self.mode = Mode::Neutral
             }
             _ => {}
@@ -432,10 +432,10 @@ impl Strategy {
     }
 
     fn neutral(&mut self, ctx: &Ctx) -> Command {
-        let g0 = start_gear(ctx.m.lever).unwrap_or(1);
-        let mut gear_req = [1, 2];
-        if g0 == driveline::REVERSE {
-            gear_req[1] = driveline::REVERSE;
+        let g0 = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
+        let mut gear_req = [Gear::G1, Gear::G2];
+        if g0.is_reverse() {
+            gear_req[1] = Gear::R;
         }
         Command {
             x_ref: [ctx.standby(0), ctx.standby(1)],
@@ -448,7 +448,7 @@ impl Strategy {
 
     /// Gear requests only change on a shaft whose clutch is open (measured position before the
     /// kiss point); otherwise the previous request stays.
-    fn safe_gear_req(&self, ctx: &Ctx, want: [u8; 2]) -> [u8; 2] {
+    fn safe_gear_req(&self, ctx: &Ctx, want: [Gear; 2]) -> [Gear; 2] {
         let mut out = want;
         for i in 0..2 {
             let open = ctx.m.x_mm[i] < ctx.model.kiss_point(ctx.theta[i]);
@@ -463,9 +463,13 @@ impl Strategy {
         let a = c.a;
         let o = 1 - a;
         let cfg = ctx.cfg;
-        let mut want = [0u8; 2];
+        let mut want = [Gear::N; 2];
         want[a] = c.gear;
-        want[o] = if c.gear == driveline::REVERSE { 1 } else { 2 };
+        want[o] = if c.gear.is_reverse() {
+            Gear::G1
+        } else {
+            Gear::G2
+        };
         let gear_req = self.safe_gear_req(ctx, want);
         let engaged = ctx.m.gear[a] == c.gear;
         if ctx.pedal_on() && engaged {
@@ -535,7 +539,7 @@ impl Strategy {
             t_ref,
             engine_req: None,
             gear_req,
-            gear_active: if engaged { c.gear } else { 0 },
+            gear_active: if engaged { c.gear } else { Gear::N },
             state: TcuState::Creep,
             w_e_ref: ctx.idle(),
             w_c_ref: c.w_c_ref,
@@ -553,7 +557,7 @@ impl Strategy {
             // Lost the gear: back to creep, which waits for it.
             self.mode = Mode::Creep(Creep {
                 a,
-                gear: start_gear(ctx.m.lever).unwrap_or(1),
+                gear: start_gear(ctx.m.lever).unwrap_or(Gear::G1),
                 w_c_ref: ctx.m.w_c[a],
                 t_ref: 0.0,
             });
@@ -565,7 +569,9 @@ impl Strategy {
         } else {
             l.pedal_off_s + ctx.dt
         };
-        if l.pedal_off_s > 0.3 && l.sync.is_none() && l.gear == start_gear(ctx.m.lever).unwrap_or(1)
+        if l.pedal_off_s > 0.3
+            && l.sync.is_none()
+            && l.gear == start_gear(ctx.m.lever).unwrap_or(Gear::G1)
         {
             self.mode = Mode::Creep(Creep {
                 a,
@@ -648,7 +654,7 @@ impl Strategy {
         x_ref[o] = ctx.standby(o);
         let mut t_ref = [0.0; 2];
         t_ref[a] = t_a;
-        let mut want = [0u8; 2];
+        let mut want = [Gear::N; 2];
         want[a] = l.gear;
         want[o] = preselect(ctx.cfg, l.gear, ctx.v_kmh(), ctx.m.pedal);
         let gear_req = self.safe_gear_req(ctx, want);
@@ -731,7 +737,7 @@ impl Strategy {
         let mut t_ref = [0.0; 2];
         t_ref[a] = d.cap;
         let v = ctx.v_kmh();
-        let mut want = [0u8; 2];
+        let mut want = [Gear::N; 2];
         want[a] = d.gear;
         want[o] = preselect(cfg, d.gear, v, ctx.m.pedal);
         let gear_req = self.safe_gear_req(ctx, want);
@@ -749,7 +755,7 @@ impl Strategy {
         self.mode = Mode::Drive(d);
         // Stop: start gear, pedal off, engine near idle -> creep. Any gear with the engine near
         // stalling -> open and creep/wait.
-        let start = start_gear(ctx.m.lever).unwrap_or(1);
+        let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
         let low = ctx.m.w_e < cfg.creep.stop_engine_rpm * RPM;
         if (d.gear == start && low && !ctx.pedal_on()) || ctx.m.w_e < 0.85 * ctx.idle() {
             self.mode = Mode::Creep(Creep {
@@ -766,13 +772,13 @@ impl Strategy {
         }
         // Shift decision. A downshift whose engine would otherwise lug toward idle does not wait
         // for the interval since the last shift nor for the engine-request blend.
-        if d.gear != driveline::REVERSE {
+        if !d.gear.is_reverse() {
             let g = scheduled_gear(cfg, d.gear, v, ctx.m.pedal);
-            let urgent = g < d.gear && ctx.m.w_e < 1.2 * ctx.idle();
+            let urgent = d.gear.above(g) && ctx.m.w_e < 1.2 * ctx.idle();
             let settled = d.since_s > 0.3
                 && self.since_shift_s > cfg.shift.min_interval_s
                 && d.blend.is_none();
-            let braking_up = g > d.gear && ctx.m.brake;
+            let braking_up = g.above(d.gear) && ctx.m.brake;
             if (settled || urgent)
                 && g != d.gear
                 && !braking_up
@@ -795,8 +801,8 @@ impl Strategy {
         }
     }
 
-    fn start_shift(&mut self, ctx: &Ctx, d: Drive, to: u8) {
-        let up = to > d.gear;
+    fn start_shift(&mut self, ctx: &Ctx, d: Drive, to: Gear) {
+        let up = to.above(d.gear);
         let t_tr = ctx.demand().max(0.0);
         self.reset_engine();
         self.pi_c[1 - d.a].reset(0.0);
@@ -863,7 +869,7 @@ impl Strategy {
         s.total_s += ctx.dt;
         // The vehicle is slowing too fast for the shift (hard braking toward a stop): open both
         // clutches and let creep/hold take over in the start gear.
-        let start = start_gear(ctx.m.lever).unwrap_or(1);
+        let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
         if ctx.m.w_c[s.o] < 0.9 * ctx.idle() || ctx.m.w_e < 0.8 * ctx.idle() {
             self.since_shift_s = 0.0;
             self.mode = Mode::Creep(Creep {
@@ -973,7 +979,7 @@ impl Strategy {
         } else {
             s.lock_count = 0;
         }
-        let mut gear_req = [0u8; 2];
+        let mut gear_req = [Gear::N; 2];
         gear_req[a] = s.from;
         gear_req[o] = s.to;
         let cmd = Command {
@@ -1056,21 +1062,20 @@ fn smoothstep(s0: f64, s1: f64, tau: f64, duration: f64) -> (f64, f64) {
     (s0 + (s1 - s0) * h, (s1 - s0) * dh)
 }
 
-fn scheduled_from_speed(ctx: &Ctx) -> u8 {
+fn scheduled_from_speed(ctx: &Ctx) -> Gear {
     let v = ctx.v_kmh();
-    let mut g = 1;
-    for _ in 0..5 {
+    let mut g = Gear::G1;
+    loop {
         let n = scheduled_gear(ctx.cfg, g, v, ctx.m.pedal);
-        if n <= g {
-            break;
+        if !n.above(g) {
+            return g;
         }
         g = n;
     }
-    g
 }
 
 impl Launch {
-    fn new(ctx: &Ctx, a: usize, gear: u8) -> Launch {
+    fn new(ctx: &Ctx, a: usize, gear: Gear) -> Launch {
         Launch {
             a,
             gear,
@@ -1088,7 +1093,7 @@ impl Launch {
     /// target n(p); acceleration the larger of the pedal-consistent one (the driver's demand at
     /// the target speed would hold it after lock-up) and the one that locks up in
     /// `lockup_time_s` from the clutch speed `w_c0` at the start.
-    fn targets(ctx: &Ctx, a: usize, gear: u8, w_c0: f64) -> (f64, f64) {
+    fn targets(ctx: &Ctx, a: usize, gear: Gear, w_c0: f64) -> (f64, f64) {
         let cfg = ctx.cfg;
         let l = &cfg.launch;
         let p = ctx.m.pedal;
@@ -1100,8 +1105,8 @@ impl Launch {
         let w_tgt = (n * RPM).max(w_c0 + 2.0 * l.sync_slip_radps);
         let r = Reduced::new(
             &cfg.physics.driveline,
-            if a == 0 { gear } else { 0 },
-            if a == 1 { gear } else { 0 },
+            if a == 0 { gear } else { Gear::N },
+            if a == 1 { gear } else { Gear::N },
         );
         let k = r.k[a];
         let d = driver_demand(&cfg.physics.engine, p, w_tgt);
@@ -1139,15 +1144,19 @@ mod tests {
     #[test]
     fn schedule_has_hysteresis_and_one_step() {
         let c = TcuConfig::default();
-        assert_eq!(scheduled_gear(&c, 1, 10.0, 0.5), 1);
-        assert_eq!(scheduled_gear(&c, 1, 40.0, 0.5), 2);
+        assert_eq!(scheduled_gear(&c, Gear::G1, 10.0, 0.5), Gear::G1);
+        assert_eq!(scheduled_gear(&c, Gear::G1, 40.0, 0.5), Gear::G2);
         // Between the down and up speeds of 2: stays.
         let up = 0.5 * (c.shift.up_kmh_0[1] + c.shift.up_kmh_100[1]);
         let down = 0.5 * (c.shift.down_kmh_0[0] + c.shift.down_kmh_100[0]);
         let mid = 0.5 * (up + down);
-        assert_eq!(scheduled_gear(&c, 2, mid, 0.5), 2);
-        assert_eq!(scheduled_gear(&c, 2, down - 1.0, 0.5), 1);
-        assert_eq!(scheduled_gear(&c, 6, 0.0, 0.0), 5, "one step at a time");
+        assert_eq!(scheduled_gear(&c, Gear::G2, mid, 0.5), Gear::G2);
+        assert_eq!(scheduled_gear(&c, Gear::G2, down - 1.0, 0.5), Gear::G1);
+        assert_eq!(
+            scheduled_gear(&c, Gear::G6, 0.0, 0.0),
+            Gear::G5,
+            "one step at a time"
+        );
     }
 
     #[test]
