@@ -368,7 +368,12 @@ fn signal_items(ws: &mut String, si: usize, s: &DbcSignal, k: &Kind) {
     writeln!(ws, "    pub const {c}_MIN: f64 = {};", lit(s.min)).unwrap();
     writeln!(ws, "    /// `{}`{unit}: largest value in the DBC.", s.name).unwrap();
     writeln!(ws, "    pub const {c}_MAX: f64 = {};", lit(s.max)).unwrap();
-    writeln!(ws, "    /// `{}`: physical value per raw count (its quantisation step).", s.name).unwrap();
+    writeln!(
+        ws,
+        "    /// `{}`: physical value per raw count (its quantisation step).",
+        s.name
+    )
+    .unwrap();
     writeln!(ws, "    pub const {c}_FACTOR: f64 = {};", lit(s.factor)).unwrap();
     writeln!(ws, "    /// `{}`: physical value at raw 0.", s.name).unwrap();
     writeln!(ws, "    pub const {c}_OFFSET: f64 = {};", lit(s.offset)).unwrap();
@@ -405,7 +410,10 @@ fn e2e_layout(w: &mut String, messages: &[DbcMessage]) {
             continue;
         };
         assert!(
-            counter.length == 4 && counter.start_bit % 8 == 4 && crc.length == 8 && crc.start_bit % 8 == 0,
+            counter.length == 4
+                && counter.start_bit % 8 == 4
+                && crc.length == 8
+                && crc.start_bit % 8 == 0,
             "{DBC_PATH}: {}: AliveCounter must be the high nibble of a byte and Crc a whole byte",
             m.name
         );
@@ -418,9 +426,17 @@ fn e2e_layout(w: &mut String, messages: &[DbcMessage]) {
         layout = Some(here);
     }
     let (counter, crc) = layout.unwrap_or_else(|| panic!("{DBC_PATH}: no E2E-protected message"));
-    writeln!(w, "/// The E2E layout of the protected messages, from the DBC.").unwrap();
+    writeln!(
+        w,
+        "/// The E2E layout of the protected messages, from the DBC."
+    )
+    .unwrap();
     writeln!(w, "pub mod e2e_layout {{").unwrap();
-    writeln!(w, "    /// Byte holding the alive counter in its high nibble.").unwrap();
+    writeln!(
+        w,
+        "    /// Byte holding the alive counter in its high nibble."
+    )
+    .unwrap();
     writeln!(w, "    pub const COUNTER_BYTE: usize = {counter};").unwrap();
     writeln!(w, "    /// Byte holding the CRC.").unwrap();
     writeln!(w, "    pub const CRC_BYTE: usize = {crc};").unwrap();
