@@ -678,3 +678,26 @@ fn cli_rejects_bad_parameter_file() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 15: the physics never renders — no module of `src/model` uses the SVG renderer (the
+/// paper's figures are drawn by `ddct::plot::paper`, above the model).
+#[test]
+fn the_model_does_not_render() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/model");
+    let mut checked = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        let text = std::fs::read_to_string(&p).unwrap();
+        for needle in ["crate::plot", "plot::", "<svg"] {
+            assert!(
+                !text.contains(needle),
+                "{} renders (`{needle}`)",
+                p.display()
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked >= 10, "{checked} files");
+    let figs = ddct::plot::paper::figures(&ddct::model::Params::default());
+    assert!(figs.len() >= 4 && figs.iter().all(|(_, svg)| svg.starts_with("<svg")));
+}

@@ -110,7 +110,7 @@ pub fn run(cmd: ModelCmd) -> anyhow::Result<ExitCode> {
         ModelCmd::Plot { out, params } => {
             let p = load(&params)?;
             std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-            let files = ddct::model::figures::write_all(&p, &out)
+            let files = ddct::plot::paper::write_all(&p, &out)
                 .with_context(|| format!("writing figures to {}", out.display()))?;
             for f in files {
                 println!("{}", f.display());

@@ -9,7 +9,6 @@ pub mod clutch;
 pub mod driveline;
 pub mod effects;
 pub mod engine;
-pub mod figures;
 pub mod gear;
 pub mod integrator;
 pub mod params;

@@ -1,13 +1,13 @@
 //! The paper's characteristic figures, computed from the parameters and rendered as SVG with
-//! [`crate::plot`]: Fig. 4 (equivalent friction radius (6) over slip and temperature), Fig. 5a–c
+//! [`crate::plot`] (above the model, which never renders): Fig. 4 (equivalent friction radius (6) over slip and temperature), Fig. 5a–c
 //! (flat-spring compression (7) over x_to at several temperatures, spring load (10) over u,
 //! load over x_to) and Fig. 7a–b (torque (13) over x_to for several slips at several temperatures,
 //! and for several temperatures at several slips). Pure: [`figures`] returns (file name, SVG);
 //! [`write_all`] is the only function that touches the file system.
 
-use super::clutch;
-use super::params::Params;
-use crate::plot::{ramp, Figure, LegendPos, Panel, Series};
+use super::{ramp, Figure, LegendPos, Panel, Series};
+use crate::model::clutch;
+use crate::model::params::Params;
 use std::path::{Path, PathBuf};
 
 const TEMPS: [f64; 6] = [25.0, 70.0, 110.0, 150.0, 200.0, 240.0];

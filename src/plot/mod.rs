@@ -10,6 +10,8 @@
 //! assert!(svg.starts_with("<svg"));
 //! ```
 
+pub mod paper;
+
 use std::fmt::Write as _;
 
 /// Categorical palette (colour-blind friendly, Okabe–Ito).
