@@ -448,6 +448,7 @@ def run_bench(
     name: str = "launch",
     lockstep: bool = False,
     spoof: tuple[float, float] | None = None,
+    tcu_args: list | None = None,
 ) -> Run:
     import can
 
@@ -492,7 +493,8 @@ def run_bench(
             if faults is not None:
                 plant_args += ["--faults", str(faults)]
             bench = Bench(iface, ddct=ddct, tcu_config=REPO / "config" / "tcu.toml",
-                          tcu_args=["--clock", "bus"] if lockstep else [], plant_args=plant_args,
+                          tcu_args=(["--clock", "bus"] if lockstep else []) + list(tcu_args or []),
+                          plant_args=plant_args,
                           workdir=out, cwd=REPO, keep=True, prefix=f"{name}_")
             bench.start()
         plant_start = time.time()

@@ -100,6 +100,14 @@ pub fn rt_priority(s: &str) -> Result<i32, String> {
     }
 }
 
+/// `--nice`: the CFS nice values are -20..=19 (lower is more CPU); anything else is refused.
+pub fn nice_value(s: &str) -> Result<i32, String> {
+    match s.parse::<i32>() {
+        Ok(n) if (-20..=19).contains(&n) => Ok(n),
+        _ => Err(format!("{s}: a nice value in -20..=19")),
+    }
+}
+
 /// The TCU calibration of `--config`, or the built-in `config/tcu.toml` (with the built-in
 /// `config/params.toml`) without one: the commands work from any directory.
 pub fn tcu_config(path: Option<&std::path::Path>) -> anyhow::Result<ddct::tcu::TcuConfig> {
@@ -164,6 +172,10 @@ mod tests {
         assert_eq!(rt_priority("50"), Ok(50));
         for bad in ["0", "100", "-5", "x"] {
             assert!(rt_priority(bad).is_err(), "{bad}");
+        }
+        assert_eq!(nice_value("-10"), Ok(-10));
+        for bad in ["-21", "20", "x", "1.5"] {
+            assert!(nice_value(bad).is_err(), "{bad}");
         }
     }
 }

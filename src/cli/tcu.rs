@@ -1,13 +1,14 @@
 //! `ddct tcu`: the TCU daemon (issue 6).
 
-use super::args::{open_can, rt_priority, Iface};
+use super::args::{nice_value, open_can, rt_priority, Iface};
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use ddct::can::{EndpointConfig, InProcessBus};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
 use ddct::daemon::tcu::{
-    run as run_tcu, set_realtime_priority, TcuClock, TcuDaemonConfig, TcuReport, INPUT_IDS,
+    run as run_tcu, set_nice, set_realtime_priority, TcuClock, TcuDaemonConfig, TcuReport,
+    INPUT_IDS,
 };
 use ddct::plant::{PlantConfig, Scenario};
 use std::path::PathBuf;
@@ -39,6 +40,11 @@ pub struct TcuArgs {
     /// Run under the real-time FIFO scheduler at this priority (1..=99; needs root).
     #[arg(long, value_parser = rt_priority)]
     rt_priority: Option<i32>,
+    /// Run at this nice value (-20..=19; below 0 needs root): more of the CPU under the normal
+    /// scheduler, which keeps serving the kernel and the other bench processes (unlike
+    /// `--rt-priority`, which can starve them on a one-CPU machine).
+    #[arg(long, value_parser = nice_value, allow_hyphen_values = true, conflicts_with = "rt_priority")]
+    nice: Option<i32>,
     /// The TCU's time: `monotonic` (a real-time bench; the daemon's own stalls are not counted
     /// against the senders) or `bus` (a lockstep bench, the plant run with `--lockstep`: the
     /// plant's simulated time, one cycle per DCT_Sensors frame, so every timeout is exact in
@@ -82,6 +88,9 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(p) = a.rt_priority {
         set_realtime_priority(p).with_context(|| format!("--rt-priority {p}"))?;
+    }
+    if let Some(n) = a.nice {
+        set_nice(n).with_context(|| format!("--nice {n}"))?;
     }
     let rt = runtime()?;
     let report: TcuReport = rt.block_on(async {

@@ -494,6 +494,23 @@ pub fn set_realtime_priority(priority: i32) -> std::io::Result<()> {
     }
 }
 
+/// Sets the calling thread's nice value (the threads it starts afterwards inherit it).
+pub fn set_nice(nice: i32) -> std::io::Result<()> {
+    if !(-20..=19).contains(&nice) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("nice value {nice} is outside -20..=19"),
+        ));
+    }
+    // SAFETY: plain syscall on the calling thread (who 0) with a value in range.
+    let rc = unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, nice) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
 /// Runs the TCU on `bus` until `shutdown` resolves or `duration` has passed.
 pub async fn run<B: Bus, S: Future<Output = ()>>(
     bus: B,

@@ -27,6 +27,7 @@ report.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import threading
 import time
@@ -47,6 +48,8 @@ JUDGED_RATE_HZ = 2000.0
 DETECT_MS = 8 * CYCLE_MS
 MAX_GAP_MS = 3 * CYCLE_MS
 EXIT_MS = 100.0
+# Extra arguments of the TCU daemon (e.g. `DDCT_FLOOD_TCU_ARGS="--nice -10"`).
+TCU_ARGS = os.environ.get("DDCT_FLOOD_TCU_ARGS", "").split()
 
 
 class Flood(threading.Thread):
@@ -218,7 +221,7 @@ def test_a_flood_keeps_the_cycle_and_ends_in_the_safe_state(ddct, out_dir, kind,
         flood = Flood("vcan0", ident, "r", RATE_HZ, start_at, FLOOD_S)
     flood.start()
     run = hil.run_bench(program="launch", pedal=40.0, seconds=RUN_S, out=out_dir, ddct=ddct,
-                        name=f"flood_{kind}_{message or 'all'}")
+                        name=f"flood_{kind}_{message or 'all'}", tcu_args=TCU_ARGS)
     flood.join(timeout=30)
     assert flood.error is None, f"the flood sender failed: {flood.error!r}"
     r, p = run.tcu_report, run.plant_report
