@@ -98,6 +98,13 @@ pub struct SafetyCfg {
     pub over_temp_limit_c: f64,
     pub over_temp_engine_torque_nm: f64,
     pub over_temp_hysteresis_c: f64,
+    /// Anti-stall: a slipping clutch's torque is unlimited while the engine turns at least this
+    /// fraction of idle ...
+    pub antistall_free_idle_fraction: f64,
+    /// ... and falls to zero at this fraction of idle ...
+    pub antistall_zero_idle_fraction: f64,
+    /// ... from this share of the engine's full-load torque.
+    pub antistall_max_share: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -120,6 +127,12 @@ pub struct ControlCfg {
     pub blend_rate_nm_per_s: f64,
     pub slip_alarm_radps: f64,
     pub command_delay_s: f64,
+    /// Integral limit of the clutch-speed PI (N·m).
+    pub clutch_integral_limit_nm: f64,
+    /// Integral limit of the engine-speed PI (N·m).
+    pub engine_integral_limit_nm: f64,
+    /// Time constant of the output-shaft acceleration filter (s).
+    pub accel_filter_s: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -131,6 +144,10 @@ pub struct CreepCfg {
     pub max_torque_nm: f64,
     pub standstill_kmh: f64,
     pub stop_engine_rpm: f64,
+    /// Rate at which a held creep torque is released (N·m/s).
+    pub release_rate_nm_per_s: f64,
+    /// The clutch-speed reference stays within this of the measured clutch speed (rad/s).
+    pub reference_window_radps: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -143,6 +160,14 @@ pub struct LaunchCfg {
     pub jerk_time_s: f64,
     pub sync_slip_radps: f64,
     pub min_sync_time_s: f64,
+    /// The clutch-speed reference stays within this of the measured clutch speed (rad/s).
+    pub reference_window_radps: f64,
+    /// Pedal released this long in the start gear: back to creep (s).
+    pub pedal_off_s: f64,
+    /// Time constant of the engine-speed profile toward its target (s).
+    pub engine_profile_s: f64,
+    /// Share of the engine's full-load torque the clutch may draw on in a launch.
+    pub engine_torque_share: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -399,6 +424,24 @@ impl TcuConfig {
             0.0,
             100.0,
         )?;
+        range(
+            "safety.antistall_free_idle_fraction",
+            s.antistall_free_idle_fraction,
+            0.1,
+            2.0,
+        )?;
+        range(
+            "safety.antistall_zero_idle_fraction",
+            s.antistall_zero_idle_fraction,
+            0.0,
+            s.antistall_free_idle_fraction - 0.01,
+        )?;
+        range(
+            "safety.antistall_max_share",
+            s.antistall_max_share,
+            0.0,
+            1.0,
+        )?;
         let k = &self.control;
         range("control.clutch_kp_per_s", k.clutch_kp_per_s, 0.0, 200.0)?;
         range("control.clutch_ki_per_s2", k.clutch_ki_per_s2, 0.0, 5000.0)?;
@@ -437,6 +480,19 @@ impl TcuConfig {
         )?;
         range("control.slip_alarm_radps", k.slip_alarm_radps, 0.1, 100.0)?;
         range("control.command_delay_s", k.command_delay_s, 0.0, 0.1)?;
+        range(
+            "control.clutch_integral_limit_nm",
+            k.clutch_integral_limit_nm,
+            0.0,
+            5000.0,
+        )?;
+        range(
+            "control.engine_integral_limit_nm",
+            k.engine_integral_limit_nm,
+            0.0,
+            5000.0,
+        )?;
+        range("control.accel_filter_s", k.accel_filter_s, 0.0, 1.0)?;
         let c = &self.creep;
         range("creep.pedal_on_pct", c.pedal_on_pct, 0.0, 50.0)?;
         range("creep.slip_radps", c.slip_radps, 0.0, 100.0)?;
@@ -444,6 +500,18 @@ impl TcuConfig {
         range("creep.max_torque_nm", c.max_torque_nm, 0.0, 500.0)?;
         range("creep.standstill_kmh", c.standstill_kmh, 0.0, 20.0)?;
         range("creep.stop_engine_rpm", c.stop_engine_rpm, 0.0, 5000.0)?;
+        range(
+            "creep.release_rate_nm_per_s",
+            c.release_rate_nm_per_s,
+            1.0,
+            1e4,
+        )?;
+        range(
+            "creep.reference_window_radps",
+            c.reference_window_radps,
+            0.1,
+            200.0,
+        )?;
         let l = &self.launch;
         range("launch.engine_rpm_0", l.engine_rpm_0, 500.0, 8000.0)?;
         range(
@@ -462,6 +530,20 @@ impl TcuConfig {
         range("launch.jerk_time_s", l.jerk_time_s, 0.0, 5.0)?;
         range("launch.sync_slip_radps", l.sync_slip_radps, 0.5, 200.0)?;
         range("launch.min_sync_time_s", l.min_sync_time_s, 0.0, 5.0)?;
+        range(
+            "launch.reference_window_radps",
+            l.reference_window_radps,
+            0.1,
+            200.0,
+        )?;
+        range("launch.pedal_off_s", l.pedal_off_s, 0.0, 10.0)?;
+        range("launch.engine_profile_s", l.engine_profile_s, 0.01, 2.0)?;
+        range(
+            "launch.engine_torque_share",
+            l.engine_torque_share,
+            0.1,
+            1.0,
+        )?;
         let h = &self.shift;
         range("shift.torque_phase_s", h.torque_phase_s, 0.01, 5.0)?;
         range(

@@ -245,11 +245,11 @@ impl Tcu {
         self.last_now = Some(now);
         let health = self.inputs.health(now);
         let m = *self.inputs.measurements();
-        // Output-shaft acceleration, filtered (time constant 40 ms).
+        // Output-shaft acceleration, filtered (time constant `control.accel_filter_s`).
         if self.inputs.all_seen() && dt > 0.0 {
             if let Some(prev) = self.w_out_prev {
                 let raw = (m.w_out - prev) / dt;
-                let a = dt / (0.04 + dt);
+                let a = dt / (self.cfg.control.accel_filter_s + dt);
                 if raw.is_finite() {
                     self.w_out_dot += a * (raw - self.w_out_dot);
                 }

@@ -135,15 +135,22 @@ impl Ctx<'_> {
         }
         self.model.clamp_position_for(cap, self.theta[i])
     }
-    /// Anti-stall limit on a slipping clutch's torque: unlimited above 95 % of idle; below it the
-    /// clutch may take at most a share of the engine's full-load torque that falls from 90 % at
-    /// 95 % of idle to 0 at 70 % of idle, so the engine always keeps torque to recover.
+    /// Anti-stall limit on a slipping clutch's torque: unlimited above `safety.
+    /// antistall_free_idle_fraction` of idle (95 %); below it the clutch may take at most a share
+    /// of the engine's full-load torque that falls from `antistall_max_share` (90 %) there to 0 at
+    /// `antistall_zero_idle_fraction` of idle (70 %), so the engine always keeps torque to recover.
     fn stall_limit(&self) -> f64 {
         let idle = self.idle();
-        if self.m.w_e >= 0.95 * idle {
+        let s = &self.cfg.safety;
+        let (free, zero) = (
+            s.antistall_free_idle_fraction,
+            s.antistall_zero_idle_fraction,
+        );
+        if self.m.w_e >= free * idle {
             return f64::INFINITY;
         }
-        let share = 0.9 * ((self.m.w_e - 0.7 * idle) / (0.25 * idle)).clamp(0.0, 1.0);
+        let share = s.antistall_max_share
+            * ((self.m.w_e - zero * idle) / ((free - zero) * idle)).clamp(0.0, 1.0);
         share * crate::model::engine::full_load(&self.cfg.physics.engine, self.m.w_e)
     }
 }
@@ -314,8 +321,16 @@ impl Strategy {
         let k = &cfg.control;
         Self {
             mode: Mode::Neutral,
-            pi_c: [Pi::new(k.clutch_kp_per_s, k.clutch_ki_per_s2, 200.0); 2],
-            pi_e: Pi::new(k.engine_kp_per_s, k.engine_ki_per_s2, 400.0),
+            pi_c: [Pi::new(
+                k.clutch_kp_per_s,
+                k.clutch_ki_per_s2,
+                k.clutch_integral_limit_nm,
+            ); 2],
+            pi_e: Pi::new(
+                k.engine_kp_per_s,
+                k.engine_ki_per_s2,
+                k.engine_integral_limit_nm,
+            ),
             last: Command::default(),
             since_shift_s: 1e9,
             ff_prev: None,
@@ -487,7 +502,7 @@ impl Strategy {
         let phase;
         if hold {
             c.w_c_ref = ctx.m.w_c[a];
-            c.t_ref = approach(c.t_ref, 0.0, 200.0, ctx.dt);
+            c.t_ref = approach(c.t_ref, 0.0, cfg.creep.release_rate_nm_per_s, ctx.dt);
             self.pi_c[a].reset(0.0);
             phase = "hold";
             if c.t_ref > 0.5 && engaged {
@@ -499,7 +514,8 @@ impl Strategy {
             let alpha = cfg.creep.accel_mps2 / cfg.physics.driveline.wheel_radius_m * k.abs();
             let prev = c.w_c_ref;
             c.w_c_ref = approach(c.w_c_ref, target, alpha, ctx.dt);
-            c.w_c_ref = c.w_c_ref.clamp(ctx.m.w_c[a] - 10.0, ctx.m.w_c[a] + 10.0);
+            let win = cfg.creep.reference_window_radps;
+            c.w_c_ref = c.w_c_ref.clamp(ctx.m.w_c[a] - win, ctx.m.w_c[a] + win);
             let w_dot_ref = if ctx.dt > 0.0 {
                 (c.w_c_ref - prev) / ctx.dt
             } else {
@@ -569,7 +585,7 @@ impl Strategy {
         } else {
             l.pedal_off_s + ctx.dt
         };
-        if l.pedal_off_s > 0.3
+        if l.pedal_off_s > cfg.launch.pedal_off_s
             && l.sync.is_none()
             && l.gear == start_gear(ctx.m.lever).unwrap_or(Gear::G1)
         {
@@ -587,16 +603,18 @@ impl Strategy {
         // The clutch may only take what the engine has left after following its own profile:
         // α ≤ (0.95 T_full(ω_e) − J_eq ω̇_prof − T̂_L/k)·k²/J_eq2 (the engine flares first).
         let rate = cfg.launch.engine_rate_rpm_per_s * RPM;
-        let w_dot_prof = ((w_tgt - l.w_e_prof) / 0.12).clamp(-rate, rate);
+        let w_dot_prof = ((w_tgt - l.w_e_prof) / cfg.launch.engine_profile_s).clamp(-rate, rate);
         let (_, t_full) = ctx.engine_limits();
+        let share = cfg.launch.engine_torque_share;
         let alpha_avail =
-            (0.95 * t_full - r.j_eq * w_dot_prof.max(0.0) - ctx.load() / k) * k * k / r.j_eq2;
+            (share * t_full - r.j_eq * w_dot_prof.max(0.0) - ctx.load() / k) * k * k / r.j_eq2;
         let alpha_tgt = alpha_tgt.min(alpha_avail.max(0.1 * alpha_tgt));
         // Jerk-limited clutch acceleration reference.
         let jerk = alpha_tgt.max(1.0) / cfg.launch.jerk_time_s.max(1e-3);
         l.alpha = approach(l.alpha, alpha_tgt, jerk, ctx.dt);
         l.w_c_ref += l.alpha * ctx.dt;
-        l.w_c_ref = l.w_c_ref.clamp(w_c - 15.0, w_c + 15.0);
+        let win = cfg.launch.reference_window_radps;
+        l.w_c_ref = l.w_c_ref.clamp(w_c - win, w_c + win);
         // Engine reference: profile toward the target, then the synchronisation phase.
         let prof_prev = l.w_e_prof;
         // Rate-limited first-order approach (time constant 0.12 s): the engine torque request
@@ -1122,14 +1140,15 @@ impl Launch {
             0.0
         };
         let alpha_min = (w_tgt - w_c0).max(0.0) / l.lockup_time_s;
-        // At lock-up the engine has to accelerate with the clutch: leave it 5 % of its full-load
-        // torque at the target speed for that, or the lock-up comes with a jolt.
+        // At lock-up the engine has to accelerate with the clutch: leave it the rest of its
+        // full-load torque at the target speed (`launch.engine_torque_share`: 5 %) for that, or
+        // the lock-up comes with a jolt.
         let mut t_full = crate::model::engine::full_load(&cfg.physics.engine, w_tgt);
         if ctx.limit_torque {
             t_full = t_full.min(cfg.safety.over_temp_engine_torque_nm);
         }
         let alpha_cap = if k != 0.0 {
-            (0.95 * t_full - tl / k) / (r.j_eq + r.j_eq2 / (k * k))
+            (l.engine_torque_share * t_full - tl / k) / (r.j_eq + r.j_eq2 / (k * k))
         } else {
             0.0
         };
