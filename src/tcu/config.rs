@@ -424,24 +424,6 @@ impl TcuConfig {
             0.0,
             100.0,
         )?;
-        range(
-            "safety.antistall_free_idle_fraction",
-            s.antistall_free_idle_fraction,
-            0.1,
-            2.0,
-        )?;
-        range(
-            "safety.antistall_zero_idle_fraction",
-            s.antistall_zero_idle_fraction,
-            0.0,
-            s.antistall_free_idle_fraction - 0.01,
-        )?;
-        range(
-            "safety.antistall_max_share",
-            s.antistall_max_share,
-            0.0,
-            1.0,
-        )?;
         let k = &self.control;
         range("control.clutch_kp_per_s", k.clutch_kp_per_s, 0.0, 200.0)?;
         range("control.clutch_ki_per_s2", k.clutch_ki_per_s2, 0.0, 5000.0)?;
@@ -480,19 +462,6 @@ impl TcuConfig {
         )?;
         range("control.slip_alarm_radps", k.slip_alarm_radps, 0.1, 100.0)?;
         range("control.command_delay_s", k.command_delay_s, 0.0, 0.1)?;
-        range(
-            "control.clutch_integral_limit_nm",
-            k.clutch_integral_limit_nm,
-            0.0,
-            5000.0,
-        )?;
-        range(
-            "control.engine_integral_limit_nm",
-            k.engine_integral_limit_nm,
-            0.0,
-            5000.0,
-        )?;
-        range("control.accel_filter_s", k.accel_filter_s, 0.0, 1.0)?;
         let c = &self.creep;
         range("creep.pedal_on_pct", c.pedal_on_pct, 0.0, 50.0)?;
         range("creep.slip_radps", c.slip_radps, 0.0, 100.0)?;
@@ -500,18 +469,6 @@ impl TcuConfig {
         range("creep.max_torque_nm", c.max_torque_nm, 0.0, 500.0)?;
         range("creep.standstill_kmh", c.standstill_kmh, 0.0, 20.0)?;
         range("creep.stop_engine_rpm", c.stop_engine_rpm, 0.0, 5000.0)?;
-        range(
-            "creep.release_rate_nm_per_s",
-            c.release_rate_nm_per_s,
-            1.0,
-            1e4,
-        )?;
-        range(
-            "creep.reference_window_radps",
-            c.reference_window_radps,
-            0.1,
-            200.0,
-        )?;
         let l = &self.launch;
         range("launch.engine_rpm_0", l.engine_rpm_0, 500.0, 8000.0)?;
         range(
@@ -530,20 +487,68 @@ impl TcuConfig {
         range("launch.jerk_time_s", l.jerk_time_s, 0.0, 5.0)?;
         range("launch.sync_slip_radps", l.sync_slip_radps, 0.5, 200.0)?;
         range("launch.min_sync_time_s", l.min_sync_time_s, 0.0, 5.0)?;
-        range(
-            "launch.reference_window_radps",
-            l.reference_window_radps,
-            0.1,
-            200.0,
-        )?;
-        range("launch.pedal_off_s", l.pedal_off_s, 0.0, 10.0)?;
-        range("launch.engine_profile_s", l.engine_profile_s, 0.01, 2.0)?;
-        range(
-            "launch.engine_torque_share",
-            l.engine_torque_share,
-            0.1,
-            1.0,
-        )?;
+        // The strategy's tunables (issue 15): key, value, smallest, largest.
+        for (key, v, lo, hi) in [
+            (
+                "safety.antistall_free_idle_fraction",
+                s.antistall_free_idle_fraction,
+                0.1,
+                2.0,
+            ),
+            (
+                "safety.antistall_zero_idle_fraction",
+                s.antistall_zero_idle_fraction,
+                0.0,
+                s.antistall_free_idle_fraction - 0.01,
+            ),
+            (
+                "safety.antistall_max_share",
+                s.antistall_max_share,
+                0.0,
+                1.0,
+            ),
+            (
+                "control.clutch_integral_limit_nm",
+                k.clutch_integral_limit_nm,
+                0.0,
+                5000.0,
+            ),
+            (
+                "control.engine_integral_limit_nm",
+                k.engine_integral_limit_nm,
+                0.0,
+                5000.0,
+            ),
+            ("control.accel_filter_s", k.accel_filter_s, 0.0, 1.0),
+            (
+                "creep.release_rate_nm_per_s",
+                c.release_rate_nm_per_s,
+                1.0,
+                1e4,
+            ),
+            (
+                "creep.reference_window_radps",
+                c.reference_window_radps,
+                0.1,
+                200.0,
+            ),
+            (
+                "launch.reference_window_radps",
+                l.reference_window_radps,
+                0.1,
+                200.0,
+            ),
+            ("launch.pedal_off_s", l.pedal_off_s, 0.0, 10.0),
+            ("launch.engine_profile_s", l.engine_profile_s, 0.01, 2.0),
+            (
+                "launch.engine_torque_share",
+                l.engine_torque_share,
+                0.1,
+                1.0,
+            ),
+        ] {
+            range(key, v, lo, hi)?;
+        }
         let h = &self.shift;
         range("shift.torque_phase_s", h.torque_phase_s, 0.01, 5.0)?;
         range(
