@@ -509,7 +509,7 @@ impl fmt::Display for EffectId {
 }
 
 /// Errors of building or loading an effect set; `key` is `effects.<id>[.<param>]`.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum EffectError {
     #[error("unknown effect `{key}` (known: {known})")]
     UnknownEffect { key: String, known: String },
@@ -534,8 +534,12 @@ pub enum EffectError {
     NotATable { key: String },
     #[error("effects file is not valid TOML: {message}")]
     Syntax { message: String },
-    #[error("cannot read effects file {path}: {message}")]
-    Io { path: String, message: String },
+    #[error("cannot read effects file {path}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 /// A set of active effects with their parameters. `Copy`, allocation-free; the default is the
@@ -673,9 +677,9 @@ impl EffectSet {
     /// Reads an effects file.
     pub fn load(path: impl AsRef<std::path::Path>) -> Result<Self, EffectError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| EffectError::Io {
+        let text = std::fs::read_to_string(path).map_err(|source| EffectError::Io {
             path: path.display().to_string(),
-            message: e.to_string(),
+            source,
         })?;
         Self::from_toml_str(&text)
     }

@@ -37,10 +37,14 @@ use std::path::PathBuf;
 
 /// Errors of the plant's configuration files (plant config, scenario, rig profile, faults,
 /// effects). `key` names the TOML key (`table.key`, with an index for arrays).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum PlantError {
-    #[error("cannot read {path}: {message}")]
-    Io { path: PathBuf, message: String },
+    #[error("cannot read {path}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{path}: not valid TOML: {message}")]
     Syntax { path: PathBuf, message: String },
     #[error("{path}{}: `{key}`: {reason}", crate::toml_key::at_line(*.line))]
@@ -103,7 +107,7 @@ impl PlantError {
 pub(crate) fn read_text(path: &std::path::Path) -> Result<String, PlantError> {
     std::fs::read_to_string(path).map_err(|e| PlantError::Io {
         path: path.to_path_buf(),
-        message: e.to_string(),
+        source: e,
     })
 }
 

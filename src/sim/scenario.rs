@@ -36,10 +36,14 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Errors of scenario files; `key` names the offending key.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    #[error("cannot read scenario {path}: {message}")]
-    Io { path: PathBuf, message: String },
+    #[error("cannot read scenario {path}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("scenario {path}: not valid TOML: {message}")]
     Syntax { path: PathBuf, message: String },
     #[error("scenario {path}{}: `{key}`: {reason}", crate::toml_key::at_line(*.line))]
@@ -169,7 +173,7 @@ fn is_driver_file(doc: &toml::Table) -> bool {
 pub fn is_sim_scenario(path: &Path) -> Result<bool, ScenarioError> {
     let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
         path: path.to_path_buf(),
-        message: e.to_string(),
+        source: e,
     })?;
     Ok(text
         .parse::<toml::Table>()
@@ -180,7 +184,7 @@ impl SimScenario {
     pub fn load(path: &Path) -> Result<Self, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|e| ScenarioError::Io {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            source: e,
         })?;
         Self::from_toml_str(path, &text)
     }
@@ -230,7 +234,7 @@ impl SimScenario {
                 let p = dir.join(f);
                 let t = std::fs::read_to_string(&p).map_err(|e| ScenarioError::Io {
                     path: p.clone(),
-                    message: e.to_string(),
+                    source: e,
                 })?;
                 (p, t)
             }

@@ -16,10 +16,14 @@ use std::path::{Path, PathBuf};
 pub const DEFAULT_TOML: &str = include_str!("../../config/tcu.toml");
 
 /// Errors of loading a calibration.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
 pub enum TcuConfigError {
-    #[error("cannot read TCU calibration {path}: {message}")]
-    Io { path: PathBuf, message: String },
+    #[error("cannot read TCU calibration {path}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("TCU calibration {path}: {message}")]
     Syntax { path: PathBuf, message: String },
     #[error("TCU calibration: `{key}` = {value} is out of its allowed range {min} ..= {max}")]
@@ -31,8 +35,12 @@ pub enum TcuConfigError {
     },
     #[error("TCU calibration: inconsistent `{key}`: {reason}")]
     Inconsistent { key: String, reason: String },
-    #[error("TCU calibration: effects file {path}: {message}")]
-    Effects { path: PathBuf, message: String },
+    #[error("TCU calibration: effects file {path}")]
+    Effects {
+        path: PathBuf,
+        #[source]
+        source: crate::model::effects::EffectError,
+    },
     #[error("TCU calibration {location}")]
     InFile {
         /// The file, and the line of the key when it is found.
@@ -287,9 +295,9 @@ impl TcuConfig {
     /// Loads a calibration file and the parameter file it names.
     pub fn load(path: impl AsRef<Path>) -> Result<TcuConfig, TcuConfigError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| TcuConfigError::Io {
+        let text = std::fs::read_to_string(path).map_err(|source| TcuConfigError::Io {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            source,
         })?;
         let mut c = Self::from_toml_str(&text, path)?;
         let pp = path
@@ -302,9 +310,9 @@ impl TcuConfig {
         })?;
         if let Some(e) = &c.effects {
             let ep = path.parent().unwrap_or_else(|| Path::new(".")).join(e);
-            c.effect_set = EffectSet::load(&ep).map_err(|e| TcuConfigError::Effects {
+            c.effect_set = EffectSet::load(&ep).map_err(|source| TcuConfigError::Effects {
                 path: ep.clone(),
-                message: e.to_string(),
+                source,
             })?;
         }
         Ok(c)
@@ -612,6 +620,25 @@ mod tests {
         let c = TcuConfig::from_toml_str(DEFAULT_TOML, Path::new("tcu.toml")).unwrap();
         assert!(c.compensation.temperature && c.compensation.slip);
         assert_eq!(c.inputs.timeout_cycles, 3);
+    }
+
+    #[test]
+    fn a_missing_file_keeps_its_io_error_as_the_source() {
+        use std::error::Error as _;
+        let e = TcuConfig::load("/nonexistent/tcu.toml").unwrap_err();
+        let io = e.source().and_then(|s| s.downcast_ref::<std::io::Error>());
+        assert_eq!(
+            io.map(|e| e.kind()),
+            Some(std::io::ErrorKind::NotFound),
+            "{e:?}"
+        );
+        let e = crate::plant::PlantConfig::load(std::path::Path::new("/nonexistent/plant.toml"))
+            .unwrap_err();
+        assert!(
+            e.source().is_some_and(|s| s.is::<std::io::Error>()),
+            "{e:?}"
+        );
+        assert!(crate::error_chain::chain(&e).starts_with("cannot read /nonexistent/plant.toml: "));
     }
 
     #[test]
