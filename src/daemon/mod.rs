@@ -57,7 +57,14 @@ impl Periodic {
 
     /// The next deadline as an instant.
     pub fn next_deadline(&self) -> Instant {
-        self.start + self.period * self.next as u32
+        self.start + self.offset(self.next)
+    }
+
+    /// Time from the start to deadline `cycle` (no wrap: saturates after 584 years, not after
+    /// 2³² cycles).
+    fn offset(&self, cycle: u64) -> Duration {
+        let ns = self.period.as_nanos().saturating_mul(u128::from(cycle));
+        Duration::from_nanos(u64::try_from(ns).unwrap_or(u64::MAX))
     }
 
     /// Waits for the next deadline.
@@ -70,7 +77,7 @@ impl Periodic {
     /// Marks the next deadline as reached at `now` (for loops that wait with `select!`).
     pub fn fire(&mut self, now: Instant) -> Tick {
         let cycle = self.next;
-        let deadline_rel = self.period * cycle as u32;
+        let deadline_rel = self.offset(cycle);
         let late_by = now.saturating_duration_since(self.start + deadline_rel);
         let skipped = (late_by.as_nanos() / self.period.as_nanos()) as u64;
         self.next = cycle + 1 + skipped;
@@ -245,6 +252,16 @@ impl Drop for LogTap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn deadlines_past_two_to_the_32_cycles_do_not_wrap() {
+        let start = Instant::now();
+        let mut p = Periodic::new(start, Duration::from_millis(10));
+        p.next = 1 << 32;
+        // 2³² cycles of 10 ms: 42 949 672.96 s (a `u32` cycle would wrap to 0).
+        assert_eq!(p.next_deadline() - start, Duration::from_millis(10 << 32));
+        assert_eq!(p.offset(u64::MAX), Duration::from_nanos(u64::MAX));
+    }
 
     #[tokio::test(start_paused = true)]
     async fn deadlines_do_not_drift_and_overruns_are_counted() {
