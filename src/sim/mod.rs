@@ -303,7 +303,8 @@ pub fn run_with(
     // On the 1 ms grid, visiting only the instants where something happens: the plant's cycle,
     // a frame falling due, the TCU's poll timeout (a frame due between two grid points is
     // delivered at the next one, as a 1 ms loop would).
-    let ceil_ms = |d: Duration| ms * d.as_nanos().div_ceil(ms.as_nanos()) as u32;
+    let ceil_ms =
+        |d: Duration| ms * u32::try_from(d.as_nanos().div_ceil(ms.as_nanos())).unwrap_or(u32::MAX);
     while t <= duration {
         if t >= plant.poll_timeout() {
             let out = plant.advance(t, &to_plant);
