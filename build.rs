@@ -418,6 +418,13 @@ fn e2e_layout(w: &mut String, messages: &[DbcMessage]) {
             m.name
         );
         let here = (counter.start_bit / 8, crc.start_bit / 8);
+        // The CRC covers every byte before it (`can::e2e::e2e_crc`): it must be the last byte,
+        // after the counter's, or bytes after it would go unprotected.
+        assert!(
+            here.1 + 1 == u32::from(m.dlc) && here.0 < here.1,
+            "{DBC_PATH}: {}: Crc must be the last byte and AliveCounter before it, got bytes {here:?}",
+            m.name
+        );
         assert!(
             layout.is_none_or(|l| l == here),
             "{DBC_PATH}: {}: E2E bytes {here:?} differ from the other protected messages' {layout:?}",
