@@ -1,7 +1,8 @@
 //! The boundary between the model's [`Gear`] and the gear codes of the DBC's value tables
 //! (`GearOddReq`/`GearEvenReq` of TCU_GearCmd, `GearOddAct`/`GearEvenAct` of DCT_Actuators,
-//! `GearActive` of TCU_Status). Every table's labels are gear names (`N`, `G1`…`G6`, `R`), so
-//! a value converts by its label: a shaft's table into a gear always, a gear into a shaft's table
+//! `GearActive` of TCU_Status). Every table's labels are gear names (`N`, `G1`…`G6`, `R`), and so
+//! are the generated variants, so a value converts variant by variant (a `match`, no string
+//! comparison on the frame path): a shaft's table into a gear always, a gear into a shaft's table
 //! only when the gear is on that shaft (or neutral), and a bare code (a CSV column, a config
 //! value) only when it is in the `GearActive` table — never Neutral by accident.
 
@@ -18,76 +19,68 @@ pub enum GearError {
     UnknownCode { code: f64 },
 }
 
-/// The gear named by a value-table label.
-fn by_label(label: &str) -> Gear {
-    match label {
-        "G1" => Gear::G1,
-        "G2" => Gear::G2,
-        "G3" => Gear::G3,
-        "G4" => Gear::G4,
-        "G5" => Gear::G5,
-        "G6" => Gear::G6,
-        "R" => Gear::R,
-        _ => Gear::N,
-    }
-}
-
-/// The label of a gear in the value tables.
-fn label(g: Gear) -> &'static str {
-    match g {
-        Gear::N => "N",
-        Gear::G1 => "G1",
-        Gear::G2 => "G2",
-        Gear::G3 => "G3",
-        Gear::G4 => "G4",
-        Gear::G5 => "G5",
-        Gear::G6 => "G6",
-        Gear::R => "R",
-    }
-}
-
+/// Conversions by variant, checked by the compiler: the generated tables' variants are named
+/// by their labels, the same names as [`Gear`]'s (`N`, `G1`…`G6`, `R`), so a table that lost or
+/// renamed a gear fails to build instead of mapping it to neutral.
 macro_rules! table {
-    ($t:ident, $name:literal) => {
+    ($t:ident, $name:literal, [$($v:ident),+]) => {
         impl From<$t> for Gear {
             fn from(v: $t) -> Gear {
-                by_label(v.label())
+                match v {
+                    $($t::$v => Gear::$v,)+
+                }
             }
         }
         impl TryFrom<Gear> for $t {
             type Error = GearError;
             fn try_from(g: Gear) -> Result<$t, GearError> {
-                $t::ALL
-                    .iter()
-                    .copied()
-                    .find(|v| v.label() == label(g))
-                    .ok_or(GearError::WrongShaft {
+                match g {
+                    $(Gear::$v => Ok($t::$v),)+
+                    _ => Err(GearError::WrongShaft {
                         gear: g,
                         table: $name,
-                    })
+                    }),
+                }
             }
         }
     };
 }
 
-table!(GearOddReq, "odd");
-table!(GearEvenReq, "even");
-table!(GearOddAct, "odd");
-table!(GearEvenAct, "even");
+table!(GearOddReq, "odd", [N, G1, G3, G5]);
+table!(GearEvenReq, "even", [N, G2, G4, G6, R]);
+table!(GearOddAct, "odd", [N, G1, G3, G5]);
+table!(GearEvenAct, "even", [N, G2, G4, G6, R]);
 
 impl From<GearActive> for Gear {
     fn from(v: GearActive) -> Gear {
-        by_label(v.label())
+        use GearActive as A;
+        match v {
+            A::N => Gear::N,
+            A::G1 => Gear::G1,
+            A::G2 => Gear::G2,
+            A::G3 => Gear::G3,
+            A::G4 => Gear::G4,
+            A::G5 => Gear::G5,
+            A::G6 => Gear::G6,
+            A::R => Gear::R,
+        }
     }
 }
 
 /// Every gear is in `GearActive`'s table.
 impl From<Gear> for GearActive {
     fn from(g: Gear) -> GearActive {
-        GearActive::ALL
-            .iter()
-            .copied()
-            .find(|v| v.label() == label(g))
-            .unwrap_or_default()
+        use GearActive as A;
+        match g {
+            Gear::N => A::N,
+            Gear::G1 => A::G1,
+            Gear::G2 => A::G2,
+            Gear::G3 => A::G3,
+            Gear::G4 => A::G4,
+            Gear::G5 => A::G5,
+            Gear::G6 => A::G6,
+            Gear::R => A::R,
+        }
     }
 }
 
