@@ -7,6 +7,8 @@ use ddct::can::decode::LogDecoder;
 use ddct::can::e2e::{e2e_crc, sample_frames, E2eChecker, E2eConfig, E2eError, E2eSender};
 use ddct::can::messages::*;
 use ddct::can::{Bus, CanFrame, EndpointConfig, InProcessBus, ManualClock};
+
+mod common;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -473,21 +475,7 @@ async fn in_process_bus_carries_protected_frames_between_nodes() {
 /// Library sources outside the generated contract, each without its unit-test module and with
 /// comments removed: what the DBC-is-the-only-source check reads.
 fn library_code() -> Vec<(std::path::PathBuf, String)> {
-    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
-        for e in std::fs::read_dir(dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(&p, out);
-            } else if p.extension().is_some_and(|x| x == "rs") {
-                out.push(p);
-            }
-        }
-    }
-    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut files = Vec::new();
-    walk(&src, &mut files);
-    files.sort();
-    files
+    common::rust_files(&common::src(""))
         .into_iter()
         .filter(|p| {
             // The generated contract, and the gear type with its conversion to the DBC's codes.

@@ -4,6 +4,8 @@
 
 use ddct::model::{clutch, Params};
 
+mod common;
+
 /// DESIGN.md §4 golden values: (x_to mm, slip rad/s, θ °C, torque N·m).
 const GOLDEN: [(f64, f64, f64, f64); 7] = [
     (4.8, 50.0, 25.0, 37.184),
@@ -683,10 +685,8 @@ fn cli_rejects_bad_parameter_file() {
 /// paper's figures are drawn by `ddct::plot::paper`, above the model).
 #[test]
 fn the_model_does_not_render() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/model");
     let mut checked = 0;
-    for e in std::fs::read_dir(&dir).unwrap() {
-        let p = e.unwrap().path();
+    for p in common::rust_files(&common::src("model")) {
         let text = std::fs::read_to_string(&p).unwrap();
         for needle in ["crate::plot", "plot::", "<svg"] {
             assert!(

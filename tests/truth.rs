@@ -3,28 +3,17 @@
 
 use ddct::model::params::Params;
 use ddct::truth::{self, CaseSpec, Variants};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-fn rust_files(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        if p.is_dir() {
-            out.extend(rust_files(&p));
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
-    out.sort();
-    out
-}
+mod common;
+use common::rust_files;
 
 /// The diagnosis (and the model it fits) does not use the truth generator or the blind harness,
 /// and the truth generator does not use the diagnosis's model code: the blind test cannot be
 /// passed by sharing formulas.
 #[test]
 fn the_diagnosis_and_the_truth_do_not_share_code() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let src = common::src("");
     let mut checked = 0;
     for dir in ["gap", "model"] {
         for f in rust_files(&src.join(dir)) {
