@@ -1,7 +1,7 @@
 //! Effect classes of the diagnosis (issue 17): an unmodelled effect is named by **where it enters
 //! the model** — the term it modifies — and **the variable that term depends on**, not by one
 //! parametric formula. Each class is fitted with a flexible, shape-constrained representation
-//! (a monotone piecewise-linear curve in its variable, see [`super::shape`]) jointly with the
+//! (a bounded piecewise-linear curve in its variable, see [`super::shape`]) jointly with the
 //! recalibration, so that a reality written in another functional form is still recognised.
 //!
 //! Where the classes enter the paper's model:

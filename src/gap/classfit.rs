@@ -1,5 +1,5 @@
 //! How each effect class is fitted (issue 17 item 1): its free parameters with bounds (the
-//! increments of a monotone [`Shape`] in the class's variable, or the few physical parameters of
+//! increments of a bounded [`Shape`] in the class's variable, or the few physical parameters of
 //! a library member), the channels it is fitted on, and how a parameter vector sets a
 //! [`Model`]. Bounds are physical limits, not plausible ranges: a fitted magnitude outside the
 //! documented range is reported, not rejected (item 8).

@@ -8,7 +8,7 @@
 //! 2. Noise floors (unbiased, [`super::context::set_noise`]) and the knots of every class
 //!    variable ([`knots`]).
 //! 3. [`super::select::select`]: forward selection of up to three classes, each fitted with a
-//!    flexible monotone term jointly with the recalibration, kept by ΔBIC on training and a
+//!    flexible term jointly with the recalibration, kept by ΔBIC on training and a
 //!    significant validation gain; ambiguity sets.
 //! 4. [`recalibration_findings`]: a parameter the data push to its plausible bound, refitted
 //!    unbounded; the move is the finding when it closes a significant part of the gap.

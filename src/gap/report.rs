@@ -251,7 +251,7 @@ pub fn markdown(d: &Diagnosis) -> String {
         }
     }
     let _ = writeln!(s, "\n## Which\n");
-    let _ = writeln!(s, "Every effect class fitted (a monotone piecewise-linear term in its variable, or its library member's parameters) jointly with the recalibration of its subsystem on the training records; first selection round, ranked by validation gain. Kept: ΔBIC < −10 on training, a significant validation gain (paired block bootstrap), closing ≥ 10 % of the validation gap left on its channels and at least half their practical tolerance. Ambiguous: another kept-quality class with ≥ 80 % of the best gain whose paired difference is not significant.\n");
+    let _ = writeln!(s, "Every effect class fitted (a bounded piecewise-linear term in its variable, or its library member's parameters) jointly with the recalibration of its subsystem on the training records; first selection round, ranked by validation gain. Kept: ΔBIC < −10 on training, a significant validation gain (paired block bootstrap), closing ≥ 10 % of the validation gap left on its channels and at least half their practical tolerance. Ambiguous: another kept-quality class with ≥ 80 % of the best gain whose paired difference is not significant.\n");
     let _ = writeln!(s, "| rank | class | subsystem | parameters | validation score | ΔBIC | gap explained | kept-quality |\n|---|---|---|---|---|---|---|---|");
     for (i, r) in v.ranking.iter().enumerate() {
         let ps: Vec<String> = r

@@ -410,7 +410,7 @@ mod tests {
     /// bent one inverts exactly too, and its largest error is found at a knot inside the range.
     #[test]
     fn a_thermocouple_reading_is_a_gain_offset_or_a_bend_and_inverts() {
-        let z = [30.0, 80.0, 120.0, 170.0, 240.0];
+        let z = [30.0, 55.0, 80.0, 120.0, 170.0, 205.0, 240.0];
         let straight = Reading {
             offset: 1.5,
             shape: Shape {
@@ -429,7 +429,7 @@ mod tests {
             offset: -0.5,
             shape: Shape {
                 z,
-                v: [0.0, -0.2, -3.0, -3.5, -4.0],
+                v: [0.0, -0.1, -0.2, -3.0, -3.5, -3.8, -4.0],
             },
         };
         for v in [0.0, 25.0, 100.0, 119.0, 121.0, 200.0, 280.0] {
@@ -470,7 +470,8 @@ mod tests {
         let p = Params::default();
         let c = TorqueContext::new(5.5, 150.0, 120.0);
         let t0 = clutch::torque(&p.clutch, 5.5, 150.0, 120.0);
-        let s = Shape::from_increments([25.0, 100.0, 150.0, 200.0, 250.0], &[-0.1, 0.0, 0.0, 0.0]);
+        let z = std::array::from_fn(|i| 25.0 + 225.0 * i as f64 / (KNOTS - 1) as f64);
+        let s = Shape::from_increments(z, &[-0.1]);
         let terms = Terms {
             spring: Some(s),
             ..Terms::default()
