@@ -177,9 +177,10 @@ pub struct TruthArgs {
     /// a nominal truth).
     #[arg(long, value_parser = parse_class, num_args = 1, action = clap::ArgAction::Append)]
     class: Vec<ClassId>,
-    /// An effect outside every class instead (judder, friction_drift, cross_clutch,
-    /// engagement_time, open_drag).
-    #[arg(long, value_parser = parse_outside, conflicts_with = "class")]
+    /// An effect outside every class (judder, friction_drift, cross_clutch, engagement_time,
+    /// open_drag; conduction_sign, which the blind trials do not draw), alone or beside one
+    /// `--class` (its `--magnitude` then comes after the class's).
+    #[arg(long, value_parser = parse_outside)]
     outside: Option<OutsideKind>,
     /// Form family of the (first) effect: spline, power, exponential, saturating,
     /// piecewise_linear, or scalar for effects without a driving variable (default: drawn).

@@ -172,7 +172,8 @@ pub struct Truth {
 }
 
 impl Truth {
-    /// Label of the truth: the class, the pair `a+b`, `nominal` or `outside:<kind>`.
+    /// Label of the truth: the class, the pair `a+b` (`a+outside:<kind>` for a class beside an
+    /// effect outside every class), `nominal` or `outside:<kind>`.
     pub fn label(&self) -> String {
         match self.kind {
             TruthKind::Nominal => "nominal".into(),
@@ -183,7 +184,8 @@ impl Truth {
             _ => self
                 .classes
                 .iter()
-                .map(|c| c.as_str())
+                .map(|c| c.as_str().to_string())
+                .chain(self.outside.map(|o| format!("outside:{}", o.as_str())))
                 .collect::<Vec<_>>()
                 .join("+"),
         }
@@ -335,12 +337,10 @@ pub fn draw(seed: u64, index: usize, nominal: &Params) -> Truth {
         TruthKind::Class => vec![Target::Class(pick(&PHYSICS_CLASSES, 0xC1A5, j))],
         TruthKind::Sensor => vec![Target::Class(pick(&SENSOR_CLASSES, 0x5E45, j))],
         TruthKind::Outside => {
-            let round = j / OutsideKind::ALL.len();
-            let perm = Xoshiro::new(derive(seed, &[0x0075, round as u64]))
-                .permutation(OutsideKind::ALL.len());
-            vec![Target::Outside(
-                OutsideKind::ALL[perm[j % OutsideKind::ALL.len()]],
-            )]
+            let drawn = &OutsideKind::DRAWN;
+            let round = j / drawn.len();
+            let perm = Xoshiro::new(derive(seed, &[0x0075, round as u64])).permutation(drawn.len());
+            vec![Target::Outside(drawn[perm[j % drawn.len()]])]
         }
         TruthKind::Pair => {
             let all: Vec<ClassId> = PHYSICS_CLASSES

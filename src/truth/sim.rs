@@ -172,6 +172,8 @@ struct Fx<'a> {
     cross: Option<&'a Effect>,
     eng_time: Option<&'a Effect>,
     drag: Option<&'a Effect>,
+    /// Share of the disk-to-central-disk conduction taken from the central disk instead.
+    flipped: f64,
 }
 
 impl<'a> Fx<'a> {
@@ -231,6 +233,7 @@ impl<'a> Fx<'a> {
                     OutsideKind::CrossClutch => f.cross = Some(e),
                     OutsideKind::EngagementTime => f.eng_time = Some(e),
                     OutsideKind::OpenDrag => f.drag = Some(e),
+                    OutsideKind::ConductionSign => f.flipped = e.magnitude.clamp(0.0, 1.0),
                 },
             }
         }
@@ -395,8 +398,10 @@ impl Rig<'_> {
             let q_ccd = b * ph.g_ccd * (c - cd);
             ds.th[i] = (q_pc + conv_pp + phi_pp * p - sup_pp) / ph.c_pp;
             ds.th[2 + i] = (-q_pc - q_ccd + conv_c + phi_c * p - sup_c) / ph.c_c;
-            q_cd += q_ccd + ph.phi_cd * p;
-            loss += -conv_pp - conv_c + sup_pp + sup_c;
+            // With the sign flipped for a share, that share leaves the central disk too (and
+            // the heat it would have carried is lost to the balance).
+            q_cd += (1.0 - 2.0 * fx.flipped) * q_ccd + ph.phi_cd * p;
+            loss += -conv_pp - conv_c + sup_pp + sup_c + 2.0 * fx.flipped * q_ccd;
             ds.e[i] = p;
             // Actuator.
             ds.xa[i] = ph.actuator_rate(s.xa[i], r[i], ph.tau * fx.lag_factor);
@@ -677,6 +682,36 @@ mod tests {
             let rel = (sampled - s.friction_work_j).abs() / s.friction_work_j;
             assert!(rel < 5e-3, "{}: sampled work off by {rel:e}", rec.name);
         }
+    }
+
+    /// The central disk's conduction with the other sign: the balance still closes once the
+    /// heat the flipped share creates or destroys is counted, and the central disk — which
+    /// gets its own share of the friction power and normally gives heat back to the cooler
+    /// clutch disks — keeps it and ends far hotter.
+    #[test]
+    fn flipped_conduction_heats_the_central_disk_and_is_counted_in_the_balance() {
+        let ph = Physics::new(&Params::default());
+        let rec = experiments::train_sweep();
+        let a = simulate(&ph, &[], &rec, [0.0; 2], 1);
+        let e = Effect {
+            target: Target::Outside(OutsideKind::ConductionSign),
+            form: Form::Scalar,
+            magnitude: 1.0,
+            unit: "1",
+            anchor_top: false,
+            aux: vec![],
+        };
+        let b = simulate(&ph, std::slice::from_ref(&e), &rec, [0.0; 2], 1);
+        let (b0, b1) = (b.true_temps[0], *b.true_temps.last().unwrap());
+        let cap = [ph.c_pp, ph.c_pp, ph.c_c, ph.c_c, ph.c_cd];
+        let stored: f64 = (0..5).map(|j| cap[j] * (b1[j] - b0[j])).sum();
+        let rel = (b.friction_work_j - stored - b.heat_lost_j).abs() / b.friction_work_j;
+        assert!(rel < 1e-3, "balance off by {rel:e}");
+        let (cd_a, cd_b) = (a.true_temps.last().unwrap()[4], b1[4]);
+        assert!(
+            cd_b > cd_a + 50.0,
+            "central disk {cd_b} vs {cd_a} without the flip"
+        );
     }
 
     #[test]
