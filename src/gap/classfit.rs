@@ -112,6 +112,39 @@ pub fn shape_variable(class: ClassId) -> Option<Variable> {
     }
 }
 
+/// Where a class's shape sits in its flexible parameter vector: the indices of the shape's
+/// increments (`None` for classes without a shape, and for the support conduction, whose heat
+/// flows are bounded to be non-negative already).
+pub fn increments(class: ClassId) -> Option<std::ops::Range<usize>> {
+    use ClassId::*;
+    match class {
+        // The reading error's offset comes first, then the curve.
+        SensorTemperature => Some(1..KNOTS),
+        SupportConduction => None,
+        c if shape_variable(c).is_some() => Some(0..KNOTS - 1),
+        _ => None,
+    }
+}
+
+/// Increments smaller than this share of the curve's total variation are rounding, not a turn.
+const TURN_SHARE: f64 = 0.02;
+
+/// When a fitted shape turns more than once (its increments, leaving out those below
+/// [`TURN_SHARE`] of the total variation, change sign twice or more), the sign of its total
+/// change: the direction of the monotone curve it is refitted as. `None` for a curve that is
+/// monotone or turns once (a peak, or the first segment's jump where the variable's low end
+/// is invisible to the torque — a clamp load of zero transmits nothing).
+pub fn zigzag_sign(d: &[f64]) -> Option<f64> {
+    let tv: f64 = d.iter().map(|x| x.abs()).sum();
+    let signs: Vec<bool> = d
+        .iter()
+        .filter(|x| x.abs() > TURN_SHARE * tv)
+        .map(|x| *x > 0.0)
+        .collect();
+    let turns = signs.windows(2).filter(|w| w[0] != w[1]).count();
+    (turns > 1).then(|| if d.iter().sum::<f64>() >= 0.0 { 1.0 } else { -1.0 })
+}
+
 /// Why a class cannot be fitted on these records, or `None` when it can.
 pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool) -> Option<String> {
     use ClassId::*;
@@ -524,5 +557,40 @@ pub fn member_from_shape(class: ClassId, m: &Model) -> Option<(EffectId, Vec<f64
             Some((EffectId::FrictionPressure, vec![1.0 + slope(&lp)]))
         }
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fits seen on the cases of `scripts/gap-cases`: a friction change over the clamp load
+    /// whose first segment jumps (one turn: kept), a static-friction change fitted as a zigzag
+    /// in the temperature (four turns: refitted rising), kiss-point wear whose small early
+    /// increments are rounding beside the step at the end (two turns among the rest).
+    #[test]
+    fn zigzag_sign_counts_only_the_turns_that_matter() {
+        let clamp = [0.0382, -0.0055, -0.0052, -0.0080, -0.0073, -0.0064];
+        assert_eq!(zigzag_sign(&clamp), None);
+        let static_friction = [0.0089, 0.0134, -0.0357, 0.0547, -0.0150, 0.0461];
+        assert_eq!(zigzag_sign(&static_friction), Some(1.0));
+        let wear = [-9e-5, 3.0e-4, -8.1e-4, 3.8e-3, -9.6e-3, 0.0899];
+        assert_eq!(zigzag_sign(&wear), Some(1.0));
+        assert_eq!(zigzag_sign(&[-0.1, -0.2, 0.001, -0.3]), None);
+        assert_eq!(zigzag_sign(&[0.0; 6]), None);
+    }
+
+    #[test]
+    fn every_shape_class_has_its_increments_in_its_parameters() {
+        let base = Model::nominal(crate::model::params::Params::default());
+        for c in ClassId::ALL {
+            if let Some(r) = increments(*c) {
+                let p = params(*c, &base);
+                assert!(r.end <= p.len(), "{c:?}");
+                for s in &p[r] {
+                    assert!(s.name.contains(".d"), "{c:?}: {}", s.name);
+                }
+            }
+        }
     }
 }

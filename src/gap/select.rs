@@ -154,7 +154,34 @@ pub fn fit(
         tol_sse: 1e-6,
         ..LmOptions::default()
     };
-    let fit = lsq::levenberg_marquardt(&mut f, n, &specs, opts);
+    let mut fit = lsq::levenberg_marquardt(&mut f, n, &specs, opts);
+    // A shape that zigzags (turns more than once) is fitting noise or trading against the
+    // recalibration: refitted as a monotone curve in the direction of its total change, from no
+    // effect, jointly with the same recalibration.
+    if job.form == classfit::Form::Flexible {
+        let mut sp = specs.clone();
+        let mut refit = false;
+        for (c, a, _) in &slices {
+            let Some(r) = classfit::increments(*c) else {
+                continue;
+            };
+            let r = a + r.start..a + r.end;
+            if let Some(sign) = classfit::zigzag_sign(&fit.p[r.clone()]) {
+                refit = true;
+                for s in &mut sp[r] {
+                    if sign > 0.0 {
+                        s.lo = s.lo.max(0.0);
+                    } else {
+                        s.hi = s.hi.min(0.0);
+                    }
+                    s.init = s.init.clamp(s.lo, s.hi);
+                }
+            }
+        }
+        if refit {
+            fit = lsq::levenberg_marquardt(&mut f, n, &sp, opts);
+        }
+    }
     let model = build(&fit.p).unwrap_or(*base);
     (model, Some(fit))
 }
