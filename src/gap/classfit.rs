@@ -142,7 +142,13 @@ pub fn zigzag_sign(d: &[f64]) -> Option<f64> {
         .map(|x| *x > 0.0)
         .collect();
     let turns = signs.windows(2).filter(|w| w[0] != w[1]).count();
-    (turns > 1).then(|| if d.iter().sum::<f64>() >= 0.0 { 1.0 } else { -1.0 })
+    (turns > 1).then(|| {
+        if d.iter().sum::<f64>() >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        }
+    })
 }
 
 /// Why a class cannot be fitted on these records, or `None` when it can.
