@@ -642,7 +642,10 @@ fn cli_experiment_and_diagnose() {
     assert_eq!(f0["variable"], "friction_energy");
     let share = f0["share_pct"].as_f64().unwrap();
     assert!((50.0..=100.0).contains(&share), "share {share}");
-    assert_eq!(f0["shape"].as_array().unwrap().len(), 5);
+    assert_eq!(
+        f0["shape"].as_array().unwrap().len(),
+        ddct::gap::shape::KNOTS
+    );
     let top = &v["ranking"][0];
     for key in [
         "effect",
