@@ -9,6 +9,32 @@ pub fn map<T: Sync, R: Send>(
     items: &[T],
     f: impl Fn(usize, &T) -> R + Sync,
 ) -> Vec<R> {
+    let order: Vec<usize> = (0..items.len()).collect();
+    run(threads, items, &order, f)
+}
+
+/// [`map`] with the items taken from the queue in decreasing `cost` (equal costs in index
+/// order): the longest item does not start last and leave the other threads idle while it runs.
+/// Only the schedule changes: `f` sees the same `(i, item)` pairs and the results come back in
+/// index order.
+pub fn map_costliest_first<T: Sync, R: Send, C: Ord>(
+    threads: usize,
+    items: &[T],
+    cost: impl Fn(&T) -> C,
+    f: impl Fn(usize, &T) -> R + Sync,
+) -> Vec<R> {
+    let mut order: Vec<usize> = (0..items.len()).collect();
+    order.sort_by(|a, b| cost(&items[*b]).cmp(&cost(&items[*a])).then(a.cmp(b)));
+    run(threads, items, &order, f)
+}
+
+/// The items in the queue order `order` (a permutation of the indices), results by index.
+fn run<T: Sync, R: Send>(
+    threads: usize,
+    items: &[T],
+    order: &[usize],
+    f: impl Fn(usize, &T) -> R + Sync,
+) -> Vec<R> {
     let threads = threads.clamp(1, items.len().max(1));
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut done: Vec<(usize, R)> = std::thread::scope(|sc| {
@@ -18,9 +44,9 @@ pub fn map<T: Sync, R: Send>(
                 sc.spawn(move || {
                     let mut mine = Vec::new();
                     loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(item) = items.get(i) else { break };
-                        mine.push((i, f(i, item)));
+                        let q = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&i) = order.get(q) else { break };
+                        mine.push((i, f(i, &items[i])));
                     }
                     mine
                 })
@@ -57,5 +83,28 @@ mod tests {
             }
         }
         assert!(map(2, &[] as &[u8], |_, _| 1).is_empty());
+    }
+
+    /// The costliest item is taken first (one thread: the order `f` is called in), and the
+    /// results still come back by index, each with its own index.
+    #[test]
+    fn costliest_first_changes_the_schedule_not_the_results() {
+        let items = [3u32, 9, 1, 9, 5];
+        let seen = std::sync::Mutex::new(Vec::new());
+        let out = map_costliest_first(
+            1,
+            &items,
+            |x| *x,
+            |i, x| {
+                seen.lock().unwrap().push(i);
+                (i, x * 10)
+            },
+        );
+        assert_eq!(*seen.lock().unwrap(), vec![1, 3, 4, 0, 2]);
+        assert_eq!(out, vec![(0, 30), (1, 90), (2, 10), (3, 90), (4, 50)]);
+        for threads in [2, 3, 8] {
+            let again = map_costliest_first(threads, &items, |x| *x, |i, x| (i, x * 10));
+            assert_eq!(again, out);
+        }
     }
 }

@@ -55,18 +55,23 @@ fn torque_context(c: &ClutchContext) -> TorqueContext {
 }
 
 impl Hooks for SetHooks {
+    #[inline]
     fn clutch_torque(&self, p: &ClutchParams, c: &ClutchContext) -> f64 {
         effects::torque(p, &self.0, &torque_context(c))
     }
+    #[inline]
     fn clutch_capacity(&self, p: &ClutchParams, c: &ClutchContext) -> f64 {
         effects::capacity(p, &self.0, &torque_context(c))
     }
+    #[inline]
     fn clutch_beta(&self, p: &ClutchParams, c: &ClutchContext) -> f64 {
         effects::beta(p, &self.0, &torque_context(c))
     }
+    #[inline]
     fn engine_command(&self, nominal_nm: f64, _w_f_radps: f64) -> f64 {
         effects::engine_real_torque(&self.0, nominal_nm)
     }
+    #[inline]
     fn extra_heat(&self, s: &Thermal5State, u: &ThermalInputs) -> Thermal5State {
         let e = effects::thermal5_extra(&self.0, s, u);
         match &self.1 {
@@ -385,6 +390,95 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
     Some(c)
 }
 
+/// The inputs and disk temperature estimate a [`predict`] replayed for the models a fit evaluated
+/// last on one record. A fit's Jacobian moves one parameter at a time; most move only the torque
+/// characteristic's terms, under which the record's corrected inputs and disk replay stay what
+/// they were, and a thermal parameter moves the replay but not the corrected inputs:
+/// [`predict_reusing`] takes them from here instead of computing them again. Two entries each:
+/// the point of the Jacobian stays while a column that does move them is evaluated.
+#[derive(Debug, Clone, Default)]
+pub struct ReplayMemo {
+    inputs: Vec<(Terms, Option<Measured>)>,
+    disks: Vec<(ReplayKey, [Vec<f64>; 2])>,
+}
+
+/// Everything of a model the disk replay ([`replay::disk_estimate`] under [`SetHooks::of`], on
+/// the inputs [`corrected_inputs`] corrected) reads: the parameters, the effect set, the thermal
+/// terms and the terms that correct the inputs ([`InputKey`]). The torque characteristic's terms
+/// are left out: the replay is driven by the measured friction power, not a predicted torque.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ReplayKey {
+    p: Params,
+    set: EffectSet,
+    terms: Terms,
+}
+
+impl ReplayKey {
+    fn of(model: &Model) -> Self {
+        let t = &model.terms;
+        ReplayKey {
+            p: model.p,
+            set: model.set,
+            terms: Terms {
+                support: t.support,
+                convection: t.convection,
+                partition: t.partition,
+                ..input_key(t)
+            },
+        }
+    }
+}
+
+/// The terms [`corrected_inputs`] reads (the others at their defaults).
+fn input_key(t: &Terms) -> Terms {
+    Terms {
+        temp_sensor: t.temp_sensor,
+        temp_lag_s: t.temp_lag_s,
+        temp_lag2_share: t.temp_lag2_share,
+        torque_sensor: t.torque_sensor,
+        ..Terms::default()
+    }
+}
+
+/// The entry of `v` whose key is `key`, moved to the front (computed by `make` and put there
+/// when there is none; at most two entries kept).
+fn recall<K: PartialEq, V>(v: &mut Vec<(K, V)>, key: K, make: impl FnOnce() -> V) -> &V {
+    match v.iter().position(|e| e.0 == key) {
+        Some(i) => v[..=i].rotate_right(1),
+        None => {
+            let value = make();
+            v.insert(0, (key, value));
+            v.truncate(2);
+        }
+    }
+    &v[0].1
+}
+
+/// [`predict`] reusing the corrected inputs and disk replay of `memo` when the model's keys are
+/// ones it holds (the same numbers: each is a function of its key); the result's `disk` is
+/// `None`.
+pub fn predict_reusing(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    chans: &[Channel],
+    memo: &mut ReplayMemo,
+) -> Predictions {
+    if !want_torque(s, chans) {
+        let mut pr = predict(model, m, s, chans);
+        pr.disk = None;
+        return pr;
+    }
+    let corrected = recall(&mut memo.inputs, input_key(&model.terms), || {
+        corrected_inputs(&model.terms, m)
+    });
+    let mm = corrected.as_ref().unwrap_or(m);
+    let disk = recall(&mut memo.disks, ReplayKey::of(model), || {
+        replay::disk_estimate(&model.p, &SetHooks::of(model), mm)
+    });
+    predict_inner(model, mm, s, chans, Some(disk))
+}
+
 /// [`predict`] with the disk temperature estimate given (it depends only on the thermal
 /// parameters and β, so fits of the torque characteristic reuse it); `disk` of the result is
 /// `None`.
@@ -555,5 +649,68 @@ pub fn residuals(
         for &k in s.get(c) {
             out.push(measured(m, c, k) - y[k]);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gap::dataset::Dataset;
+    use crate::gap::events::SegmentOptions;
+    use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
+    use crate::model::powertrain::Nominal;
+
+    fn record(p: &Params) -> Measured {
+        let exp = RigExperiment::identification(6, 40.0);
+        let frames = rig_frames(p, Nominal, &exp, SensorNoise::default(), 3, 0.005).unwrap();
+        let d = Dataset::from_records("rig", frames.into_iter().map(Ok), 0.01).unwrap();
+        Measured::new(&d, p, [0.0; 2], &SegmentOptions::default())
+    }
+
+    fn same(a: &Predictions, b: &Predictions) {
+        for (x, y) in a.y.iter().zip(&b.y) {
+            assert_eq!(x.len(), y.len());
+            for (u, v) in x.iter().zip(y) {
+                assert!(u.to_bits() == v.to_bits(), "{u} != {v}");
+            }
+        }
+    }
+
+    /// A fit's sequence of models — a torque term moved (the replay reused), a thermal parameter
+    /// moved (replayed again), a torque reading error (the inputs corrected), back to the first
+    /// point — predicts bit for bit what [`predict`] does from scratch, and the memo holds two
+    /// replays at most.
+    #[test]
+    fn reused_replays_predict_what_a_fresh_replay_does() {
+        let p = Params::default();
+        let m = record(&p);
+        let s = Samples::new(&m, 1, 10);
+        assert!(!s.get(Channel::Torque(0)).is_empty());
+        let chans = Channel::ALL;
+        let base = Model::nominal(p);
+        let mut torque = base;
+        torque.terms.torque_skew_s = 0.02;
+        let mut thermal = base;
+        thermal.p.thermal5.alpha7_k_per_j *= 1.2;
+        let mut sensor = base;
+        sensor.terms.torque_sensor = Some(terms::GainOffset {
+            gain: 1.05,
+            offset: 2.0,
+        });
+        let mut memo = ReplayMemo::default();
+        let mut replays = 0;
+        for model in [base, torque, thermal, sensor, base, torque] {
+            let fresh = predict(&model, &m, &s, &chans);
+            let before = memo.disks.first().map(|e| e.0);
+            same(&predict_reusing(&model, &m, &s, &chans, &mut memo), &fresh);
+            replays += usize::from(before != memo.disks.first().map(|e| e.0) || before.is_none());
+            assert!(memo.disks.len() <= 2 && memo.inputs.len() <= 2);
+        }
+        // base, thermal, sensor, base again (evicted by the two before it); torque reuses.
+        assert_eq!(replays, 4);
+        // The thermal change does move the disk replay (the memo is not returning a stale one).
+        let a = predict(&base, &m, &s, &chans).disk.unwrap();
+        let b = predict(&thermal, &m, &s, &chans).disk.unwrap();
+        assert!(a[0].iter().zip(&b[0]).any(|(x, y)| (x - y).abs() > 1e-3));
     }
 }

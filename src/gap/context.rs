@@ -153,6 +153,31 @@ pub fn predictions(
         .collect()
 }
 
+/// [`predictions`] on the fit samples for the evaluations of one fit: each record's corrected
+/// inputs and disk replay are taken from its `memo` when the model leaves them as they were
+/// ([`candidates::predict_reusing`]); the results' `disk` is `None`.
+pub fn fit_predictions(
+    model: &Model,
+    files: &[File],
+    chans: &[Channel],
+    cached_disk: bool,
+    memo: &mut [candidates::ReplayMemo],
+) -> Vec<Predictions> {
+    files
+        .iter()
+        .zip(memo)
+        .map(|(f, memo)| {
+            match (
+                &f.disk,
+                cached_disk && !candidates::corrects_inputs(&model.terms),
+            ) {
+                (Some(d), true) => candidates::predict_with_disk_ref(model, &f.m, &f.fit, chans, d),
+                _ => candidates::predict_reusing(model, &f.m, &f.fit, chans, memo),
+            }
+        })
+        .collect()
+}
+
 /// Per-channel sums of a model over a set of records.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scores {

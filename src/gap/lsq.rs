@@ -256,6 +256,8 @@ pub fn levenberg_marquardt_clustered(
     };
     if k > 0 && sse.is_finite() {
         jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+        // Whether `jac` is the Jacobian at `z` (only a converged accepted step leaves it behind).
+        let mut fresh = true;
         let mut mu: f64 = -1.0;
         let mut nu = 2.0;
         let mut small = 0;
@@ -305,6 +307,7 @@ pub fn levenberg_marquardt_clustered(
                     small += 1;
                     if small >= 3 {
                         converged = true;
+                        fresh = false;
                         break;
                     }
                 } else {
@@ -324,8 +327,11 @@ pub fn levenberg_marquardt_clustered(
                 }
             }
         }
-        // Jacobian at the solution for the covariance.
-        jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+        // Jacobian at the solution for the covariance (the same evaluations again when the last
+        // one is at the solution: `f` is deterministic).
+        if !fresh {
+            jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+        }
     }
     let p = to_p(&z);
     let n_eff = effective_n(&r);

@@ -273,7 +273,10 @@ pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec
         let pp = [mid(&m.pp[0]), mid(&m.pp[1])];
         // Not clamped at zero: sensor noise on an open clutch must average out, not heat.
         let pw = [mid(&m.power[0]), mid(&m.power[1])];
-        let beta = [0, 1].map(|i| h.clutch_beta(&p.clutch, &m.context(i, k, c[i])));
+        let beta = [
+            h.clutch_beta(&p.clutch, &m.context(0, k, c[0])),
+            h.clutch_beta(&p.clutch, &m.context(1, k, c[1])),
+        ];
         let state = Thermal5State {
             pp1: pp[0],
             pp2: pp[1],

@@ -15,7 +15,7 @@
 //!   Classes whose gain is at least 80 % of the best's and whose paired bootstrap difference to
 //!   it is not significant form the **ambiguity set** of that round.
 
-use super::candidates::{Channel, Model};
+use super::candidates::{Channel, Model, ReplayMemo};
 use super::class::ClassId;
 use super::classfit::{self, Knots};
 use super::context::{self, File, Scores};
@@ -128,10 +128,12 @@ pub fn fit(
         Some(m)
     };
     let mut buf = Vec::with_capacity(n);
+    let mut memo = vec![ReplayMemo::default(); files.len()];
     let mut f = |v: &[f64], r: &mut [f64]| match build(v) {
         Some(model) => {
             buf.clear();
-            let preds = context::predictions(&model, files, &job.chans, true, job.cached_disk);
+            let preds =
+                context::fit_predictions(&model, files, &job.chans, job.cached_disk, &mut memo);
             // Every fit sample in a fixed order (NaN predictions count as large residuals).
             for (file, pr) in files.iter().zip(&preds) {
                 for &c in &job.chans {
@@ -551,7 +553,10 @@ fn round(
     let aff_all: Vec<Channel> = s.chans.to_vec();
     let base_train = train_sse(base, s.train, &aff_all, false);
     let mut out = on_cores(s.threads, classes, |i, c| {
-        candidate(s, base, base_val, &base_train, *c, seed ^ (i as u64 + 1))
+        let t0 = std::time::Instant::now();
+        let k = candidate(s, base, base_val, &base_train, *c, seed ^ (i as u64 + 1));
+        tracing::debug!("{c} fitted in {:.2} s", t0.elapsed().as_secs_f64());
+        k
     });
     // Best gain first; equal gains in the order of `classes`, whichever thread fitted them.
     out.sort_by(|a, b| b.1.gain.total_cmp(&a.1.gain).then(a.0.cmp(&b.0)));
@@ -806,19 +811,33 @@ fn refits_without(s: &Setup, base: &Model, current: &Model, chosen: &[ClassId]) 
     out.into_iter().map(|(_, m)| m).collect()
 }
 
-/// `f(i, item)` for every item on up to `threads` threads ([`crate::par::map`]: a shared queue,
-/// not a fixed share per thread — a thermal class's fit replays the temperatures and costs
-/// several torque classes'), with its index; `None` results dropped.
-fn on_cores<T: Sync, R: Send>(
+/// `f(i, class)` for every class on up to `threads` threads ([`crate::par::map_costliest_first`]:
+/// a shared queue, the costliest fits taken first), with its index; `None` results dropped.
+fn on_cores<R: Send>(
     threads: usize,
-    items: &[T],
-    f: impl Fn(usize, &T) -> Option<R> + Sync,
+    items: &[ClassId],
+    f: impl Fn(usize, &ClassId) -> Option<R> + Sync,
 ) -> Vec<(usize, R)> {
-    crate::par::map(threads, items, f)
+    crate::par::map_costliest_first(threads, items, |c| fit_cost(*c), f)
         .into_iter()
         .enumerate()
         .filter_map(|(i, r)| r.map(|r| (i, r)))
         .collect()
+}
+
+/// Rank of a class's fit time, for the queue order only. Measured on the 30-minute log
+/// (`ddct gap diagnose --log-level ddct=debug` prints each fit's time): a thermocouple's reading
+/// error inverts the readings and replays the temperatures at every evaluation (6–10 s); the
+/// other classes that move the disk temperature replay it (1–4 s); a torque class reads the
+/// cached estimate (0.1–0.5 s). Queued in declaration order, the thermocouple's fit started last
+/// and ran alone for 5–9 s of every round.
+fn fit_cost(c: ClassId) -> u8 {
+    match c {
+        ClassId::SensorTemperature => 2,
+        ClassId::SensorTorque | ClassId::SensorTemperatureLag => 1,
+        _ if c.subsystem() == Subsystem::Thermal => 1,
+        _ => 0,
+    }
 }
 
 /// What a selected class is worth beside the others: the validation gain lost when it is taken
