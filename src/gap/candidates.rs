@@ -465,9 +465,8 @@ pub fn predict_reusing(
     memo: &mut ReplayMemo,
 ) -> Predictions {
     if !want_torque(s, chans) {
-        let mut pr = predict(model, m, s, chans);
-        pr.disk = None;
-        return pr;
+        // No disk replay to reuse (and none in the result).
+        return predict(model, m, s, chans);
     }
     let corrected = recall(&mut memo.inputs, input_key(&model.terms), || {
         corrected_inputs(&model.terms, m)

@@ -142,13 +142,7 @@ pub fn predictions(
         .iter()
         .map(|f| {
             let s = if fit { &f.fit } else { &f.all };
-            match (
-                &f.disk,
-                cached_disk && !candidates::corrects_inputs(&model.terms),
-            ) {
-                (Some(d), true) => candidates::predict_with_disk_ref(model, &f.m, s, chans, d),
-                _ => candidates::predict(model, &f.m, s, chans),
-            }
+            predict_file(model, f, s, chans, cached_disk, None)
         })
         .collect()
 }
@@ -166,16 +160,26 @@ pub fn fit_predictions(
     files
         .iter()
         .zip(memo)
-        .map(|(f, memo)| {
-            match (
-                &f.disk,
-                cached_disk && !candidates::corrects_inputs(&model.terms),
-            ) {
-                (Some(d), true) => candidates::predict_with_disk_ref(model, &f.m, &f.fit, chans, d),
-                _ => candidates::predict_reusing(model, &f.m, &f.fit, chans, memo),
-            }
-        })
+        .map(|(f, memo)| predict_file(model, f, &f.fit, chans, cached_disk, Some(memo)))
         .collect()
+}
+
+/// One record's predictions: from its cached disk estimate when allowed, else replayed (through
+/// `memo` when given).
+fn predict_file(
+    model: &Model,
+    f: &File,
+    s: &Samples,
+    chans: &[Channel],
+    cached_disk: bool,
+    memo: Option<&mut candidates::ReplayMemo>,
+) -> Predictions {
+    let cached = cached_disk && !candidates::corrects_inputs(&model.terms);
+    match (&f.disk, cached, memo) {
+        (Some(d), true, _) => candidates::predict_with_disk_ref(model, &f.m, s, chans, d),
+        (_, _, Some(memo)) => candidates::predict_reusing(model, &f.m, s, chans, memo),
+        (_, _, None) => candidates::predict(model, &f.m, s, chans),
+    }
 }
 
 /// Per-channel sums of a model over a set of records.

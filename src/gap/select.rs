@@ -298,10 +298,7 @@ fn job_for(s: &Setup, classes: &[ClassId]) -> Option<Job> {
             recal.extend(recal_keys(Subsystem::TorqueCharacteristic));
             chans.extend(present(Subsystem::TorqueCharacteristic));
         }
-        // A torque reading error also changes the friction power the disk temperature is
-        // estimated from: that class needs the disk replayed, not the base model's cached
-        // estimate.
-        cached_disk &= group == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque;
+        cached_disk &= reads_cached_disk(class);
     }
     // The actuator lag class is the lag's recalibration itself.
     if classes.contains(&ClassId::ActuatorLag) {
@@ -316,6 +313,13 @@ fn job_for(s: &Setup, classes: &[ClassId]) -> Option<Job> {
         cached_disk,
         max_iter: 25,
     })
+}
+
+/// Whether a class's fit can read the base model's cached disk-temperature estimate: a class of
+/// the torque characteristic leaves the disk replay as it is, except a torque reading error,
+/// which changes the friction power the disk temperature is estimated from.
+fn reads_cached_disk(class: ClassId) -> bool {
+    classfit::group(class) == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque
 }
 
 /// `v` without repeats, in the order of first appearance.
@@ -553,10 +557,7 @@ fn round(
     let aff_all: Vec<Channel> = s.chans.to_vec();
     let base_train = train_sse(base, s.train, &aff_all, false);
     let mut out = on_cores(s.threads, classes, |i, c| {
-        let t0 = std::time::Instant::now();
-        let k = candidate(s, base, base_val, &base_train, *c, seed ^ (i as u64 + 1));
-        tracing::debug!("{c} fitted in {:.2} s", t0.elapsed().as_secs_f64());
-        k
+        candidate(s, base, base_val, &base_train, *c, seed ^ (i as u64 + 1))
     });
     // Best gain first; equal gains in the order of `classes`, whichever thread fitted them.
     out.sort_by(|a, b| b.1.gain.total_cmp(&a.1.gain).then(a.0.cmp(&b.0)));
@@ -825,17 +826,17 @@ fn on_cores<R: Send>(
         .collect()
 }
 
-/// Rank of a class's fit time, for the queue order only. Measured on the 30-minute log
-/// (`ddct gap diagnose --log-level ddct=debug` prints each fit's time): a thermocouple's reading
-/// error inverts the readings and replays the temperatures at every evaluation (6–10 s); the
-/// other classes that move the disk temperature replay it (1–4 s); a torque class reads the
-/// cached estimate (0.1–0.5 s). Queued in declaration order, the thermocouple's fit started last
-/// and ran alone for 5–9 s of every round.
+/// Rank of a class's fit time, for the queue order only: a fit that does not read the cached
+/// disk estimate ([`reads_cached_disk`] false: a thermal or torque-sensor class replays the disk
+/// at every evaluation, 1–4 s on the 30-minute log; an actuator class fits positions only)
+/// before one that reads it (0.1–0.5 s), and first of all a thermocouple's
+/// reading error, which also inverts the readings and replays the temperatures (6–10 s). Queued
+/// in declaration order, the thermocouple's fit started last and ran alone for 5–9 s of every
+/// round.
 fn fit_cost(c: ClassId) -> u8 {
     match c {
         ClassId::SensorTemperature => 2,
-        ClassId::SensorTorque | ClassId::SensorTemperatureLag => 1,
-        _ if c.subsystem() == Subsystem::Thermal => 1,
+        _ if !reads_cached_disk(c) => 1,
         _ => 0,
     }
 }
