@@ -685,18 +685,8 @@ fn cli_rejects_bad_parameter_file() {
 /// paper's figures are drawn by `ddct::plot::paper`, above the model).
 #[test]
 fn the_model_does_not_render() {
-    let mut checked = 0;
-    for p in common::rust_files(&common::src("model")) {
-        let text = std::fs::read_to_string(&p).unwrap();
-        for needle in ["crate::plot", "plot::", "<svg"] {
-            assert!(
-                !text.contains(needle),
-                "{} renders (`{needle}`)",
-                p.display()
-            );
-        }
-        checked += 1;
-    }
+    let checked =
+        common::assert_sources_lack(&["model"], &["crate::plot", "plot::", "<svg"], "renders");
     assert!(checked >= 10, "{checked} files");
     let figs = ddct::plot::paper::figures(&ddct::model::Params::default());
     assert!(figs.len() >= 4 && figs.iter().all(|(_, svg)| svg.starts_with("<svg")));
@@ -708,25 +698,16 @@ fn the_model_does_not_render() {
 /// diagnosis's selection read the clock once; timing is measured from outside, with perf.)
 #[test]
 fn the_pure_cores_read_no_clock_and_touch_no_socket() {
-    let mut checked = 0;
-    for core in ["model", "plant", "tcu", "gap"] {
-        for p in common::rust_files(&common::src(core)) {
-            let text = std::fs::read_to_string(&p).unwrap();
-            for needle in [
-                "Instant::now",
-                "SystemTime::now",
-                "tokio::",
-                "socketcan",
-                "std::net",
-            ] {
-                assert!(
-                    !text.contains(needle),
-                    "{} is not pure (`{needle}`)",
-                    p.display()
-                );
-            }
-            checked += 1;
-        }
-    }
+    let checked = common::assert_sources_lack(
+        &["model", "plant", "tcu", "gap"],
+        &[
+            "Instant::now",
+            "SystemTime::now",
+            "tokio::",
+            "socketcan",
+            "std::net",
+        ],
+        "is not pure",
+    );
     assert!(checked >= 40, "{checked} files");
 }

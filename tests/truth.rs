@@ -6,37 +6,24 @@ use ddct::truth::{self, CaseSpec, Variants};
 use std::path::PathBuf;
 
 mod common;
-use common::rust_files;
 
 /// The diagnosis (and the model it fits) does not use the truth generator or the blind harness,
 /// and the truth generator does not use the diagnosis's model code: the blind test cannot be
 /// passed by sharing formulas.
 #[test]
 fn the_diagnosis_and_the_truth_do_not_share_code() {
-    let src = common::src("");
-    let mut checked = 0;
-    for dir in ["gap", "model"] {
-        for f in rust_files(&src.join(dir)) {
-            let text = std::fs::read_to_string(&f).unwrap();
-            for needle in ["crate::truth", "truth::", "crate::blind", "blind::"] {
-                assert!(
-                    !text.contains(needle),
-                    "{} uses the truth generator or the blind harness (`{needle}`)",
-                    f.display()
-                );
-            }
-            checked += 1;
-        }
-    }
+    let checked = common::assert_sources_lack(
+        &["gap", "model"],
+        &["crate::truth", "truth::", "crate::blind", "blind::"],
+        "uses the truth generator or the blind harness",
+    );
     assert!(
         checked > 20,
         "only {checked} files of the diagnosis checked"
     );
-    let truth_files = rust_files(&src.join("truth"));
-    assert!(truth_files.len() >= 5);
-    for f in truth_files {
-        let text = std::fs::read_to_string(&f).unwrap();
-        for needle in [
+    let truth_files = common::assert_sources_lack(
+        &["truth"],
+        &[
             "model::effects",
             "model::clutch",
             "model::thermal",
@@ -50,14 +37,10 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
             "gap::stats",
             "gap::experiment",
             "crate::plant",
-        ] {
-            assert!(
-                !text.contains(needle),
-                "{} uses the project's model or diagnosis (`{needle}`)",
-                f.display()
-            );
-        }
-    }
+        ],
+        "uses the project's model or diagnosis",
+    );
+    assert!(truth_files >= 5);
 }
 
 /// A nominal record of the generator is matched by the project's nominal model to within the
