@@ -14,6 +14,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::replay::{self, Measured, Shared};
+use super::shape::Shape;
 use super::terms::{self, Extra, Terms, X_REF_MM};
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
 use crate::model::params::{ClutchParams, Params};
@@ -285,24 +286,38 @@ fn window_mean(v: &[f64], k: usize) -> f64 {
     s / w as f64
 }
 
-/// Hidden facing-surface temperatures of the library's `surface_temperature_friction` member
-/// along the record: θ̇_s = h·P − (θ_s − θ_c)/τ_s, exact per sample with the measured friction
-/// power and the disk temperature estimate.
+/// Hidden facing-surface temperatures along the record, exact per sample with the measured
+/// friction power and the disk temperature estimate: the flexible term when the model has one
+/// ([`Surface`](super::terms::Surface)), else the library's `surface_temperature_friction`
+/// member (θ̇_s = h·P − (θ_s − θ_c)/τ_s).
 fn surface_temperatures(
-    set: &EffectSet,
+    model: &Model,
     m: &Measured,
     disk: &[Vec<f64>; 2],
 ) -> Option<[Vec<f64>; 2]> {
-    let v = set.get(EffectId::SurfaceTemperatureFriction)?;
-    let (h, tau) = (v[0], v[1].max(1e-3));
-    let a = (-m.dt / tau).exp();
+    let surface = match model.terms.surface {
+        Some(s) => s,
+        None => {
+            let v = model.set.get(EffectId::SurfaceTemperatureFriction)?;
+            let tau = v[1].max(1e-3);
+            // The member's rise h·P·τ as a straight curve.
+            let z = std::array::from_fn(|j| j as f64 * 1e4);
+            super::terms::Surface {
+                rise: Shape {
+                    z,
+                    v: z.map(|p| v[0] * p * tau),
+                },
+                tau_s: tau,
+            }
+        }
+    };
+    let a = (-m.dt / surface.tau_s.max(1e-3)).exp();
     Some([0, 1].map(|i| {
         let mut th = disk[i][0];
         (0..m.n)
             .map(|k| {
                 let out = th;
-                let target = disk[i][k] + h * m.power[i][k].max(0.0) * tau;
-                th = target + (th - target) * a;
+                th = surface.step(th, disk[i][k], m.power[i][k], a);
                 out
             })
             .collect()
@@ -516,7 +531,7 @@ fn predict_inner(
     let want = |c: Channel| chans.contains(&c) && !s.get(c).is_empty();
     if let Some(dk) = disk {
         let bearing = bearing_sequence(&model.set, m);
-        let surface = surface_temperatures(&model.set, m, dk);
+        let surface = surface_temperatures(model, m, dk);
         let slide =
             t.mu.iter()
                 .flatten()

@@ -154,7 +154,7 @@ classes! {
         "friction coefficient μ scaled by m(d|ω_fc|/dt)";
     FrictionEnergy = "friction_energy", TorqueCharacteristic, FrictionEnergy, Physics, None,
         "friction coefficient μ scaled by m(E): fade or bedding-in with dissipated energy";
-    FrictionSurfaceTemperature = "friction_surface_temperature", TorqueCharacteristic, Time,
+    FrictionSurfaceTemperature = "friction_surface_temperature", TorqueCharacteristic, Power,
         Physics, Some(EffectId::SurfaceTemperatureFriction),
         "μ_d driven by a hidden fast facing-surface (flash) temperature heated by the friction power";
     FacingTemperature = "facing_temperature", TorqueCharacteristic, Temperature, Physics,

@@ -6,7 +6,7 @@
 
 use super::candidates::{Channel, Model};
 use super::class::{ClassId, Variable};
-use super::lsq::ParamSpec;
+use super::lsq::{Fit, ParamSpec};
 use super::shape::{Shape, KNOTS};
 use super::terms::GainOffset;
 use crate::model::effects::{EffectId, Subsystem};
@@ -187,6 +187,9 @@ pub fn not_checkable(class: ClassId, knots: &Knots, has: &dyn Fn(Needs) -> bool)
         {
             Some("no plate / central-disk temperatures".into())
         }
+        FrictionSurfaceTemperature if !knots.0.contains_key(&Variable::Power) => {
+            Some("the records have no slipping clutch whose friction power varies".into())
+        }
         EngineTorqueError if !has(Needs::Engine) => Some(
             "needs vehicle records with T_e_Nm (on the rig the dyno replaces the engine)".into(),
         ),
@@ -255,6 +258,7 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
         }
         SensorTemperature => m.terms.temp_sensor = None,
         SensorPosition => m.terms.pos_sensor = None,
+        FrictionSurfaceTemperature => m.terms.surface = None,
         _ => {}
     }
     if let Some(id) = class.member() {
@@ -286,6 +290,32 @@ fn gain_offset(
             offset_scale,
         ),
     ]
+}
+
+/// Largest step of the surface temperature's steady rise between two power knots (K).
+const SURFACE_RISE_MAX_K: f64 = 400.0;
+
+/// The flexible surface temperature's knots: the friction power's, the first moved to zero
+/// power (the rise is zero there by definition, and a saturating rise is steepest there).
+fn surface_knots(knots: &Knots) -> Option<[f64; KNOTS]> {
+    let mut z = *knots.0.get(&Variable::Power)?;
+    z[0] = z[0].min(0.0);
+    Some(z)
+}
+
+/// The flexible surface temperature from its parameters (increments, then τ_s); `None` without
+/// power knots.
+fn surface(knots: &Knots, v: &[f64]) -> Option<super::terms::Surface> {
+    Some(super::terms::Surface {
+        rise: Shape::from_increments(surface_knots(knots)?, &v[..KNOTS - 1]),
+        tau_s: v.get(KNOTS - 1).copied().unwrap_or(0.3),
+    })
+}
+
+/// True for a class fitted as a flexible term, whose calibration for the TCU and the plant is
+/// its library member refitted in the member's own form.
+pub fn is_flexible(class: ClassId) -> bool {
+    shape_variable(class).is_some() || class == ClassId::FrictionSurfaceTemperature
 }
 
 /// Free parameters of a class.
@@ -360,6 +390,18 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             v
         }
         SensorPosition => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
+        FrictionSurfaceTemperature => {
+            // The steady rise's increments (K, non-decreasing: friction heats the surface),
+            // starting from a small rise (5 K per knot interval), then τ_s (log, from 0.3 s:
+            // the truths' 0.08–2 s on either side).
+            let mut v: Vec<ParamSpec> = (1..KNOTS)
+                .map(|j| {
+                    ParamSpec::new(format!("{name}.d{j}_k"), 5.0, 0.0, SURFACE_RISE_MAX_K, 1.0)
+                })
+                .collect();
+            v.push(ParamSpec::new(format!("{name}.tau_s"), 0.3, 0.01, 10.0, 0.3).log());
+            v
+        }
         c => c.member().map(member_params).unwrap_or_default(),
     }
 }
@@ -420,6 +462,16 @@ pub fn apply(class: ClassId, knots: &Knots, m: &mut Model, v: &[f64]) {
         }
         SensorTemperature => m.terms.temp_sensor = reading(knots, Variable::Measurement, v),
         SensorPosition => m.terms.pos_sensor = Some(go(v)),
+        FrictionSurfaceTemperature => {
+            m.terms.surface = surface(knots, v);
+            // The member switches the facing temperatures over to the surface's; its own
+            // parameters are the flexible term's nearest straight rise (the torque reads the
+            // flexible term).
+            if let Some(s) = &m.terms.surface {
+                m.set
+                    .set_clamped(EffectId::SurfaceTemperatureFriction, &s.member());
+            }
+        }
         ConvectionSpeed => {
             m.terms.convection =
                 shape(Variable::Speed).map(|(_, shape)| super::terms::Convection { shape })
@@ -447,6 +499,10 @@ pub fn conflicts(a: ClassId, b: ClassId) -> bool {
     };
     a == b || (slot(a) == 1 && slot(b) == 1)
 }
+
+/// Friction power at which the surface temperature's rise is reported (W), as the truths
+/// state it.
+const SURFACE_REFERENCE_W: f64 = 30e3;
 
 /// Magnitude of a fitted class term with its unit: the largest change over the training range
 /// of its variable for shapes (relative for multipliers, mm for kiss-point shifts), the member's
@@ -492,11 +548,64 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
             "K, largest reading error over 20…250 °C",
         ),
         SensorPosition => (t.pos_sensor.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
+        FrictionSurfaceTemperature if t.surface.is_some() => (
+            t.surface.map_or(0.0, |s| s.rise.eval(SURFACE_REFERENCE_W)),
+            "K, steady surface temperature rise at 30 kW",
+        ),
         c => match c.member().and_then(|id| Some((id, m.set.get(id)?))) {
             Some((id, v)) => (v[0], id.params()[0].unit),
             None => (0.0, ""),
         },
     }
+}
+
+/// The 95 % interval of a fitted class's [`magnitude`] by the delta method: the magnitude's
+/// gradient in the class's parameters (central differences of half a standard error) with the
+/// fit's covariance of those parameters (the recalibration's left out: the magnitude does not
+/// read them). `None` when a parameter the magnitude moves with is not identifiable.
+pub fn magnitude_ci95(class: ClassId, knots: &Knots, m: &Model, fit: &Fit) -> Option<(f64, f64)> {
+    let (mag, _) = magnitude(class, m);
+    let k = fit.p.len();
+    let nc = params(class, m).len().min(k);
+    let at = |j: usize, h: f64| {
+        let mut v = fit.p[..nc].to_vec();
+        v[j] += h;
+        let mut q = *m;
+        remove(class, &mut q, m);
+        apply(class, knots, &mut q, &v);
+        magnitude(class, &q).0
+    };
+    let mut grad = vec![0.0; nc];
+    for (j, g) in grad.iter_mut().enumerate() {
+        let se = fit.std_err[j];
+        if se == 0.0 {
+            continue;
+        }
+        if !se.is_finite() {
+            return None;
+        }
+        let h = 0.5 * se;
+        *g = (at(j, h) - at(j, -h)) / (2.0 * h);
+    }
+    let mut var = 0.0;
+    for i in 0..nc {
+        for j in 0..nc {
+            let r = if i == j {
+                1.0
+            } else {
+                fit.correlation[i * k + j]
+            };
+            let c = grad[i] * grad[j] * fit.std_err[i] * fit.std_err[j];
+            if c != 0.0 {
+                if !r.is_finite() {
+                    return None;
+                }
+                var += r * c;
+            }
+        }
+    }
+    let half = super::lsq::Z95 * var.max(0.0).sqrt();
+    Some((mag - half, mag + half))
 }
 
 /// The fitted shape of a shape class as (variable value, term value) at the knots.
@@ -511,6 +620,7 @@ pub fn shape_points(class: ClassId, m: &Model) -> Vec<(f64, f64)> {
         SupportConduction => t.support.map(|s| s.shape),
         ConvectionSpeed => t.convection.map(|c| c.shape),
         HeatPartition => t.partition.map(|p| p.shape),
+        FrictionSurfaceTemperature => t.surface.map(|s| s.rise),
         SensorTemperature => t.temp_sensor.map(|r| Shape {
             z: r.shape.z,
             v: r.shape.v.map(|v| v + r.offset),
@@ -554,6 +664,10 @@ pub fn member_from_shape(class: ClassId, m: &Model) -> Option<(EffectId, Vec<f64
         FrictionStaticTemperature => Some((EffectId::MuStaticTemp, vec![slope(&pts)])),
         KissPointEnergy => Some((EffectId::KissPointWear, vec![slope(&pts)])),
         SupportConduction => Some((EffectId::SupportConduction, vec![slope(&pts)])),
+        FrictionSurfaceTemperature => m
+            .terms
+            .surface
+            .map(|s| (EffectId::SurfaceTemperatureFriction, s.member().to_vec())),
         FrictionClampLoad => {
             let lp: Vec<(f64, f64)> = pts
                 .iter()
@@ -584,6 +698,51 @@ mod tests {
         assert_eq!(zigzag_sign(&wear), Some(1.0));
         assert_eq!(zigzag_sign(&[-0.1, -0.2, 0.001, -0.3]), None);
         assert_eq!(zigzag_sign(&[0.0; 6]), None);
+    }
+
+    /// The surface temperature's rise at 30 kW, a knot here, is the sum of the first five
+    /// increments: its interval is ±1.96·√(gᵀΣg) with g = (1, 1, 1, 1, 1, 0, 0), whatever
+    /// τ_s's error — 2 K per increment, two of them correlated 0.5: √(5·4 + 2·0.5·4) = √24.
+    #[test]
+    fn a_magnitude_interval_is_the_delta_method_of_the_parameters() {
+        let mut knots = Knots::default();
+        knots
+            .0
+            .insert(Variable::Power, [500.0, 4e3, 8e3, 15e3, 22e3, 30e3, 45e3]);
+        let c = ClassId::FrictionSurfaceTemperature;
+        let base = Model::nominal(crate::model::params::Params::default());
+        let p = vec![20.0, 15.0, 10.0, 8.0, 5.0, 3.0, 0.4];
+        let mut m = base;
+        apply(c, &knots, &mut m, &p);
+        let (mag, _) = magnitude(c, &m);
+        assert!((mag - 58.0).abs() < 1e-9, "{mag}");
+        let k = p.len();
+        let mut correlation = vec![0.0; k * k];
+        for i in 0..k {
+            correlation[i * k + i] = 1.0;
+        }
+        correlation[1] = 0.5;
+        correlation[k] = 0.5;
+        let fit = Fit {
+            names: params(c, &base).into_iter().map(|s| s.name).collect(),
+            std_err: vec![2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 0.3],
+            ci95: vec![(0.0, 0.0); k],
+            at_bound: vec![false; k],
+            p,
+            sse: 1.0,
+            n: 1000,
+            n_eff: 1000.0,
+            iterations: 5,
+            converged: true,
+            correlation,
+        };
+        let (lo, hi) = magnitude_ci95(c, &knots, &m, &fit).unwrap();
+        let half = super::super::lsq::Z95 * 24f64.sqrt();
+        assert!((lo - (mag - half)).abs() < 1e-6 && (hi - (mag + half)).abs() < 1e-6);
+        // A parameter the magnitude moves with that is not identifiable: no interval.
+        let mut loose = fit.clone();
+        loose.std_err[2] = f64::INFINITY;
+        assert_eq!(magnitude_ci95(c, &knots, &m, &loose), None);
     }
 
     #[test]

@@ -732,16 +732,27 @@ fn design(p: &Params, files: &[File], preds: &[candidates::Predictions], fit: bo
 }
 
 /// A class finding from a kept candidate.
-fn class_finding(c: &select::Candidate, ambiguous: &[ClassId], excess0: f64) -> Finding {
+fn class_finding(
+    c: &select::Candidate,
+    knots: &classfit::Knots,
+    ambiguous: &[ClassId],
+    excess0: f64,
+) -> Finding {
     let (mag, unit) = classfit::magnitude(c.class, &c.model);
-    let ci = c
-        .fit
-        .ci95
-        .iter()
-        .zip(&c.fit.p)
-        .map(|(ci, p)| (ci.1 - ci.0).abs() / 2.0 / p.abs().max(1e-12))
-        .fold(0.0, f64::max);
-    let half = (mag.abs() * ci.min(10.0)).max(0.0);
+    // The delta method where every parameter the magnitude moves with is identifiable; else
+    // the largest relative half-width of the parameters, at most ten times the magnitude.
+    let magnitude_ci95 =
+        classfit::magnitude_ci95(c.class, knots, &c.model, &c.fit).unwrap_or_else(|| {
+            let ci = c
+                .fit
+                .ci95
+                .iter()
+                .zip(&c.fit.p)
+                .map(|(ci, p)| (ci.1 - ci.0).abs() / 2.0 / p.abs().max(1e-12))
+                .fold(0.0, f64::max);
+            let half = (mag.abs() * ci.min(10.0)).max(0.0);
+            (mag - half, mag + half)
+        });
     let range_warning = c.class.member().and_then(|id| {
         let (v, _) = match classfit::member_from_shape(c.class, &c.model) {
             Some((_, v)) => (v[0], ()),
@@ -780,7 +791,7 @@ fn class_finding(c: &select::Candidate, ambiguous: &[ClassId], excess0: f64) -> 
         ambiguous_with: ambiguous.to_vec(),
         share_pct: (100.0 * c.gain / excess0.max(1e-9)).clamp(0.0, 100.0),
         magnitude: mag,
-        magnitude_ci95: (mag - half, mag + half),
+        magnitude_ci95,
         unit,
         range_warning,
         shape: classfit::shape_points(c.class, &c.model),
@@ -849,7 +860,7 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
     let mut m = *model;
     for f in findings {
         let Some(c) = f.class() else { continue };
-        if classfit::shape_variable(c.class).is_none() {
+        if !classfit::is_flexible(c.class) {
             continue;
         }
         let Some(member) = std::iter::once(c.class)
@@ -1023,7 +1034,7 @@ pub fn diagnose(
                 .filter(|ch| chans.contains(ch))
                 .collect();
             let (z0, n0) = sc_rec_v.total(&aff);
-            findings.push(class_finding(c, &r.ambiguous, z0 - n0));
+            findings.push(class_finding(c, setup.knots, &r.ambiguous, z0 - n0));
         }
     }
     // A kept class whose subsystem is still far above its floor explains too little of it to be

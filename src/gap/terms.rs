@@ -203,6 +203,41 @@ impl Partition {
     }
 }
 
+/// The hidden facing-surface (flash) temperature in its flexible form: θ̇_s = (θ_c + rise(P) −
+/// θ_s)/τ_s per clutch, the steady rise a non-decreasing curve in the friction power P anchored
+/// at zero power (the library member's rise h·P·τ_s is its straight special case; a rise that
+/// saturates, or grows as a power of P, is within the knots' interpolation error).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surface {
+    /// Steady rise above θ_c (K) over the friction power (W).
+    pub rise: Shape,
+    /// Relaxation time (s).
+    pub tau_s: f64,
+}
+
+impl Surface {
+    /// The surface temperature one step `dt` later, exact for inputs held over the step
+    /// (`decay` = e^(−dt/τ_s)).
+    #[inline]
+    pub fn step(&self, theta_s: f64, theta_c: f64, p_fric_w: f64, decay: f64) -> f64 {
+        let target = theta_c + self.rise.eval(p_fric_w.max(0.0)).max(0.0);
+        target + (theta_s - target) * decay
+    }
+
+    /// The library member's parameters (h, τ_s) nearest this term: h·τ_s the least-squares
+    /// slope through the origin of the rise over the knots.
+    pub fn member(&self) -> [f64; 2] {
+        let (sxy, sxx) = self
+            .rise
+            .z
+            .iter()
+            .zip(&self.rise.v)
+            .fold((0.0, 0.0), |(a, b), (z, v)| (a + z * v, b + z * z));
+        let tau = self.tau_s.max(1e-3);
+        [if sxx > 0.0 { sxy / sxx / tau } else { 0.0 }, tau]
+    }
+}
+
 /// The thermal class terms with the thermal parameters they scale: what the thermal replays add
 /// to (16) besides the library's effects.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -264,6 +299,8 @@ pub struct Terms {
     pub convection: Option<Convection>,
     /// Heat partition between plate and disk depending on the friction power.
     pub partition: Option<Partition>,
+    /// Hidden facing-surface temperature (flexible form of the library member).
+    pub surface: Option<Surface>,
 }
 
 /// Measured variables at one torque sample besides the clutch context.
@@ -404,7 +441,43 @@ pub fn lag2(v: &[f64], tau_s: f64, share2: f64, dt: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::effects::EffectId;
     use crate::model::params::Params;
+
+    /// A straight rise h·P·τ_s is the library member: the same exact step as
+    /// `effects::surface_temperature_step` (powers beyond the last knot and negative ones
+    /// included), and [`Surface::member`] gives h and τ_s back.
+    #[test]
+    fn a_straight_surface_rise_is_the_library_member() {
+        let (h, tau) = (8e-3, 0.4);
+        let z = [0.0, 2e3, 5e3, 1e4, 2e4, 3e4, 4.5e4];
+        let s = Surface {
+            rise: Shape {
+                z,
+                v: z.map(|p| h * p * tau),
+            },
+            tau_s: tau,
+        };
+        let set = EffectSet::single(EffectId::SurfaceTemperatureFriction, &[h, tau]).unwrap();
+        let dt = 0.01;
+        let (mut a, mut b) = (60.0, 60.0);
+        for k in 0..500 {
+            let p = match k % 97 {
+                0 => 6e4,
+                1 => -2e3,
+                _ => 25e3 * (k as f64 * 0.05).sin().abs(),
+            };
+            let theta_c = 60.0 + 0.02 * k as f64;
+            a = s.step(a, theta_c, p, (-dt / tau).exp());
+            b = effects::surface_temperature_step(&set, b, theta_c, p, dt);
+            assert!((a - b).abs() < 1e-9, "{k}: {a} vs {b}");
+        }
+        let m = s.member();
+        assert!(
+            (m[0] - h).abs() < 1e-12 && (m[1] - tau).abs() < 1e-12,
+            "{m:?}"
+        );
+    }
 
     /// The straight curve is a gain and an offset (the gain's reference at the first knot); a
     /// bent one inverts exactly too, and its largest error is found at a knot inside the range.
