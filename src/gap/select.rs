@@ -183,6 +183,21 @@ pub fn fit(
         if refit {
             fit = lsq::levenberg_marquardt(&mut f, n, &sp, opts);
         }
+        // Classes whose least squares has more than one basin start again from each of their
+        // other starting points (the rest of the parameters from where they started); the
+        // lowest sum of squares is kept.
+        for (c, a, b) in &slices {
+            for start in classfit::other_starts(*c) {
+                let mut sp = specs.clone();
+                for (s, x) in sp[*a..*b].iter_mut().zip(&start) {
+                    s.init = x.clamp(s.lo, s.hi);
+                }
+                let alt = lsq::levenberg_marquardt(&mut f, n, &sp, opts);
+                if alt.sse < fit.sse {
+                    fit = alt;
+                }
+            }
+        }
     }
     let model = build(&fit.p).unwrap_or(*base);
     (model, Some(fit))
