@@ -10,6 +10,7 @@ pub mod can;
 pub mod daemon;
 pub mod error_chain;
 pub mod gap;
+pub mod io_error;
 pub mod model;
 pub mod par;
 pub mod plant;

@@ -36,8 +36,25 @@ pub enum BusError {
     ErrorFrame { iface: String, id: u32 },
     #[error("CAN interface {iface}: unsupported frame ({what})")]
     Unsupported { iface: String, what: String },
+    #[error("CAN interface {iface}: a received frame cannot be represented")]
+    BadFrame {
+        iface: String,
+        #[source]
+        source: crate::can::frame::FrameError,
+    },
     #[error("bus {iface} is closed")]
     Closed { iface: String },
+}
+
+impl BusError {
+    /// True for an error of one frame (an error frame, a frame the bus cannot carry or
+    /// represent): the bus itself goes on.
+    pub fn is_frame_level(&self) -> bool {
+        matches!(
+            self,
+            BusError::ErrorFrame { .. } | BusError::Unsupported { .. } | BusError::BadFrame { .. }
+        )
+    }
 }
 
 /// A CAN bus endpoint.
@@ -290,6 +307,27 @@ impl Bus for InProcessEndpoint {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A frame the bus cannot represent is an error of that frame, with its reason kept as the
+    /// cause; an I/O error is the bus's.
+    #[test]
+    fn a_bad_frame_is_frame_level_and_keeps_its_reason() {
+        let e = BusError::BadFrame {
+            iface: "vcan0".into(),
+            source: crate::can::frame::FrameError::TooLong { len: 12 },
+        };
+        assert!(e.is_frame_level());
+        assert_eq!(
+            crate::error_chain::chain(&e),
+            "CAN interface vcan0: a received frame cannot be represented: \
+             12 data bytes exceed the classic CAN maximum of 8"
+        );
+        let io = BusError::Io {
+            iface: "vcan0".into(),
+            source: std::io::Error::other("down"),
+        };
+        assert!(!io.is_frame_level());
+    }
 
     fn f(id: u16, b: u8) -> CanFrame {
         CanFrame::standard(id, &[b]).unwrap()

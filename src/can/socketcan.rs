@@ -159,9 +159,9 @@ impl SocketCanBus {
                 id: e.raw_id(),
             });
         }
-        let frame = CanFrame::from_frame(&frame).map_err(|e| BusError::Unsupported {
+        let frame = CanFrame::from_frame(&frame).map_err(|source| BusError::BadFrame {
             iface: self.iface.clone(),
-            what: e.to_string(),
+            source,
         })?;
         Ok(Received {
             frame,

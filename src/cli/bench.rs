@@ -191,7 +191,7 @@ fn spawn_recorder(
                     biased;
                     rx = bus.recv() => match rx {
                         Ok(r) => frames.push((r.timestamp, r.frame)),
-                        Err(BusError::ErrorFrame { .. }) | Err(BusError::Unsupported { .. }) => {}
+                        Err(e) if e.is_frame_level() => {}
                         Err(e) => return Err(e.into()),
                     },
                     _ = &mut stop_fut => break,

@@ -316,11 +316,13 @@ pub enum LinkError {
         #[source]
         source: io::Error,
     },
-    #[error("{failures} consecutive send failures on {iface}: {last}")]
+    #[error("{failures} consecutive send failures on {iface}")]
     Send {
         iface: String,
         failures: u64,
-        last: String,
+        /// The last failure.
+        #[source]
+        last: BusError,
     },
 }
 
@@ -384,12 +386,11 @@ impl<B: Bus> Link<B> {
     /// Counts a receive error; Ok when the daemon goes on.
     pub fn receive_error(&mut self, e: BusError) -> Result<(), LinkError> {
         self.receive_errors += 1;
-        match e {
-            BusError::ErrorFrame { .. } | BusError::Unsupported { .. } => {
-                tracing::debug!("receive: {e}");
-                Ok(())
-            }
-            other => Err(other.into()),
+        if e.is_frame_level() {
+            tracing::debug!("receive: {}", crate::error_chain::chain(&e));
+            Ok(())
+        } else {
+            Err(e.into())
         }
     }
 
@@ -416,7 +417,7 @@ impl<B: Bus> Link<B> {
                     return Err(LinkError::Send {
                         iface: self.bus.iface().to_string(),
                         failures: self.consecutive_send_errors,
-                        last: e.to_string(),
+                        last: e,
                     });
                 }
                 Ok(())

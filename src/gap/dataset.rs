@@ -231,8 +231,12 @@ impl Col {
 /// Errors of loading a dataset. Positions are 1-based; `column` is the header name.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DatasetError {
-    #[error("{file}: cannot read: {message}")]
-    Io { file: String, message: String },
+    #[error("{file}: cannot read")]
+    Io {
+        file: String,
+        #[source]
+        source: crate::io_error::IoError,
+    },
     #[error("{file}: empty file (expected a header line)")]
     Empty { file: String },
     #[error("{file}:{line}: missing required column `{column}`")]
@@ -876,7 +880,7 @@ fn read_file(path: &Path) -> Result<(String, RawRecord), DatasetError> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|e| DatasetError::Io {
         file: file.clone(),
-        message: e.to_string(),
+        source: e.into(),
     })?;
     let raw = if text.trim_start().starts_with('(') {
         decode_log(&file, candump_lines(&file, text.as_bytes()), DEFAULT_DT_S)?
@@ -1062,7 +1066,7 @@ fn candump_lines<'a>(
                 } else {
                     DatasetError::Io {
                         file: file.into(),
-                        message: e.to_string(),
+                        source: e.into(),
                     }
                 }
             })?;

@@ -532,8 +532,11 @@ pub enum EffectError {
     },
     #[error("`{key}` must be a table of parameters")]
     NotATable { key: String },
-    #[error("effects file is not valid TOML: {message}")]
-    Syntax { message: String },
+    #[error("effects file is not valid TOML")]
+    Syntax {
+        #[source]
+        source: Box<toml::de::Error>,
+    },
     #[error("cannot read effects file {path}")]
     Io {
         path: String,
@@ -652,11 +655,11 @@ impl EffectSet {
     /// Parses an effects file: tables `[effects.<id>]` with `param = value` (a missing parameter
     /// takes its typical value; `enabled = false` switches the effect off).
     pub fn from_toml_str(text: &str) -> Result<Self, EffectError> {
-        let doc: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| EffectError::Syntax {
-                message: e.to_string(),
-            })?;
+        let doc: toml::Table =
+            text.parse()
+                .map_err(|source: toml::de::Error| EffectError::Syntax {
+                    source: Box::new(source),
+                })?;
         for key in doc.keys() {
             if key != "effects" {
                 return Err(EffectError::UnknownEffect {

@@ -33,10 +33,17 @@ pub struct Spec {
 /// Errors of loading and validating parameters. `key` is always `table.key`.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ParamsError {
-    #[error("cannot read parameter file {path}: {message}")]
-    Io { path: PathBuf, message: String },
-    #[error("parameter file is not valid TOML: {message}")]
-    Syntax { message: String },
+    #[error("cannot read parameter file {path}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: crate::io_error::IoError,
+    },
+    #[error("parameter file is not valid TOML")]
+    Syntax {
+        #[source]
+        source: Box<toml::de::Error>,
+    },
     #[error("missing table [{table}]")]
     MissingTable { table: String },
     #[error("missing parameter `{key}` (allowed range {min} ..= {max})")]
@@ -307,11 +314,11 @@ const TABLES: &[(&str, &[Spec])] = &[
 impl Params {
     /// Parses and validates a parameter file's text.
     pub fn from_toml_str(text: &str) -> Result<Params, ParamsError> {
-        let doc: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| ParamsError::Syntax {
-                message: e.to_string(),
-            })?;
+        let doc: toml::Table =
+            text.parse()
+                .map_err(|source: toml::de::Error| ParamsError::Syntax {
+                    source: Box::new(source),
+                })?;
         for key in doc.keys() {
             if !TABLES.iter().any(|(t, _)| t == key) {
                 return Err(ParamsError::Unknown { key: key.clone() });
@@ -356,8 +363,8 @@ impl Params {
         }
         let p: Params = doc
             .try_into()
-            .map_err(|e: toml::de::Error| ParamsError::Syntax {
-                message: e.to_string(),
+            .map_err(|source: toml::de::Error| ParamsError::Syntax {
+                source: Box::new(source),
             })?;
         p.validate()?;
         Ok(p)
@@ -368,7 +375,7 @@ impl Params {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|e| ParamsError::Io {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            source: e.into(),
         })?;
         Params::from_toml_str(&text).map_err(|e| {
             match e.key().and_then(|k| crate::toml_key::line_of(&text, k)) {
@@ -574,6 +581,26 @@ mod tests {
             Params::from_toml_str("[clutch\n").unwrap_err(),
             ParamsError::Syntax { .. }
         ));
+    }
+
+    /// A file that cannot be read or parsed keeps the I/O or TOML error as its cause.
+    #[test]
+    fn read_and_syntax_errors_keep_their_cause() {
+        use std::error::Error as _;
+        let e = Params::load("/nonexistent/p.toml").unwrap_err();
+        let io = e
+            .source()
+            .and_then(|s| s.downcast_ref::<crate::io_error::IoError>());
+        assert_eq!(io.map(|i| i.kind()), Some(std::io::ErrorKind::NotFound));
+        assert!(crate::error_chain::chain(&e)
+            .starts_with("cannot read parameter file /nonexistent/p.toml: "));
+        let e = Params::from_toml_str("[clutch\n").unwrap_err();
+        let chain = crate::error_chain::chain(&e);
+        assert!(
+            chain.starts_with("parameter file is not valid TOML: "),
+            "{chain}"
+        );
+        assert!(chain.contains("line 1"), "{chain}");
     }
 
     #[test]

@@ -45,8 +45,12 @@ pub enum PlantError {
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: not valid TOML: {message}")]
-    Syntax { path: PathBuf, message: String },
+    #[error("{path}: not valid TOML")]
+    Syntax {
+        path: PathBuf,
+        #[source]
+        source: Box<toml::de::Error>,
+    },
     #[error("{path}{}: `{key}`: {reason}", crate::toml_key::at_line(*.line))]
     Key {
         path: PathBuf,
@@ -113,8 +117,8 @@ pub(crate) fn read_text(path: &std::path::Path) -> Result<String, PlantError> {
 
 pub(crate) fn parse_toml(path: &std::path::Path, text: &str) -> Result<toml::Table, PlantError> {
     text.parse()
-        .map_err(|e: toml::de::Error| PlantError::Syntax {
+        .map_err(|source: toml::de::Error| PlantError::Syntax {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            source: Box::new(source),
         })
 }
