@@ -890,6 +890,92 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
     (m.p, m.set)
 }
 
+/// Phase 6: the verdict — a finding per kept class (less the partial fits: a class whose
+/// subsystem stays above half its recalibrated excess), then the recalibrations out of range and
+/// what is left outside the library (less the residue of a subsystem its classes closed to
+/// within 10 %); `Nothing` when none is left. Returns the findings and the outside-library
+/// findings kept.
+fn verdict(
+    rounds: &[select::Round],
+    setup: &Setup,
+    sc_rec_v: &Scores,
+    ex_rec_all: &[Excess],
+    outside: Vec<OutsideFinding>,
+    recal_findings: Vec<RecalibrationFinding>,
+    notes: &mut Vec<String>,
+) -> (Vec<Finding>, Vec<OutsideFinding>) {
+    let chans = setup.chans;
+    let mut findings: Vec<Finding> = Vec::new();
+    for r in rounds {
+        if let Some(k) = r.kept {
+            let c = &r.candidates[k];
+            if let Some(old) = r.replaced {
+                notes.push(format!(
+                    "{old} was selected first, then replaced by {}: with the other selected \
+                     classes in, {} explains significantly more of what is left",
+                    c.class, c.class
+                ));
+            }
+            if r.dropped {
+                notes.push(format!(
+                    "{} was selected, then dropped: not significant once the later classes were in",
+                    c.class
+                ));
+                continue;
+            }
+            let aff: Vec<Channel> = select::affected(c.class)
+                .into_iter()
+                .filter(|ch| chans.contains(ch))
+                .collect();
+            let (z0, n0) = sc_rec_v.total(&aff);
+            findings.push(class_finding(c, setup.knots, &r.ambiguous, z0 - n0));
+        }
+    }
+    // A kept class whose subsystem is still far above its floor explains too little of it to be
+    // the cause: it stays in the report as a partial fit and the subsystem's residual is outside
+    // the library.
+    let ex_rec: BTreeMap<Subsystem, f64> =
+        ex_rec_all.iter().map(|e| (e.subsystem, e.excess)).collect();
+    let mut partial = Vec::new();
+    findings.retain(|f| {
+        let Some(c) = f.class() else { return true };
+        let left = outside.iter().find(|x| x.subsystem == classfit::group(c.class));
+        match (left, ex_rec.get(&classfit::group(c.class))) {
+            (Some(x), Some(&e0)) if x.excess > 0.5 * e0 => {
+                partial.push(format!(
+                    "{} closes {:.0} % of the gap but {} stays {:.0} % above its noise floor (of {:.0} % before): a partial fit, not the cause",
+                    c.class, c.share_pct, x.subsystem, 100.0 * x.excess, 100.0 * e0
+                ));
+                false
+            }
+            _ => true,
+        }
+    });
+    notes.extend(partial);
+    // A subsystem whose kept classes closed at least 90 % of its gap: what is left is the
+    // flexible term's approximation of the true form, not a second, unexplained effect.
+    let explained: Vec<Subsystem> = findings
+        .iter()
+        .filter_map(Finding::class)
+        .map(|c| classfit::group(c.class))
+        .collect();
+    let outside: Vec<OutsideFinding> = outside
+        .into_iter()
+        .filter(|x| {
+            !explained.contains(&x.subsystem)
+                || ex_rec
+                    .get(&x.subsystem)
+                    .is_none_or(|&e0| x.excess > 0.1 * e0)
+        })
+        .collect();
+    findings.extend(recal_findings.into_iter().map(Finding::Recalibration));
+    findings.extend(outside.iter().cloned().map(Finding::OutsideLibrary));
+    if findings.is_empty() {
+        findings.push(Finding::Nothing);
+    }
+    (findings, outside)
+}
+
 /// Runs the diagnosis.
 pub fn diagnose(
     train: &[Dataset],
@@ -1011,75 +1097,16 @@ pub fn diagnose(
     phase("outside the library");
 
     // Phase 6: the verdict.
-    let mut findings: Vec<Finding> = Vec::new();
-    for r in &rounds {
-        if let Some(k) = r.kept {
-            let c = &r.candidates[k];
-            if let Some(old) = r.replaced {
-                notes.push(format!(
-                    "{old} was selected first, then replaced by {}: with the other selected \
-                     classes in, {} explains significantly more of what is left",
-                    c.class, c.class
-                ));
-            }
-            if r.dropped {
-                notes.push(format!(
-                    "{} was selected, then dropped: not significant once the later classes were in",
-                    c.class
-                ));
-                continue;
-            }
-            let aff: Vec<Channel> = select::affected(c.class)
-                .into_iter()
-                .filter(|ch| chans.contains(ch))
-                .collect();
-            let (z0, n0) = sc_rec_v.total(&aff);
-            findings.push(class_finding(c, setup.knots, &r.ambiguous, z0 - n0));
-        }
-    }
-    // A kept class whose subsystem is still far above its floor explains too little of it to be
-    // the cause: it stays in the report as a partial fit and the subsystem's residual is outside
-    // the library.
     let ex_rec_all = excesses(&sc_rec_v, &chans, o);
-    let ex_rec: BTreeMap<Subsystem, f64> =
-        ex_rec_all.iter().map(|e| (e.subsystem, e.excess)).collect();
-    let mut partial = Vec::new();
-    findings.retain(|f| {
-        let Some(c) = f.class() else { return true };
-        let left = outside.iter().find(|x| x.subsystem == classfit::group(c.class));
-        match (left, ex_rec.get(&classfit::group(c.class))) {
-            (Some(x), Some(&e0)) if x.excess > 0.5 * e0 => {
-                partial.push(format!(
-                    "{} closes {:.0} % of the gap but {} stays {:.0} % above its noise floor (of {:.0} % before): a partial fit, not the cause",
-                    c.class, c.share_pct, x.subsystem, 100.0 * x.excess, 100.0 * e0
-                ));
-                false
-            }
-            _ => true,
-        }
-    });
-    notes.extend(partial);
-    // A subsystem whose kept classes closed at least 90 % of its gap: what is left is the
-    // flexible term's approximation of the true form, not a second, unexplained effect.
-    let explained: Vec<Subsystem> = findings
-        .iter()
-        .filter_map(Finding::class)
-        .map(|c| classfit::group(c.class))
-        .collect();
-    let outside: Vec<OutsideFinding> = outside
-        .into_iter()
-        .filter(|x| {
-            !explained.contains(&x.subsystem)
-                || ex_rec
-                    .get(&x.subsystem)
-                    .is_none_or(|&e0| x.excess > 0.1 * e0)
-        })
-        .collect();
-    findings.extend(recal_findings.into_iter().map(Finding::Recalibration));
-    findings.extend(outside.iter().cloned().map(Finding::OutsideLibrary));
-    if findings.is_empty() {
-        findings.push(Finding::Nothing);
-    }
+    let (findings, outside) = verdict(
+        &rounds,
+        &setup,
+        &sc_rec_v,
+        &ex_rec_all,
+        outside,
+        recal_findings,
+        &mut notes,
+    );
     let unexplained_pct = unexplained(&sc_rec_v, &after_val, &chans);
 
     // Where.
