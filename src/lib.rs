@@ -15,6 +15,7 @@ pub mod model;
 pub mod par;
 pub mod plant;
 pub mod plot;
+pub mod ranges;
 pub mod sim;
 pub mod tcu;
 pub mod toml_key;

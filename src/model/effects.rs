@@ -517,13 +517,9 @@ pub enum EffectError {
     UnknownParam { key: String, known: String },
     #[error("parameter `{key}` must be a number")]
     NotANumber { key: String },
-    #[error("parameter `{key}` = {value} is outside its bounds {min} ..= {max}")]
-    OutOfBounds {
-        key: String,
-        value: f64,
-        min: f64,
-        max: f64,
-    },
+    /// A parameter outside [`ParamSpec::bounds`] (or not finite).
+    #[error(transparent)]
+    OutOfBounds(#[from] crate::ranges::RangeError),
     #[error("effect `{id}` takes {expected} parameter(s), got {found}")]
     WrongLength {
         id: &'static str,
@@ -577,14 +573,8 @@ impl EffectSet {
         }
         let mut v = [0.0; MAX_PARAMS];
         for (i, (spec, &x)) in specs.iter().zip(params).enumerate() {
-            if !(x.is_finite() && x >= spec.bounds.0 && x <= spec.bounds.1) {
-                return Err(EffectError::OutOfBounds {
-                    key: format!("effects.{}.{}", id, spec.name),
-                    value: x,
-                    min: spec.bounds.0,
-                    max: spec.bounds.1,
-                });
-            }
+            let (min, max) = spec.bounds;
+            crate::ranges::check(&format!("effects.{id}"), spec.name, &x, min, max)?;
             v[i] = x;
         }
         self.slots[id.index()] = Some(v);
@@ -1330,7 +1320,7 @@ mod tests {
         ));
         assert!(matches!(
             EffectSet::from_toml_str("[effects.actuator_dead_time]\ndelay_s = 3.0\n"),
-            Err(EffectError::OutOfBounds { key, .. }) if key == "effects.actuator_dead_time.delay_s"
+            Err(EffectError::OutOfBounds(r)) if r.key == "effects.actuator_dead_time.delay_s"
         ));
         assert!(matches!(
             EffectSet::from_toml_str("[effects.actuator_dead_time]\ndelay_s = \"x\"\n"),

@@ -5,11 +5,13 @@
 //! characteristic (13) needs), [`ThermalParams5`] ((16a)–(16e)), [`ThermalParams3`] ((17a)–(17c)),
 //! [`DrivelineParams`] ((18)–(20) plus grade, brake, gears and synchronisers), [`EngineParams`],
 //! [`ActuatorParams`] and [`IntegratorParams`]. Every key is a plain number whose unit is in its
-//! name; every key is required and has an allowed range. Loading checks, in order: TOML syntax,
-//! presence of every table and key (no unknown keys), number type, range, then cross-field
-//! consistency (e.g. the kiss point stays below `x_to_max_mm`, the spring force (10) is strictly
-//! increasing). Each failure is a [`ParamsError`] naming the key (`table.key`) and its range.
+//! name; every key is required and has an allowed range, declared once beside it
+//! (`param_table!`, which declares it through [`crate::ranges!`]). Loading checks, in order: TOML
+//! syntax, the tables and keys (serde: present, none unknown, numbers), the ranges, then
+//! cross-field consistency (e.g. the kiss point stays below `x_to_max_mm`, the spring force (10)
+//! is strictly increasing). Each failure is a [`ParamsError`] naming the key and its line.
 
+use crate::ranges::Ranged;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -44,21 +46,15 @@ pub enum ParamsError {
         #[source]
         source: Box<toml::de::Error>,
     },
-    #[error("missing table [{table}]")]
-    MissingTable { table: String },
-    #[error("missing parameter `{key}` (allowed range {min} ..= {max})")]
-    Missing { key: String, min: f64, max: f64 },
-    #[error("parameter `{key}` must be a number in {min} ..= {max}")]
-    NotANumber { key: String, min: f64, max: f64 },
-    #[error("parameter `{key}` = {value} is out of its allowed range {min} ..= {max}")]
-    OutOfRange {
-        key: String,
-        value: f64,
-        min: f64,
-        max: f64,
+    /// A table or key missing or unknown, or a value of the wrong type (serde's message, with
+    /// the line, the key and the text around it).
+    #[error("parameter file does not have the expected tables and keys")]
+    Structure {
+        #[source]
+        source: Box<toml::de::Error>,
     },
-    #[error("unknown parameter `{key}`")]
-    Unknown { key: String },
+    #[error(transparent)]
+    OutOfRange(#[from] crate::ranges::RangeError),
     #[error("inconsistent parameter `{key}`: {reason}")]
     Inconsistent { key: String, reason: String },
     /// An error of a key placed at the key's line of the file ([`Params::load`]).
@@ -74,10 +70,7 @@ impl ParamsError {
     /// The `table.key` the error is about, if any.
     pub fn key(&self) -> Option<&str> {
         match self {
-            ParamsError::Missing { key, .. }
-            | ParamsError::NotANumber { key, .. }
-            | ParamsError::OutOfRange { key, .. }
-            | ParamsError::Unknown { key }
+            ParamsError::OutOfRange(crate::ranges::RangeError { key, .. })
             | ParamsError::Inconsistent { key, .. } => Some(key),
             ParamsError::AtLine { source, .. } => source.key(),
             _ => None,
@@ -100,8 +93,6 @@ macro_rules! param_table {
         }
 
         impl $name {
-            /// Name of the TOML table.
-            pub const TABLE: &'static str = $table;
             /// Allowed range of each key, in declaration order.
             pub const SPECS: &'static [Spec] = &[
                 $( Spec { key: stringify!($field), min: $min, max: $max }, )*
@@ -111,21 +102,9 @@ macro_rules! param_table {
             pub fn values(&self) -> Vec<f64> {
                 vec![ $( self.$field, )* ]
             }
-
-            fn check_ranges(&self) -> Result<(), ParamsError> {
-                for (spec, v) in Self::SPECS.iter().zip(self.values()) {
-                    if !(v.is_finite() && v >= spec.min && v <= spec.max) {
-                        return Err(ParamsError::OutOfRange {
-                            key: format!("{}.{}", Self::TABLE, spec.key),
-                            value: v,
-                            min: spec.min,
-                            max: spec.max,
-                        });
-                    }
-                }
-                Ok(())
-            }
         }
+
+        $crate::ranges!($name as _p, $table { $( $field: [$min, $max] ),* });
     };
 }
 
@@ -301,71 +280,18 @@ impl Default for Params {
     }
 }
 
-const TABLES: &[(&str, &[Spec])] = &[
-    (ClutchParams::TABLE, ClutchParams::SPECS),
-    (ThermalParams5::TABLE, ThermalParams5::SPECS),
-    (ThermalParams3::TABLE, ThermalParams3::SPECS),
-    (DrivelineParams::TABLE, DrivelineParams::SPECS),
-    (EngineParams::TABLE, EngineParams::SPECS),
-    (ActuatorParams::TABLE, ActuatorParams::SPECS),
-    (IntegratorParams::TABLE, IntegratorParams::SPECS),
-];
-
 impl Params {
-    /// Parses and validates a parameter file's text.
+    /// Parses and validates a parameter file's text: TOML syntax, then the tables and keys
+    /// (serde: every key required, none unknown, numbers only), then every key's declared range
+    /// and the rules between keys.
     pub fn from_toml_str(text: &str) -> Result<Params, ParamsError> {
-        let doc: toml::Table =
-            text.parse()
-                .map_err(|source: toml::de::Error| ParamsError::Syntax {
-                    source: Box::new(source),
-                })?;
-        for key in doc.keys() {
-            if !TABLES.iter().any(|(t, _)| t == key) {
-                return Err(ParamsError::Unknown { key: key.clone() });
-            }
-        }
-        for (table, specs) in TABLES {
-            let t = match doc.get(*table) {
-                Some(toml::Value::Table(t)) => t,
-                _ => {
-                    return Err(ParamsError::MissingTable {
-                        table: (*table).to_string(),
-                    })
-                }
-            };
-            for k in t.keys() {
-                if !specs.iter().any(|s| s.key == k) {
-                    return Err(ParamsError::Unknown {
-                        key: format!("{table}.{k}"),
-                    });
-                }
-            }
-            for s in specs.iter() {
-                let key = format!("{table}.{}", s.key);
-                match t.get(s.key) {
-                    None => {
-                        return Err(ParamsError::Missing {
-                            key,
-                            min: s.min,
-                            max: s.max,
-                        })
-                    }
-                    Some(toml::Value::Float(_)) | Some(toml::Value::Integer(_)) => {}
-                    Some(_) => {
-                        return Err(ParamsError::NotANumber {
-                            key,
-                            min: s.min,
-                            max: s.max,
-                        })
-                    }
-                }
-            }
-        }
-        let p: Params = doc
-            .try_into()
-            .map_err(|source: toml::de::Error| ParamsError::Syntax {
+        text.parse::<toml::Table>()
+            .map_err(|source| ParamsError::Syntax {
                 source: Box::new(source),
             })?;
+        let p: Params = toml::from_str(text).map_err(|source| ParamsError::Structure {
+            source: Box::new(source),
+        })?;
         p.validate()?;
         Ok(p)
     }
@@ -540,16 +466,23 @@ mod tests {
         assert_eq!(p, Params::default());
     }
 
+    /// The chain of an error: the key and the line are in it.
+    fn chain(e: &ParamsError) -> String {
+        crate::error_chain::chain(e)
+    }
+
     #[test]
-    fn missing_key_is_named_with_range() {
+    fn a_missing_key_is_named_with_its_line() {
         let text = DEFAULT_TOML.replace("mu_s = 0.27", "");
-        match Params::from_toml_str(&text) {
-            Err(ParamsError::Missing { key, min, max }) => {
-                assert_eq!(key, "clutch.mu_s");
-                assert_eq!((min, max), (0.01, 1.0));
-            }
-            other => panic!("expected Missing, got {other:?}"),
-        }
+        let e = Params::from_toml_str(&text).unwrap_err();
+        assert!(matches!(e, ParamsError::Structure { .. }), "{e:?}");
+        assert!(chain(&e).contains("missing field `mu_s`"), "{}", chain(&e));
+        let clutch = 1 + DEFAULT_TOML.lines().position(|l| l == "[clutch]").unwrap();
+        assert!(
+            chain(&e).contains(&format!("line {clutch}")),
+            "{}",
+            chain(&e)
+        );
     }
 
     #[test]
@@ -557,26 +490,35 @@ mod tests {
         let text = DEFAULT_TOML.replace("tau_s = 0.02", "tau_s = 5.0");
         let e = Params::from_toml_str(&text).unwrap_err();
         assert!(
-            matches!(&e, ParamsError::OutOfRange { key, value, .. } if key == "actuator.tau_s" && *value == 5.0)
+            matches!(&e, ParamsError::OutOfRange(r) if r.key == "actuator.tau_s" && r.value == 5.0),
+            "{e:?}"
         );
         assert!(e.to_string().contains("actuator.tau_s"));
-        assert!(e.to_string().contains("1"));
+        assert_eq!(e.key(), Some("actuator.tau_s"));
+        let text = DEFAULT_TOML.replace("tau_s = 0.02", "tau_s = nan");
+        assert!(matches!(
+            Params::from_toml_str(&text).unwrap_err(),
+            ParamsError::OutOfRange(r) if r.key == "actuator.tau_s" && r.value.is_nan()
+        ));
     }
 
     #[test]
     fn unknown_and_wrong_type_rejected() {
         let text = DEFAULT_TOML.replace("tau_s = 0.02", "tau_s = 0.02\ntau_ms = 20");
-        assert_eq!(
-            Params::from_toml_str(&text).unwrap_err(),
-            ParamsError::Unknown {
-                key: "actuator.tau_ms".into()
-            }
+        let e = Params::from_toml_str(&text).unwrap_err();
+        assert!(
+            chain(&e).contains("unknown field `tau_ms`"),
+            "{}",
+            chain(&e)
         );
         let text = DEFAULT_TOML.replace("tau_s = 0.02", "tau_s = \"fast\"");
-        assert!(matches!(
-            Params::from_toml_str(&text).unwrap_err(),
-            ParamsError::NotANumber { key, .. } if key == "actuator.tau_s"
-        ));
+        let e = Params::from_toml_str(&text).unwrap_err();
+        let line = 1 + text
+            .lines()
+            .position(|l| l.starts_with("tau_s = \"fast"))
+            .unwrap();
+        assert!(chain(&e).contains(&format!("line {line}")), "{}", chain(&e));
+        assert!(chain(&e).contains("tau_s"), "{}", chain(&e));
         assert!(matches!(
             Params::from_toml_str("[clutch\n").unwrap_err(),
             ParamsError::Syntax { .. }

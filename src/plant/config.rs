@@ -11,6 +11,7 @@ use crate::can::messages::ids;
 use crate::model::effects::EffectSet;
 use crate::model::gear::Gear;
 use crate::model::Params;
+use crate::ranges::Ranged;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -247,17 +248,39 @@ fn resolve(base: Option<&Path>, rel: &str) -> PathBuf {
     }
 }
 
-fn check(path: &Path, key: &str, v: f64, lo: f64, hi: f64) -> Result<(), PlantError> {
-    if v.is_finite() && v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(PlantError::key(
-            path,
-            key,
-            format!("{v} is outside {lo} ..= {hi}"),
-        ))
-    }
-}
+// The allowed range of every number, table by table (`crate::ranges`).
+crate::ranges!(Initial as _i, "initial" {
+    engine_rpm: [0.0, 7000.0],
+    vehicle_kmh: [-60.0, 250.0],
+    temperature_c: [-40.0, 350.0],
+    pp1_c: [-40.0, 350.0],
+    pp2_c: [-40.0, 350.0],
+    c1_c: [-40.0, 350.0],
+    c2_c: [-40.0, 350.0],
+    cd_c: [-40.0, 350.0],
+    housing_c: [-40.0, 200.0],
+});
+crate::ranges!(Housing as _h, "housing" {
+    target_c: [-40.0, 200.0],
+    tau_s: [1.0, 1e6],
+});
+crate::ranges!(SensorNoise as _s, "sensors" {
+    speed_rpm: [0.0, 100.0],
+    engine_torque_nm: [0.0, 50.0],
+    position_mm: [0.0, 1.0],
+    torque_nm: [0.0, 50.0],
+    temperature_c: [0.0, 20.0],
+    housing_c: [0.0, 20.0],
+    vehicle_accel_mps2: [0.0, 5.0],
+});
+crate::ranges!(InputOptions as _i, "inputs" {
+    timeout_cycles: [1.0, 1000.0],
+    brake_switch_fraction: [0.0, 1.0],
+});
+crate::ranges!(RigOptions as _r, "rig" {
+    input_speed_rpm: [0.0, 6000.0],
+    brake: [0.0, 1.0],
+});
 
 impl PlantConfig {
     /// Reads and validates a plant configuration; relative file names inside it are relative to
@@ -350,67 +373,21 @@ impl PlantConfig {
         Ok(cfg)
     }
 
-    /// Range checks of the plain numbers.
+    /// The declared range of every number ([`crate::ranges!`] above), the shafts' gears, and
+    /// a time step that divides the cycle.
     pub fn validate(&self, path: &Path) -> Result<(), PlantError> {
-        let i = &self.initial;
-        check(path, "initial.engine_rpm", i.engine_rpm, 0.0, 7000.0)?;
-        check(path, "initial.vehicle_kmh", i.vehicle_kmh, -60.0, 250.0)?;
-        check(path, "initial.temperature_c", i.temperature_c, -40.0, 350.0)?;
-        for (k, v) in [
-            ("initial.pp1_c", i.pp1_c),
-            ("initial.pp2_c", i.pp2_c),
-            ("initial.c1_c", i.c1_c),
-            ("initial.c2_c", i.c2_c),
-            ("initial.cd_c", i.cd_c),
-        ] {
-            if let Some(v) = v {
-                check(path, k, v, -40.0, 350.0)?;
-            }
-        }
-        check(path, "initial.housing_c", i.housing_c, -40.0, 200.0)?;
-        check_shafts(path, "initial", i.gear_odd, i.gear_even)?;
-        check(
+        let range = |e| PlantError::range(path, e);
+        self.initial.check_ranges().map_err(range)?;
+        self.housing.check_ranges().map_err(range)?;
+        self.sensors.check_ranges().map_err(range)?;
+        self.inputs.check_ranges().map_err(range)?;
+        self.rig.check_ranges().map_err(range)?;
+        check_shafts(
             path,
-            "housing.target_c",
-            self.housing.target_c,
-            -40.0,
-            200.0,
+            "initial",
+            self.initial.gear_odd,
+            self.initial.gear_even,
         )?;
-        check(path, "housing.tau_s", self.housing.tau_s, 1.0, 1e6)?;
-        let s = &self.sensors;
-        for (k, v, hi) in [
-            ("sensors.speed_rpm", s.speed_rpm, 100.0),
-            ("sensors.engine_torque_nm", s.engine_torque_nm, 50.0),
-            ("sensors.position_mm", s.position_mm, 1.0),
-            ("sensors.torque_nm", s.torque_nm, 50.0),
-            ("sensors.temperature_c", s.temperature_c, 20.0),
-            ("sensors.housing_c", s.housing_c, 20.0),
-            ("sensors.vehicle_accel_mps2", s.vehicle_accel_mps2, 5.0),
-        ] {
-            check(path, k, v, 0.0, hi)?;
-        }
-        if !(1..=1000).contains(&self.inputs.timeout_cycles) {
-            return Err(PlantError::key(
-                path,
-                "inputs.timeout_cycles",
-                "must be in 1 ..= 1000",
-            ));
-        }
-        check(
-            path,
-            "inputs.brake_switch_fraction",
-            self.inputs.brake_switch_fraction,
-            0.0,
-            1.0,
-        )?;
-        check(
-            path,
-            "rig.input_speed_rpm",
-            self.rig.input_speed_rpm,
-            0.0,
-            6000.0,
-        )?;
-        check(path, "rig.brake", self.rig.brake, 0.0, 1.0)?;
         check_shafts(path, "rig", self.rig.gear_odd, self.rig.gear_even)?;
         let dt = self.params.integrator.dt_s;
         let per_cycle = super::core::CYCLE.as_secs_f64() / dt;

@@ -16,6 +16,7 @@
 use super::PlantError;
 use crate::can::codec::MessageDef;
 use crate::can::messages::{message_by_name, message_def};
+use crate::ranges::Ranged;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Duration;
@@ -113,6 +114,13 @@ pub struct FaultSpec {
     pub value: Option<f64>,
 }
 
+// The allowed range of every number of a `[[faults]]` table (`crate::ranges`).
+crate::ranges!(FaultSpec as f, "faults" {
+    from_s: [0.0, MAX_TIME_S],
+    to_s: [f.from_s, MAX_TIME_S],
+    delay_ms: [1.0, 1000.0],
+});
+
 impl FaultSpec {
     /// Validates against the contract and the messages the plant sends (`sent` ids).
     pub fn validate(&self, path: &Path, index: usize, sent: &[u16]) -> Result<Fault, PlantError> {
@@ -148,19 +156,10 @@ impl FaultSpec {
                 ),
             )
         })?;
-        if !(self.from_s.is_finite() && (0.0..=MAX_TIME_S).contains(&self.from_s)) {
-            return Err(err(
-                "from_s",
-                format!("must be a time in 0 ..= {MAX_TIME_S:e} s"),
-            ));
-        }
-        if let Some(to) = self.to_s {
-            if !(to.is_finite() && to > self.from_s && to <= MAX_TIME_S) {
-                return Err(err(
-                    "to_s",
-                    format!("must be later than from_s and at most {MAX_TIME_S:e} s"),
-                ));
-            }
+        self.check_ranges_in(&format!("faults[{index}]"))
+            .map_err(|e| PlantError::range(path, e))?;
+        if self.to_s == Some(self.from_s) {
+            return Err(err("to_s", "must be later than from_s".into()));
         }
         if matches!(kind, FaultKind::FreezeCounter | FaultKind::CorruptCrc) && !def.e2e {
             return Err(err(
@@ -194,9 +193,6 @@ impl FaultSpec {
                 let d = self
                     .delay_ms
                     .ok_or_else(|| err("delay_ms", "missing (delay in ms)".into()))?;
-                if !(1.0..=1000.0).contains(&d) {
-                    return Err(err("delay_ms", "must be in 1 ..= 1000 ms".into()));
-                }
                 fault.delay = Duration::from_secs_f64(d * 1e-3);
             }
             _ => unused("delay_ms", self.delay_ms.is_some())?,

@@ -88,6 +88,12 @@ impl PlantError {
         }
     }
 
+    /// A number of the file `path` outside its declared range.
+    pub(crate) fn range(path: &std::path::Path, e: crate::ranges::RangeError) -> Self {
+        let reason = format!("{} is outside {} ..= {}", e.value, e.min, e.max);
+        Self::key(path, e.key, reason)
+    }
+
     /// Places a key error of the file `path` at its key's line in that file's `text` (the
     /// loaders call it where they hold the text; other errors pass unchanged).
     pub(crate) fn located(self, path: &std::path::Path, text: &str) -> Self {

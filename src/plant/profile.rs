@@ -132,17 +132,16 @@ fn check_keys(
     Ok(())
 }
 
-fn in_range(path: &Path, key: &str, values: &[f64], lo: f64, hi: f64) -> Result<(), PlantError> {
-    for (i, v) in values.iter().enumerate() {
-        if !(*v >= lo && *v <= hi) {
-            return Err(PlantError::key(
-                path,
-                format!("{key}[{i}]"),
-                format!("{v} is outside {lo} ..= {hi}"),
-            ));
-        }
-    }
-    Ok(())
+/// A number's or a series' range ([`crate::ranges`]; each value of a series checked, `key[i]`
+/// in the error).
+fn in_range<B: crate::ranges::Bounded + ?Sized>(
+    path: &Path,
+    key: &str,
+    value: &B,
+    lo: f64,
+    hi: f64,
+) -> Result<(), PlantError> {
+    crate::ranges::check("", key, value, lo, hi).map_err(|e| PlantError::range(path, e))
 }
 
 /// The built-in driver of vehicle mode: accelerator pedal (%, linear), brake (fraction 0..1,
@@ -337,17 +336,9 @@ impl RigProfile {
             .unwrap_or("")
             .to_string();
         let input_speed_rpm = number(path, doc, "input_speed_rpm")?.unwrap_or(2000.0);
-        if !(0.0..=6000.0).contains(&input_speed_rpm) {
-            return Err(PlantError::key(
-                path,
-                "input_speed_rpm",
-                "must be in 0 ..= 6000 rpm",
-            ));
-        }
+        in_range(path, "input_speed_rpm", &input_speed_rpm, 0.0, 6000.0)?;
         let start_s = number(path, doc, "start_s")?.unwrap_or(0.0);
-        if !(0.0..=3600.0).contains(&start_s) {
-            return Err(PlantError::key(path, "start_s", "must be in 0 ..= 3600 s"));
-        }
+        in_range(path, "start_s", &start_s, 0.0, 3600.0)?;
         let eng = match doc.get("engagement") {
             Some(toml::Value::Table(t)) => t,
             _ => {
@@ -370,41 +361,30 @@ impl RigProfile {
         }
         let count = number(path, eng, "count")?
             .ok_or_else(|| PlantError::key(path, "engagement.count", "missing"))?;
-        if !((0.0..=10000.0).contains(&count) && count.fract() == 0.0) {
+        in_range(path, "engagement.count", &count, 0.0, 10000.0)?;
+        if count.fract() != 0.0 {
             return Err(PlantError::key(
                 path,
                 "engagement.count",
-                "must be a whole number 0 ..= 10000",
+                "must be a whole number",
             ));
         }
         let period_s = number(path, eng, "period_s")?
             .ok_or_else(|| PlantError::key(path, "engagement.period_s", "missing"))?;
-        if !(period_s > 0.0 && period_s <= 3600.0) {
-            return Err(PlantError::key(
-                path,
-                "engagement.period_s",
-                "must be in (0, 3600] s",
-            ));
-        }
+        in_range(path, "engagement.period_s", &period_s, 0.01, 3600.0)?;
         let t = numbers(path, eng, "t_s")?
             .ok_or_else(|| PlantError::key(path, "engagement.t_s", "missing"))?;
         let x = numbers(path, eng, "x_mm")?
             .ok_or_else(|| PlantError::key(path, "engagement.x_mm", "missing"))?;
-        in_range(path, "engagement.x_mm", &x, 0.0, 8.0)?;
-        in_range(path, "engagement.t_s", &t, 0.0, period_s)?;
+        in_range(path, "engagement.x_mm", &x[..], 0.0, 8.0)?;
+        in_range(path, "engagement.t_s", &t[..], 0.0, period_s)?;
         let x_to = Table::new(t, x).map_err(|e| PlantError::key(path, "engagement.t_s", e))?;
         let cooling_s = match doc.get("cooling") {
             None => 0.0,
             Some(toml::Value::Table(c)) => {
                 check_keys(path, c, "cooling.", &["duration_s"])?;
                 let d = number(path, c, "duration_s")?.unwrap_or(0.0);
-                if !(0.0..=36000.0).contains(&d) {
-                    return Err(PlantError::key(
-                        path,
-                        "cooling.duration_s",
-                        "must be in 0 ..= 36000 s",
-                    ));
-                }
+                in_range(path, "cooling.duration_s", &d, 0.0, 36000.0)?;
                 d
             }
             Some(_) => return Err(PlantError::key(path, "cooling", "must be a table")),

@@ -30,6 +30,7 @@ use super::verdict::Limits;
 use crate::plant::config::{sent_ids, PlantConfig, DEFAULT_TOML};
 use crate::plant::faults::parse_faults;
 use crate::plant::{Mode, PlantError, Scenario};
+use crate::ranges::Ranged;
 use crate::tcu::config::TcuConfigError;
 use crate::tcu::TcuConfig;
 use serde::{Deserialize, Serialize};
@@ -113,7 +114,8 @@ impl TcuOverrides {
         let mut cfg = TcuConfig::default();
         self.apply(&mut cfg);
         cfg.validate().map_err(|e| match &e {
-            TcuConfigError::OutOfRange { key, .. } | TcuConfigError::Inconsistent { key, .. } => {
+            TcuConfigError::OutOfRange(crate::ranges::RangeError { key, .. })
+            | TcuConfigError::Inconsistent { key, .. } => {
                 let key = key.rsplit('.').next().unwrap_or(key);
                 key_err(path, format!("tcu.{key}"), e.to_string())
             }
@@ -330,12 +332,9 @@ impl SimScenario {
                 key_err(path, key, e.message().to_string())
             })?),
         };
-        if let Some((key, v, hi)) = limits.as_ref().and_then(Limits::invalid) {
-            return Err(key_err(
-                path,
-                format!("limits.{key}"),
-                format!("{v} is outside 0 < limit <= {hi}"),
-            ));
+        if let Some(e) = limits.as_ref().and_then(|l| l.check_ranges().err()) {
+            let reason = format!("{} is outside 0 < limit <= {}", e.value, e.max);
+            return Err(key_err(path, e.key, reason));
         }
         let duration_s = match doc.get("duration_s") {
             None => plant.scenario.as_ref().map_or(0.0, |s| s.duration_s),
@@ -343,13 +342,11 @@ impl SimScenario {
             Some(toml::Value::Integer(n)) => *n as f64,
             Some(_) => return Err(key_err(path, "duration_s", "must be a number")),
         };
-        if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
-            return Err(key_err(
-                path,
-                "duration_s",
-                format!("{duration_s} is outside 0 < d <= 3600"),
-            ));
-        }
+        // A scenario runs at least one 10 ms cycle and at most an hour.
+        crate::ranges::check("", "duration_s", &duration_s, 0.01, 3600.0).map_err(|e| {
+            let reason = format!("{} is outside {} ..= {}", e.value, e.min, e.max);
+            key_err(path, e.key, reason)
+        })?;
         let description = doc
             .get("description")
             .and_then(|v| v.as_str())

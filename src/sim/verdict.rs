@@ -43,31 +43,17 @@ pub struct Limits {
     pub latency_ratio_max: Option<f64>,
 }
 
-impl Limits {
-    /// The numeric limits by key, with the largest value that still means something.
-    pub fn numbers(&self) -> [(&'static str, Option<f64>, f64); 6] {
-        [
-            ("lockup_s_max", self.lockup_s_max, 3600.0),
-            ("flare_rpm_max", self.flare_rpm_max, 10_000.0),
-            ("spike_mps2_max", self.spike_mps2_max, 100.0),
-            (
-                "torque_error_300ms_nm_max",
-                self.torque_error_300ms_nm_max,
-                10_000.0,
-            ),
-            ("estimator_rmse_c_max", self.estimator_rmse_c_max, 1000.0),
-            ("latency_ratio_max", self.latency_ratio_max, 1e6),
-        ]
-    }
-
-    /// The first numeric limit outside 0 < v ≤ its largest value (NaN included):
-    /// `(key, value, largest)`.
-    pub fn invalid(&self) -> Option<(&'static str, f64, f64)> {
-        self.numbers()
-            .into_iter()
-            .find_map(|(k, v, hi)| v.filter(|v| !(*v > 0.0 && *v <= hi)).map(|v| (k, v, hi)))
-    }
-}
+// Every numeric limit is positive (`f64::MIN_POSITIVE`: 0 excluded) and at most the largest
+// value that still means something (`crate::ranges`).
+crate::ranges!(Limits as _l, "limits" {
+    launches_min: [1.0, 1e6],
+    lockup_s_max: [f64::MIN_POSITIVE, 3600.0],
+    flare_rpm_max: [f64::MIN_POSITIVE, 10_000.0],
+    spike_mps2_max: [f64::MIN_POSITIVE, 100.0],
+    torque_error_300ms_nm_max: [f64::MIN_POSITIVE, 10_000.0],
+    estimator_rmse_c_max: [f64::MIN_POSITIVE, 1000.0],
+    latency_ratio_max: [f64::MIN_POSITIVE, 1e6],
+});
 
 /// One check of a verdict.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -425,21 +411,32 @@ mod tests {
 
     #[test]
     fn numeric_limits_must_be_finite_and_positive() {
-        assert_eq!(limits().invalid(), None);
+        use crate::ranges::Ranged;
+        let key = |l: &Limits| l.check_ranges().err().map(|e| e.key);
+        assert_eq!(key(&limits()), None);
         let bad = Limits {
             spike_mps2_max: Some(f64::NAN),
             ..limits()
         };
-        assert_eq!(bad.invalid().map(|b| b.0), Some("spike_mps2_max"));
+        assert_eq!(key(&bad).as_deref(), Some("limits.spike_mps2_max"));
         let bad = Limits {
             lockup_s_max: Some(-1.0),
             ..limits()
         };
-        assert_eq!(bad.invalid(), Some(("lockup_s_max", -1.0, 3600.0)));
+        let e = bad.check_ranges().unwrap_err();
+        assert_eq!(
+            (e.key.as_str(), e.value, e.max),
+            ("limits.lockup_s_max", -1.0, 3600.0)
+        );
         let bad = Limits {
-            flare_rpm_max: Some(1e300),
+            flare_rpm_max: Some(0.0),
             ..limits()
         };
-        assert_eq!(bad.invalid().map(|b| b.0), Some("flare_rpm_max"));
+        assert_eq!(key(&bad).as_deref(), Some("limits.flare_rpm_max"));
+        let bad = Limits {
+            launches_min: Some(0),
+            ..limits()
+        };
+        assert_eq!(key(&bad).as_deref(), Some("limits.launches_min"));
     }
 }

@@ -9,6 +9,7 @@
 
 use crate::model::effects::EffectSet;
 use crate::model::params::{Params, ParamsError};
+use crate::ranges::{RangeError, Ranged};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -26,13 +27,8 @@ pub enum TcuConfigError {
     },
     #[error("TCU calibration {path}: {message}")]
     Syntax { path: PathBuf, message: String },
-    #[error("TCU calibration: `{key}` = {value} is out of its allowed range {min} ..= {max}")]
-    OutOfRange {
-        key: String,
-        value: f64,
-        min: f64,
-        max: f64,
-    },
+    #[error(transparent)]
+    OutOfRange(#[from] RangeError),
     #[error("TCU calibration: inconsistent `{key}`: {reason}")]
     Inconsistent { key: String, reason: String },
     #[error("TCU calibration: effects file {path}")]
@@ -219,6 +215,96 @@ pub struct TcuConfig {
     pub effect_set: EffectSet,
 }
 
+// The allowed range of every key, table by table (`crate::ranges`).
+crate::ranges!(Compensation as _c, "compensation" {
+    calibration_temp_c: [-40.0, 400.0],
+    calibration_slip_radps: [0.0, 1e6],
+});
+crate::ranges!(EstimatorCfg as _e, "estimator" {
+    initial_temp_c: [-40.0, 400.0],
+    slip_deadband_radps: [0.0, 10.0],
+});
+crate::ranges!(InputsCfg as _i, "inputs" {
+    timeout_cycles: [1.0, 100.0],
+    max_counter_skip: [0.0, 14.0],
+    recovery_frames: [1.0, 100.0],
+    max_engine_rpm: [1000.0, 20000.0],
+    max_engine_rate_rpm_per_s: [100.0, 1e6],
+    max_out_rate_rpm_per_s: [10.0, 1e6],
+    max_shaft_mismatch_radps: [1.0, 1e4],
+    max_lever_engage_out_rpm: [0.0, 2000.0],
+    housing_temp_min_c: [-60.0, 100.0],
+    housing_temp_max_c: [0.0, 250.0],
+    max_position_mm: [0.1, 50.0],
+});
+crate::ranges!(SafetyCfg as s, "safety" {
+    open_rate_mm_per_s: [0.1, 1000.0],
+    over_temp_warn_c: [50.0, 400.0],
+    over_temp_limit_c: [s.over_temp_warn_c, 400.0],
+    over_temp_engine_torque_nm: [0.0, 2000.0],
+    over_temp_hysteresis_c: [0.0, 100.0],
+    antistall_free_idle_fraction: [0.1, 2.0],
+    antistall_zero_idle_fraction: [0.0, s.antistall_free_idle_fraction - 0.01],
+    antistall_max_share: [0.0, 1.0],
+});
+crate::ranges!(ControlCfg as _k, "control" {
+    clutch_kp_per_s: [0.0, 200.0],
+    clutch_ki_per_s2: [0.0, 5000.0],
+    engine_kp_per_s: [0.0, 200.0],
+    engine_ki_per_s2: [0.0, 5000.0],
+    max_torque_nm: [1.0, 5000.0],
+    standby_gap_mm: [0.0, 5.0],
+    open_position_mm: [0.0, 10.0],
+    lock_slip_radps: [0.01, 20.0],
+    lock_cycles: [1.0, 100.0],
+    lock_undershoot_radps: [0.0, 20.0],
+    lock_hold_slip_radps: [0.0, 50.0],
+    clamp_margin: [0.0, 5.0],
+    clamp_offset_nm: [0.0, 500.0],
+    clamp_rate_nm_per_s: [1.0, 1e5],
+    blend_rate_nm_per_s: [1.0, 1e5],
+    slip_alarm_radps: [0.1, 100.0],
+    command_delay_s: [0.0, 0.1],
+    clutch_integral_limit_nm: [0.0, 5000.0],
+    engine_integral_limit_nm: [0.0, 5000.0],
+    accel_filter_s: [0.0, 1.0],
+});
+crate::ranges!(CreepCfg as _c, "creep" {
+    pedal_on_pct: [0.0, 50.0],
+    slip_radps: [0.0, 100.0],
+    accel_mps2: [0.01, 10.0],
+    max_torque_nm: [0.0, 500.0],
+    standstill_kmh: [0.0, 20.0],
+    stop_engine_rpm: [0.0, 5000.0],
+    release_rate_nm_per_s: [1.0, 1e4],
+    reference_window_radps: [0.1, 200.0],
+});
+crate::ranges!(LaunchCfg as l, "launch" {
+    engine_rpm_0: [500.0, 8000.0],
+    engine_rpm_100: [l.engine_rpm_0, 8000.0],
+    lockup_time_s: [0.2, 10.0],
+    engine_rate_rpm_per_s: [10.0, 1e5],
+    jerk_time_s: [0.0, 5.0],
+    sync_slip_radps: [0.5, 200.0],
+    min_sync_time_s: [0.0, 5.0],
+    reference_window_radps: [0.1, 200.0],
+    pedal_off_s: [0.0, 10.0],
+    engine_profile_s: [0.01, 2.0],
+    engine_torque_share: [0.1, 1.0],
+});
+crate::ranges!(ShiftCfg as h, "shift" {
+    torque_phase_s: [0.01, 5.0],
+    min_inertia_phase_s: [0.01, 5.0],
+    max_inertia_phase_s: [h.min_inertia_phase_s, 10.0],
+    engine_authority: [0.05, 1.0],
+    downshift_offgoing_fraction: [0.0, 1.0],
+    min_interval_s: [0.0, 60.0],
+    up_kmh_0: [0.0, 400.0],
+    up_kmh_100: [0.0, 400.0],
+    down_kmh_0: [0.0, 400.0],
+    down_kmh_100: [0.0, 400.0],
+});
+
 impl Default for TcuConfig {
     fn default() -> Self {
         // The embedded file is checked by the unit test `default_file_is_valid`.
@@ -232,50 +318,17 @@ impl Default for TcuConfig {
 /// A validation error placed in its file, at the line of its key when the key is found.
 fn in_file(e: TcuConfigError, path: &Path, text: &str) -> TcuConfigError {
     let key = match &e {
-        TcuConfigError::OutOfRange { key, .. } | TcuConfigError::Inconsistent { key, .. } => {
-            Some(key.as_str())
-        }
+        TcuConfigError::OutOfRange(RangeError { key, .. })
+        | TcuConfigError::Inconsistent { key, .. } => Some(key.as_str()),
         _ => None,
     };
-    let line = key.and_then(|k| key_line(text, k));
+    let line = key.and_then(|k| crate::toml_key::line_of(text, k));
     TcuConfigError::InFile {
         location: match line {
             Some(l) => format!("{} line {l}", path.display()),
             None => path.display().to_string(),
         },
         source: Box::new(e),
-    }
-}
-
-/// The 1-based line of a dotted key (`table.key`) in TOML text: the `key =` line after the
-/// `[table]` header.
-fn key_line(text: &str, dotted: &str) -> Option<usize> {
-    let (table, key) = dotted.rsplit_once('.').unwrap_or(("", dotted));
-    let mut current = String::new();
-    for (i, line) in text.lines().enumerate() {
-        let t = line.trim();
-        if let Some(h) = t.strip_prefix('[').and_then(|h| h.split(']').next()) {
-            current = h.trim().to_string();
-        } else if current == table
-            && t.split('=').next().map(str::trim) == Some(key)
-            && t.contains('=')
-        {
-            return Some(i + 1);
-        }
-    }
-    None
-}
-
-fn range(key: &str, value: f64, min: f64, max: f64) -> Result<(), TcuConfigError> {
-    if value.is_finite() && value >= min && value <= max {
-        Ok(())
-    } else {
-        Err(TcuConfigError::OutOfRange {
-            key: key.to_string(),
-            value,
-            min,
-            max,
-        })
     }
 }
 
@@ -318,276 +371,32 @@ impl TcuConfig {
         Ok(c)
     }
 
-    /// Range and consistency checks of every key.
+    /// The declared range of every key ([`crate::ranges!`] beside each table), then the rules
+    /// between keys that are not ranges.
     pub fn validate(&self) -> Result<(), TcuConfigError> {
-        let c = &self.compensation;
-        range(
-            "compensation.calibration_temp_c",
-            c.calibration_temp_c,
-            -40.0,
-            400.0,
-        )?;
-        range(
-            "compensation.calibration_slip_radps",
-            c.calibration_slip_radps,
-            0.0,
-            1e6,
-        )?;
-        let e = &self.estimator;
-        if let Some(t) = e.initial_temp_c {
-            range("estimator.initial_temp_c", t, -40.0, 400.0)?;
-        }
-        range(
-            "estimator.slip_deadband_radps",
-            e.slip_deadband_radps,
-            0.0,
-            10.0,
-        )?;
+        self.compensation.check_ranges()?;
+        self.estimator.check_ranges()?;
+        self.inputs.check_ranges()?;
+        self.safety.check_ranges()?;
+        self.control.check_ranges()?;
+        self.creep.check_ranges()?;
+        self.launch.check_ranges()?;
+        self.shift.check_ranges()?;
+        self.consistency()
+    }
+
+    /// Rules between keys: the housing's plausible band is not empty, and every downshift speed
+    /// lies below its upshift speed (hysteresis).
+    fn consistency(&self) -> Result<(), TcuConfigError> {
         let i = &self.inputs;
-        range(
-            "inputs.timeout_cycles",
-            f64::from(i.timeout_cycles),
-            1.0,
-            100.0,
-        )?;
-        range(
-            "inputs.max_counter_skip",
-            f64::from(i.max_counter_skip),
-            0.0,
-            14.0,
-        )?;
-        range(
-            "inputs.recovery_frames",
-            f64::from(i.recovery_frames),
-            1.0,
-            100.0,
-        )?;
-        range("inputs.max_engine_rpm", i.max_engine_rpm, 1000.0, 20000.0)?;
-        range(
-            "inputs.max_engine_rate_rpm_per_s",
-            i.max_engine_rate_rpm_per_s,
-            100.0,
-            1e6,
-        )?;
-        range(
-            "inputs.max_out_rate_rpm_per_s",
-            i.max_out_rate_rpm_per_s,
-            10.0,
-            1e6,
-        )?;
-        range(
-            "inputs.max_shaft_mismatch_radps",
-            i.max_shaft_mismatch_radps,
-            1.0,
-            1e4,
-        )?;
-        range(
-            "inputs.max_lever_engage_out_rpm",
-            i.max_lever_engage_out_rpm,
-            0.0,
-            2000.0,
-        )?;
-        range(
-            "inputs.housing_temp_min_c",
-            i.housing_temp_min_c,
-            -60.0,
-            100.0,
-        )?;
-        range(
-            "inputs.housing_temp_max_c",
-            i.housing_temp_max_c,
-            0.0,
-            250.0,
-        )?;
         if i.housing_temp_min_c >= i.housing_temp_max_c {
             return Err(TcuConfigError::Inconsistent {
                 key: "inputs.housing_temp_min_c".into(),
                 reason: "must be below inputs.housing_temp_max_c".into(),
             });
         }
-        range("inputs.max_position_mm", i.max_position_mm, 0.1, 50.0)?;
-        let s = &self.safety;
-        range(
-            "safety.open_rate_mm_per_s",
-            s.open_rate_mm_per_s,
-            0.1,
-            1000.0,
-        )?;
-        range("safety.over_temp_warn_c", s.over_temp_warn_c, 50.0, 400.0)?;
-        range(
-            "safety.over_temp_limit_c",
-            s.over_temp_limit_c,
-            s.over_temp_warn_c,
-            400.0,
-        )?;
-        range(
-            "safety.over_temp_engine_torque_nm",
-            s.over_temp_engine_torque_nm,
-            0.0,
-            2000.0,
-        )?;
-        range(
-            "safety.over_temp_hysteresis_c",
-            s.over_temp_hysteresis_c,
-            0.0,
-            100.0,
-        )?;
-        let k = &self.control;
-        range("control.clutch_kp_per_s", k.clutch_kp_per_s, 0.0, 200.0)?;
-        range("control.clutch_ki_per_s2", k.clutch_ki_per_s2, 0.0, 5000.0)?;
-        range("control.engine_kp_per_s", k.engine_kp_per_s, 0.0, 200.0)?;
-        range("control.engine_ki_per_s2", k.engine_ki_per_s2, 0.0, 5000.0)?;
-        range("control.max_torque_nm", k.max_torque_nm, 1.0, 5000.0)?;
-        range("control.standby_gap_mm", k.standby_gap_mm, 0.0, 5.0)?;
-        range("control.open_position_mm", k.open_position_mm, 0.0, 10.0)?;
-        range("control.lock_slip_radps", k.lock_slip_radps, 0.01, 20.0)?;
-        range("control.lock_cycles", f64::from(k.lock_cycles), 1.0, 100.0)?;
-        range(
-            "control.lock_undershoot_radps",
-            k.lock_undershoot_radps,
-            0.0,
-            20.0,
-        )?;
-        range(
-            "control.lock_hold_slip_radps",
-            k.lock_hold_slip_radps,
-            0.0,
-            50.0,
-        )?;
-        range("control.clamp_margin", k.clamp_margin, 0.0, 5.0)?;
-        range("control.clamp_offset_nm", k.clamp_offset_nm, 0.0, 500.0)?;
-        range(
-            "control.clamp_rate_nm_per_s",
-            k.clamp_rate_nm_per_s,
-            1.0,
-            1e5,
-        )?;
-        range(
-            "control.blend_rate_nm_per_s",
-            k.blend_rate_nm_per_s,
-            1.0,
-            1e5,
-        )?;
-        range("control.slip_alarm_radps", k.slip_alarm_radps, 0.1, 100.0)?;
-        range("control.command_delay_s", k.command_delay_s, 0.0, 0.1)?;
-        let c = &self.creep;
-        range("creep.pedal_on_pct", c.pedal_on_pct, 0.0, 50.0)?;
-        range("creep.slip_radps", c.slip_radps, 0.0, 100.0)?;
-        range("creep.accel_mps2", c.accel_mps2, 0.01, 10.0)?;
-        range("creep.max_torque_nm", c.max_torque_nm, 0.0, 500.0)?;
-        range("creep.standstill_kmh", c.standstill_kmh, 0.0, 20.0)?;
-        range("creep.stop_engine_rpm", c.stop_engine_rpm, 0.0, 5000.0)?;
-        let l = &self.launch;
-        range("launch.engine_rpm_0", l.engine_rpm_0, 500.0, 8000.0)?;
-        range(
-            "launch.engine_rpm_100",
-            l.engine_rpm_100,
-            l.engine_rpm_0,
-            8000.0,
-        )?;
-        range("launch.lockup_time_s", l.lockup_time_s, 0.2, 10.0)?;
-        range(
-            "launch.engine_rate_rpm_per_s",
-            l.engine_rate_rpm_per_s,
-            10.0,
-            1e5,
-        )?;
-        range("launch.jerk_time_s", l.jerk_time_s, 0.0, 5.0)?;
-        range("launch.sync_slip_radps", l.sync_slip_radps, 0.5, 200.0)?;
-        range("launch.min_sync_time_s", l.min_sync_time_s, 0.0, 5.0)?;
-        // The strategy's tunables (issue 15): key, value, smallest, largest.
-        for (key, v, lo, hi) in [
-            (
-                "safety.antistall_free_idle_fraction",
-                s.antistall_free_idle_fraction,
-                0.1,
-                2.0,
-            ),
-            (
-                "safety.antistall_zero_idle_fraction",
-                s.antistall_zero_idle_fraction,
-                0.0,
-                s.antistall_free_idle_fraction - 0.01,
-            ),
-            (
-                "safety.antistall_max_share",
-                s.antistall_max_share,
-                0.0,
-                1.0,
-            ),
-            (
-                "control.clutch_integral_limit_nm",
-                k.clutch_integral_limit_nm,
-                0.0,
-                5000.0,
-            ),
-            (
-                "control.engine_integral_limit_nm",
-                k.engine_integral_limit_nm,
-                0.0,
-                5000.0,
-            ),
-            ("control.accel_filter_s", k.accel_filter_s, 0.0, 1.0),
-            (
-                "creep.release_rate_nm_per_s",
-                c.release_rate_nm_per_s,
-                1.0,
-                1e4,
-            ),
-            (
-                "creep.reference_window_radps",
-                c.reference_window_radps,
-                0.1,
-                200.0,
-            ),
-            (
-                "launch.reference_window_radps",
-                l.reference_window_radps,
-                0.1,
-                200.0,
-            ),
-            ("launch.pedal_off_s", l.pedal_off_s, 0.0, 10.0),
-            ("launch.engine_profile_s", l.engine_profile_s, 0.01, 2.0),
-            (
-                "launch.engine_torque_share",
-                l.engine_torque_share,
-                0.1,
-                1.0,
-            ),
-        ] {
-            range(key, v, lo, hi)?;
-        }
         let h = &self.shift;
-        range("shift.torque_phase_s", h.torque_phase_s, 0.01, 5.0)?;
-        range(
-            "shift.min_inertia_phase_s",
-            h.min_inertia_phase_s,
-            0.01,
-            5.0,
-        )?;
-        range(
-            "shift.max_inertia_phase_s",
-            h.max_inertia_phase_s,
-            h.min_inertia_phase_s,
-            10.0,
-        )?;
-        range("shift.engine_authority", h.engine_authority, 0.05, 1.0)?;
-        range(
-            "shift.downshift_offgoing_fraction",
-            h.downshift_offgoing_fraction,
-            0.0,
-            1.0,
-        )?;
-        range("shift.min_interval_s", h.min_interval_s, 0.0, 60.0)?;
-        for g in 0..5 {
-            for (name, table) in [
-                ("up_kmh_0", &h.up_kmh_0),
-                ("up_kmh_100", &h.up_kmh_100),
-                ("down_kmh_0", &h.down_kmh_0),
-                ("down_kmh_100", &h.down_kmh_100),
-            ] {
-                range(&format!("shift.{name}[{g}]"), table[g], 0.0, 400.0)?;
-            }
+        for g in 0..h.up_kmh_0.len() {
             for (down, up, name) in [
                 (h.down_kmh_0[g], h.up_kmh_0[g], "down_kmh_0"),
                 (h.down_kmh_100[g], h.up_kmh_100[g], "down_kmh_100"),
