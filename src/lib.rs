@@ -5,6 +5,7 @@
 //! cores stepped with `now` as an argument), `gap` (diagnosis), `truth` (an independent truth generator) and `blind` (the
 //! diagnosis's blind test against it).
 
+pub mod bench;
 pub mod blind;
 pub mod can;
 pub mod daemon;

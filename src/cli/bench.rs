@@ -12,32 +12,24 @@
 //! `ddct bench --analyze LOG` runs the analysis on a candump log recorded elsewhere.
 
 use super::args::{open_can, rt_priority, Iface};
-use super::{runtime, shutdown_signal};
+use super::shutdown_signal;
 use anyhow::Context;
 use clap::Args;
+use ddct::bench::{bench_run, echo_run, timing, Net, Timing};
 use ddct::can::candump::{LogReader, LogWriter};
 use ddct::can::messages::{ids, FaultCode, TcuState};
-use ddct::can::socketcan::SocketCanBus;
-use ddct::can::{
-    Bus, BusError, CanFrame, EndpointConfig, InProcessBus, InProcessEndpoint, Received,
-};
-use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig, PlantReport};
-use ddct::daemon::tcu::{
-    run as run_tcu, set_realtime_priority, TcuDaemonConfig, TcuReport, CYCLE, INPUT_IDS,
-};
-use ddct::daemon::Periodic;
+use ddct::can::{CanFrame, InProcessBus};
+use ddct::daemon::plant::PlantReport;
+use ddct::daemon::tcu::{set_realtime_priority, TcuReport};
 use ddct::sim::buslog::{self, Spread};
 use ddct::sim::metrics::{self, Metrics};
 use ddct::sim::verdict::{self, Check};
 use ddct::sim::{self, plots, SimOptions, SimScenario};
-use ddct::tcu::TcuConfig;
 use serde::Serialize;
-use std::future::Future;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
-use tokio::sync::watch;
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
@@ -84,254 +76,6 @@ fn realtime(prio: Option<i32>) {
     }
 }
 
-/// Either bus, so one set of node functions serves both.
-enum AnyBus {
-    Can(SocketCanBus),
-    Sim(InProcessEndpoint),
-}
-
-#[allow(clippy::manual_async_fn)]
-impl Bus for AnyBus {
-    fn send(&mut self, frame: CanFrame) -> impl Future<Output = Result<(), BusError>> + Send {
-        async move {
-            match self {
-                AnyBus::Can(b) => b.send(frame).await,
-                AnyBus::Sim(b) => b.send(frame).await,
-            }
-        }
-    }
-    fn recv(&mut self) -> impl Future<Output = Result<Received, BusError>> + Send {
-        async move {
-            match self {
-                AnyBus::Can(b) => b.recv().await,
-                AnyBus::Sim(b) => b.recv().await,
-            }
-        }
-    }
-    fn try_recv(&mut self) -> Result<Option<Received>, BusError> {
-        match self {
-            AnyBus::Can(b) => b.try_recv(),
-            AnyBus::Sim(b) => b.try_recv(),
-        }
-    }
-    fn try_recv_many(&mut self, max: usize, out: &mut Vec<Result<Received, BusError>>) -> bool {
-        match self {
-            AnyBus::Can(b) => b.try_recv_many(max, out),
-            AnyBus::Sim(b) => b.try_recv_many(max, out),
-        }
-    }
-    fn iface(&self) -> &str {
-        match self {
-            AnyBus::Can(b) => b.iface(),
-            AnyBus::Sim(b) => b.iface(),
-        }
-    }
-}
-
-#[derive(Clone)]
-enum Net {
-    Can(String),
-    Sim(InProcessBus),
-}
-
-impl Net {
-    /// A new node; must be called on the runtime (thread) that will use it.
-    fn open(&self) -> anyhow::Result<AnyBus> {
-        self.open_filtered(&[])
-    }
-
-    /// A new node receiving only `ids` (all frames when empty; the filter is the kernel's on
-    /// SocketCAN, none on the in-process bus).
-    fn open_filtered(&self, ids: &[u16]) -> anyhow::Result<AnyBus> {
-        Ok(match self {
-            Net::Can(i) => {
-                let b = open_can(i)?;
-                if !ids.is_empty() {
-                    b.set_filter_ids(ids)?;
-                }
-                AnyBus::Can(b)
-            }
-            Net::Sim(b) => AnyBus::Sim(b.endpoint(EndpointConfig::default())),
-        })
-    }
-    fn name(&self) -> String {
-        match self {
-            Net::Can(i) => i.clone(),
-            Net::Sim(_) => "sim".into(),
-        }
-    }
-}
-
-async fn stopped(mut rx: watch::Receiver<bool>) {
-    while !*rx.borrow() {
-        if rx.changed().await.is_err() {
-            return;
-        }
-    }
-}
-
-/// A recorder thread: every frame on the bus with its receive timestamp, until `stop`.
-fn spawn_recorder(
-    net: Net,
-    stop: watch::Receiver<bool>,
-    ready: std::sync::mpsc::Sender<()>,
-    prio: Option<i32>,
-) -> std::thread::JoinHandle<anyhow::Result<Vec<(Duration, CanFrame)>>> {
-    std::thread::spawn(move || {
-        realtime(prio);
-        let rt = runtime()?;
-        rt.block_on(async move {
-            let mut bus = net.open()?;
-            let _ = ready.send(());
-            let mut frames = Vec::with_capacity(1 << 16);
-            let stop_fut = stopped(stop);
-            tokio::pin!(stop_fut);
-            loop {
-                tokio::select! {
-                    biased;
-                    rx = bus.recv() => match rx {
-                        Ok(r) => frames.push((r.timestamp, r.frame)),
-                        Err(e) if e.is_frame_level() => {}
-                        Err(e) => return Err(e.into()),
-                    },
-                    _ = &mut stop_fut => break,
-                }
-            }
-            // Frames already queued.
-            while let Ok(Some(r)) = bus.try_recv() {
-                frames.push((r.timestamp, r.frame));
-            }
-            Ok(frames)
-        })
-    })
-}
-
-/// Bare frame echo: a responder (tokio, one socket) answers each DCT_Sensors-id frame of a 10 ms
-/// pinger with a TCU_ClutchCmd-id frame. Returns the recorded frames.
-fn echo_run(
-    net: &Net,
-    seconds: f64,
-    prio: Option<i32>,
-) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
-    let (stop_tx, stop_rx) = watch::channel(false);
-    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone(), prio);
-    let n2 = net.clone();
-    let stop2 = stop_rx.clone();
-    let responder = std::thread::spawn(move || -> anyhow::Result<u64> {
-        realtime(prio);
-        let rt = runtime()?;
-        rt.block_on(async move {
-            let mut bus = n2.open_filtered(&[ids::DCT_SENSORS])?;
-            let _ = ready_tx.send(());
-            let reply = CanFrame::standard(ids::TCU_CLUTCH_CMD, &[0; 8])?;
-            let stop_fut = stopped(stop2);
-            tokio::pin!(stop_fut);
-            let mut n = 0;
-            loop {
-                tokio::select! {
-                    biased;
-                    rx = bus.recv() => {
-                        if let Ok(r) = rx {
-                            if r.frame.standard_id() == Some(ids::DCT_SENSORS) {
-                                bus.send(reply).await?;
-                                n += 1;
-                            }
-                        }
-                    }
-                    _ = &mut stop_fut => break,
-                }
-            }
-            Ok(n)
-        })
-    });
-    for _ in 0..2 {
-        let _ = ready_rx.recv_timeout(Duration::from_secs(5));
-    }
-    let rt = runtime()?;
-    rt.block_on(async {
-        let mut bus = net.open()?;
-        let ping = CanFrame::standard(ids::DCT_SENSORS, &[0; 8])?;
-        let mut timer = Periodic::new(tokio::time::Instant::now(), CYCLE);
-        let n = (seconds / CYCLE.as_secs_f64()).round() as u64;
-        for _ in 0..n {
-            timer.tick().await;
-            bus.send(ping).await?;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-        anyhow::Ok(())
-    })?;
-    let _ = stop_tx.send(true);
-    responder
-        .join()
-        .map_err(|_| anyhow::anyhow!("echo responder panicked"))??;
-    rec.join()
-        .map_err(|_| anyhow::anyhow!("recorder panicked"))?
-}
-
-struct RunResult {
-    frames: Vec<(Duration, CanFrame)>,
-    plant: PlantReport,
-    tcu: TcuReport,
-}
-
-fn bench_run(
-    net: &Net,
-    sc: &SimScenario,
-    cfg: &TcuConfig,
-    prio: Option<i32>,
-) -> anyhow::Result<RunResult> {
-    let (stop_tx, stop_rx) = watch::channel(false);
-    let (ready_tx, ready_rx) = std::sync::mpsc::channel();
-    let rec = spawn_recorder(net.clone(), stop_rx.clone(), ready_tx.clone(), prio);
-    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
-    let mut tcu_cfg = cfg.clone();
-    sc.tcu.apply(&mut tcu_cfg);
-    let n2 = net.clone();
-    let stop2 = stop_rx.clone();
-    let tcu_ready = ready_tx.clone();
-    let tcu = std::thread::spawn(move || -> anyhow::Result<TcuReport> {
-        realtime(prio);
-        let rt = runtime()?;
-        rt.block_on(async move {
-            let bus = n2.open_filtered(&INPUT_IDS)?;
-            let _ = tcu_ready.send(());
-            let c = TcuDaemonConfig {
-                tcu: tcu_cfg,
-                duration: None,
-                log: None,
-                clock: Default::default(),
-            };
-            Ok(run_tcu(bus, stopped(stop2), c).await?)
-        })
-    });
-    // The plant starts talking once the TCU's socket listens (or the TCU thread has ended: its
-    // error is reported when it is joined).
-    let _ = ready_rx.recv_timeout(Duration::from_secs(5));
-    let plant_cfg = PlantDaemonConfig {
-        plant: sc.plant.clone(),
-        pacing: Pacing::RealTime { speed: 1.0 },
-        duration: Some(Duration::from_secs_f64(sc.duration_s)),
-        log: None,
-        lockstep: None,
-    };
-    let rt = runtime()?;
-    let plant = rt.block_on(async {
-        let bus =
-            net.open_filtered(&[ids::TCU_CLUTCH_CMD, ids::TCU_ENGINE_REQ, ids::TCU_GEAR_CMD])?; // the plant plays the driver itself
-        anyhow::Ok(run_plant(bus, shutdown_signal(), plant_cfg).await?)
-    })?;
-    std::thread::sleep(Duration::from_millis(50));
-    let _ = stop_tx.send(true);
-    let tcu = tcu
-        .join()
-        .map_err(|_| anyhow::anyhow!("TCU daemon panicked"))??;
-    let frames = rec
-        .join()
-        .map_err(|_| anyhow::anyhow!("recorder panicked"))??;
-    Ok(RunResult { frames, plant, tcu })
-}
-
 fn write_log(path: &Path, iface: &str, frames: &[(Duration, CanFrame)]) -> anyhow::Result<()> {
     let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut w = LogWriter::new(BufWriter::new(f));
@@ -353,40 +97,6 @@ fn read_log(path: &Path) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
     }
     out.sort_by_key(|x| x.0);
     Ok(out)
-}
-
-/// Timing figures of a recorded run.
-#[derive(Debug, Clone, Serialize)]
-pub struct Timing {
-    /// DCT_Sensors → TCU_ClutchCmd latency (µs).
-    pub tcu_latency: Spread,
-    pub tcu_latency_missed: usize,
-    /// The bare echo on the same bus (µs), if measured.
-    pub echo_latency: Option<Spread>,
-    /// TCU_ClutchCmd intervals and |interval − 10 ms| (µs).
-    pub clutch_cmd_interval: Spread,
-    pub clutch_cmd_jitter: Spread,
-    /// DCT_Sensors intervals and jitter (the plant's cycle, for comparison).
-    pub sensors_interval: Spread,
-    pub sensors_jitter: Spread,
-}
-
-fn timing(frames: &[(Duration, CanFrame)], echo: Option<&[(Duration, CanFrame)]>) -> Timing {
-    let (tcu_latency, tcu_latency_missed) =
-        buslog::latency(frames, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD);
-    let echo_latency = echo.map(|e| buslog::latency(e, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD).0);
-    let (clutch_cmd_interval, clutch_cmd_jitter) =
-        buslog::cycle_jitter(frames, ids::TCU_CLUTCH_CMD, CYCLE);
-    let (sensors_interval, sensors_jitter) = buslog::cycle_jitter(frames, ids::DCT_SENSORS, CYCLE);
-    Timing {
-        tcu_latency,
-        tcu_latency_missed,
-        echo_latency,
-        clutch_cmd_interval,
-        clutch_cmd_jitter,
-        sensors_interval,
-        sensors_jitter,
-    }
 }
 
 /// What `ddct bench` prints with `--json`.
@@ -425,13 +135,18 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         Some(p) => ("log".to_string(), read_log(p)?, None, None, None, p.clone()),
         None => {
             let net = match a.iface.clone() {
-                Some(Iface::Can(name)) => Net::Can(name),
+                Some(Iface::Can(name)) => {
+                    // A missing interface is named with how to create one.
+                    open_can(&name)?;
+                    Net::Can(name)
+                }
                 _ => Net::Sim(InProcessBus::new("sim")),
             };
             let echo = if a.echo > 0.0 {
                 eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
                 let pb = super::spinner(format!("bare frame echo, {} s", a.echo));
-                let e = echo_run(&net, a.echo, a.rt_priority);
+                let prio = a.rt_priority;
+                let e = echo_run(&net, a.echo, move || realtime(prio));
                 pb.finish_and_clear();
                 let e = e?;
                 write_log(&a.out.join("echo.log"), &net.name(), &e)?;
@@ -449,9 +164,16 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             // SCHED_FIFO.
             let pb = super::spinner(format!("{}, {} s in real time", sc.name, sc.duration_s));
             realtime(a.rt_priority);
-            let r = bench_run(&net, &sc, &cfg, a.rt_priority);
+            let prio = a.rt_priority;
+            let r = bench_run(&net, &sc, &cfg, move || realtime(prio), shutdown_signal);
             pb.finish_and_clear();
             let r = r?;
+            if !r.settled {
+                eprintln!(
+                    "bench: the recording did not settle within a second of the plant's end \
+                     (a plant frame or the TCU's last answer missing)"
+                );
+            }
             let log = a.out.join("bench.log");
             write_log(&log, &net.name(), &r.frames)?;
             (net.name(), r.frames, echo, Some(r.plant), Some(r.tcu), log)

@@ -1,0 +1,21 @@
+//! The bench harness of `ddct bench`: the plant and TCU daemons and a recorder, each on its own
+//! thread, runtime and node of one bus (vcan, or the in-process bus), in real time; and the bare
+//! frame echo the TCU's latency is compared with (issue 12: moved here out of the CLI).
+//!
+//! Every hand-over is a readiness signal, never a sleep: a node starts talking only once the
+//! nodes that must hear it say their sockets listen ([`recorder::Recorder::spawn`], the TCU's
+//! ready channel), and a run ends once the recorder has seen every frame the plant (or the
+//! pinger) sent and the TCU's answer to the last DCT_Sensors frame ([`recorder::Recorder::settle`],
+//! bounded by a timeout for a TCU that no longer answers).
+//!
+//! [`timing`] turns the recording into the latency and cycle figures (pure).
+
+pub mod harness;
+pub mod net;
+pub mod recorder;
+pub mod timing;
+
+pub use harness::{bench_run, echo_run, BenchError, RunResult};
+pub use net::{AnyBus, Net};
+pub use recorder::{Recorder, Seen};
+pub use timing::{timing, Timing};
