@@ -25,6 +25,7 @@ use ddct::sim::buslog::{self, Spread};
 use ddct::sim::metrics::{self, Metrics};
 use ddct::sim::verdict::{self, Check};
 use ddct::sim::{self, plots, SimOptions, SimScenario};
+use ddct::tcu::TcuConfig;
 use serde::Serialize;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
@@ -120,6 +121,17 @@ pub struct BenchSummary {
     pub verdict: Vec<Check>,
 }
 
+/// What the bench recorded: the bus (a live run, or a log given with `--analyze`), the echo and
+/// the daemons' reports.
+struct Recorded {
+    iface: String,
+    frames: Vec<(Duration, CanFrame)>,
+    echo: Option<Vec<(Duration, CanFrame)>>,
+    plant: Option<PlantReport>,
+    tcu: Option<TcuReport>,
+    log: PathBuf,
+}
+
 pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
     let cfg = super::args::tcu_config(a.config.as_deref())?;
     let sc = match &a.scenario {
@@ -130,94 +142,113 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         )?,
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let mut plots = Vec::new();
-    let (iface, frames, echo, plant, tcu, log) = match &a.analyze {
-        Some(p) => ("log".to_string(), read_log(p)?, None, None, None, p.clone()),
-        None => {
-            let net = match a.iface.clone() {
-                Some(Iface::Can(name)) => {
-                    // A missing interface is named with how to create one.
-                    open_can(&name)?;
-                    Net::Can(name)
-                }
-                _ => Net::Sim(InProcessBus::new("sim")),
-            };
-            let echo = if a.echo > 0.0 {
-                eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
-                let pb = super::spinner(format!("bare frame echo, {} s", a.echo));
-                let prio = a.rt_priority;
-                let e = echo_run(&net, a.echo, move || realtime(prio));
-                pb.finish_and_clear();
-                let e = e?;
-                write_log(&a.out.join("echo.log"), &net.name(), &e)?;
-                Some(e)
-            } else {
-                None
-            };
-            eprintln!(
-                "bench: plant + TCU daemons on {} for {} s ({})",
-                net.name(),
-                sc.duration_s,
-                sc.name
-            );
-            // The spinner's ticker thread first: threads started after `realtime` inherit
-            // SCHED_FIFO.
-            let pb = super::spinner(format!("{}, {} s in real time", sc.name, sc.duration_s));
-            realtime(a.rt_priority);
-            let prio = a.rt_priority;
-            let r = bench_run(&net, &sc, &cfg, move || realtime(prio), shutdown_signal);
-            pb.finish_and_clear();
-            let r = r?;
-            if !r.settled {
-                eprintln!(
-                    "bench: the recording did not settle within a second of the plant's end \
-                     (a plant frame or the TCU's last answer missing)"
-                );
-            }
-            let log = a.out.join("bench.log");
-            write_log(&log, &net.name(), &r.frames)?;
-            (net.name(), r.frames, echo, Some(r.plant), Some(r.tcu), log)
-        }
+    let recorded = match &a.analyze {
+        Some(p) => Recorded {
+            iface: "log".to_string(),
+            frames: read_log(p)?,
+            echo: None,
+            plant: None,
+            tcu: None,
+            log: p.clone(),
+        },
+        None => record(&a, &sc, &cfg)?,
     };
-    let rows = buslog::rows(&frames);
+    let summary = analyse(&a.out, &sc, &cfg, recorded)?;
+    report(&a, &summary)
+}
+
+/// The live part: the echo (if asked), then the daemons playing the scenario, each recording
+/// written as a candump log.
+fn record(a: &BenchArgs, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Recorded> {
+    let net = match a.iface.clone() {
+        Some(Iface::Can(name)) => {
+            // A missing interface is named with how to create one.
+            open_can(&name)?;
+            Net::Can(name)
+        }
+        _ => Net::Sim(InProcessBus::new("sim")),
+    };
+    let prio = a.rt_priority;
+    let echo = if a.echo > 0.0 {
+        eprintln!("bench: bare frame echo on {} for {} s", net.name(), a.echo);
+        let pb = super::spinner(format!("bare frame echo, {} s", a.echo));
+        let e = echo_run(&net, a.echo, move || realtime(prio));
+        pb.finish_and_clear();
+        let e = e?;
+        write_log(&a.out.join("echo.log"), &net.name(), &e)?;
+        Some(e)
+    } else {
+        None
+    };
+    eprintln!(
+        "bench: plant + TCU daemons on {} for {} s ({})",
+        net.name(),
+        sc.duration_s,
+        sc.name
+    );
+    // The spinner's ticker thread first: threads started after `realtime` inherit SCHED_FIFO.
+    let pb = super::spinner(format!("{}, {} s in real time", sc.name, sc.duration_s));
+    realtime(prio);
+    let r = bench_run(&net, sc, cfg, move || realtime(prio), shutdown_signal);
+    pb.finish_and_clear();
+    let r = r?;
+    if !r.settled {
+        eprintln!(
+            "bench: the recording did not settle within a second of the plant's end \
+             (a plant frame or the TCU's last answer missing)"
+        );
+    }
+    let log = a.out.join("bench.log");
+    write_log(&log, &net.name(), &r.frames)?;
+    Ok(Recorded {
+        iface: net.name(),
+        frames: r.frames,
+        echo,
+        plant: Some(r.plant),
+        tcu: Some(r.tcu),
+        log,
+    })
+}
+
+/// The analysis of a recording: metrics, figures and CSV in `out`, the lockstep simulation of
+/// the same scenario beside it, the timing and the verdict of the scenario's limits.
+fn analyse(
+    out: &Path,
+    sc: &SimScenario,
+    cfg: &TcuConfig,
+    r: Recorded,
+) -> anyhow::Result<BenchSummary> {
+    let mut plots = Vec::new();
+    let rows = buslog::rows(&r.frames);
     let mut tcfg = cfg.clone();
     sc.tcu.apply(&mut tcfg);
     let bus = metrics::compute(&rows, &tcfg);
-    let p = a.out.join(format!("{}_bus.svg", sc.name));
-    std::fs::write(
-        &p,
-        plots::run_figure(
-            &format!("{} on {iface} (recorded): {}", sc.name, sc.description),
-            &rows,
-        ),
-    )?;
+    let p = out.join(format!("{}_bus.svg", sc.name));
+    let title = format!("{} on {} (recorded): {}", sc.name, r.iface, sc.description);
+    std::fs::write(&p, plots::run_figure(&title, &rows))?;
     plots.push(p);
     std::fs::write(
-        a.out.join(format!("{}_bus.csv", sc.name)),
+        out.join(format!("{}_bus.csv", sc.name)),
         sim::rows_csv(&rows),
     )?;
     // The same scenario in lockstep simulation, for comparison.
     let t0 = Instant::now();
-    let srun = sim::run_scenario(&sc, &cfg, &SimOptions::default());
+    let srun = sim::run_scenario(sc, cfg, &SimOptions::default());
     let sim_wall = t0.elapsed().as_secs_f64();
     let simm = metrics::compute(&srun.rows, &tcfg);
-    let p = a.out.join(format!("{}_sim.svg", sc.name));
-    std::fs::write(
-        &p,
-        plots::run_figure(
-            &format!("{} in lockstep simulation: {}", sc.name, sc.description),
-            &srun.rows,
-        ),
-    )?;
+    let p = out.join(format!("{}_sim.svg", sc.name));
+    let title = format!("{} in lockstep simulation: {}", sc.name, sc.description);
+    std::fs::write(&p, plots::run_figure(&title, &srun.rows))?;
     plots.push(p);
-    let t0 = frames.first().map_or(Duration::ZERO, |f| f.0);
-    let sensors: Vec<f64> = frames
+    let t0 = r.frames.first().map_or(Duration::ZERO, |f| f.0);
+    let sensors: Vec<f64> = r
+        .frames
         .iter()
         .filter(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
         .map(|(t, _)| t.saturating_sub(t0).as_secs_f64())
         .collect();
     let plant_window = sensors.first().zip(sensors.last()).map(|(a, b)| (*a, *b));
-    let timing = timing(&frames, echo.as_deref());
+    let timing = timing(&r.frames, r.echo.as_deref());
     let latency_ratio = timing
         .echo_latency
         .as_ref()
@@ -235,10 +266,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         ..bus.clone()
     };
     let verdict = verdict::judge(sc.limits.as_ref(), &in_run, latency_ratio);
-    let summary = BenchSummary {
+    Ok(BenchSummary {
         verdict,
         plant_window,
-        iface,
+        iface: r.iface,
         scenario: sc.name.clone(),
         description: sc.description.clone(),
         duration_s: sc.duration_s,
@@ -246,28 +277,33 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         sim: Some(simm),
         sim_wall_s: Some(sim_wall),
         timing,
-        plant,
-        tcu,
-        log,
+        plant: r.plant,
+        tcu: r.tcu,
+        log: r.log,
         plots,
-    };
+    })
+}
+
+/// Writes summary.json, report.html and the JUnit file, prints the summary and the verdict;
+/// the exit code is the verdict's.
+fn report(a: &BenchArgs, summary: &BenchSummary) -> anyhow::Result<ExitCode> {
     std::fs::write(
         a.out.join("summary.json"),
-        serde_json::to_string_pretty(&summary)?,
+        serde_json::to_string_pretty(summary)?,
     )?;
     let runs = [(summary.scenario.clone(), summary.verdict.clone())];
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{}", serde_json::to_string_pretty(summary)?);
     } else {
-        print_summary(&summary);
+        print_summary(summary);
         println!();
         print!("{}", verdict::table(&runs));
     }
     eprintln!("bench: summary in {}", a.out.join("summary.json").display());
-    let report = a.out.join("report.html");
-    std::fs::write(&report, html_report(&summary)?)
-        .with_context(|| format!("writing {}", report.display()))?;
-    eprintln!("bench: report in {}", report.display());
+    let html = a.out.join("report.html");
+    std::fs::write(&html, html_report(summary)?)
+        .with_context(|| format!("writing {}", html.display()))?;
+    eprintln!("bench: report in {}", html.display());
     if let Some(path) = &a.junit {
         std::fs::write(path, verdict::junit("ddct bench", &runs))
             .with_context(|| format!("writing {}", path.display()))?;

@@ -855,3 +855,105 @@ struct Forces {
     p_fric: [f64; 2],
     beta: [f64; 2],
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> Powertrain {
+        Powertrain::new(Params::default())
+    }
+
+    /// A slipping clutch 1 (engaged past its kiss point, 1 500 rpm of slip), clutch 2 open, the
+    /// engine pulling, the brake on.
+    fn slipping() -> (State, Inputs) {
+        let mut s = State::at_rest(2000.0, 80.0);
+        s.x1_mm = 6.0;
+        s.w_c1 = 500.0 * engine::RPM;
+        s.w_out = 3.0;
+        s.engine_torque_nm = 120.0;
+        let u = Inputs {
+            x1_ref_mm: 6.0,
+            pedal: 0.4,
+            brake: 0.2,
+            ..Inputs::default()
+        };
+        (s, u)
+    }
+
+    /// Newton for a flywheel alone: with both clutches open and both shafts in neutral, the
+    /// engine's torque accelerates the flywheel by T_e / J_f and nothing else moves it.
+    #[test]
+    fn an_open_driveline_leaves_the_flywheel_to_the_engine_alone() {
+        let m = model();
+        let mut s = State::at_rest(1500.0, 40.0);
+        s.engine_torque_nm = 80.0;
+        let d = m.derivative(&s, &Inputs::default());
+        let j = driveline::inertias(&m.p.driveline);
+        assert!(
+            (d.w_f - 80.0 / j[F]).abs() < 1e-12 * (80.0 / j[F]),
+            "{}",
+            d.w_f
+        );
+        assert_eq!((d.w_c1, d.w_c2), (0.0, 0.0));
+        assert_eq!((d.e_fric1_j, d.e_fric2_j), (0.0, 0.0));
+    }
+
+    /// The power balance of the derivative itself: the kinetic energy's rate Σ J·ω·dω/dt equals
+    /// the engine's power minus the friction, synchroniser and load powers the state integrates.
+    #[test]
+    fn the_energy_rates_balance_the_kinetic_energy_rate() {
+        let m = model();
+        let (s, u) = slipping();
+        let d = m.derivative(&s, &u);
+        assert!(
+            d.e_fric1_j > 1000.0,
+            "the clutch slips with torque: {}",
+            d.e_fric1_j
+        );
+        let j = driveline::inertias(&m.p.driveline);
+        let w = s.speeds();
+        let a = [d.w_f, d.w_c1, d.w_c2, d.w_out];
+        let ke_rate: f64 = (0..4).map(|i| j[i] * w[i] * a[i]).sum();
+        let balance = d.e_engine_j - d.e_fric1_j - d.e_fric2_j - d.e_sync_j - d.e_load_j;
+        assert!(
+            (ke_rate - balance).abs() < 1e-9 * d.e_engine_j.abs(),
+            "dKE/dt {ke_rate} W, balance {balance} W"
+        );
+    }
+
+    /// The kinetic energy is ½·J·ω² of each body: a spinning flywheel alone, then every body.
+    #[test]
+    fn kinetic_energy_is_half_j_omega_squared() {
+        let p = Params::default();
+        let j = driveline::inertias(&p.driveline);
+        let s = State::at_rest(3000.0, 25.0);
+        let w = 3000.0 * engine::RPM;
+        assert!((s.kinetic_energy(&p) - 0.5 * j[F] * w * w).abs() < 1e-9);
+        let (s, _) = slipping();
+        let expected = 0.5
+            * (j[F] * s.w_f.powi(2)
+                + j[C1] * s.w_c1.powi(2)
+                + j[C2] * s.w_c2.powi(2)
+                + j[OUT] * s.w_out.powi(2));
+        assert!((s.kinetic_energy(&p) - expected).abs() < 1e-9 * expected);
+    }
+
+    /// A clutch that slips heats: the friction power is the clutch torque times the slip, and
+    /// positive whichever way it slips.
+    #[test]
+    fn friction_power_is_torque_times_slip_and_never_negative() {
+        let m = model();
+        let (mut s, u) = slipping();
+        for w_c1 in [0.0, 100.0, 300.0, 400.0] {
+            s.w_c1 = w_c1;
+            let (d, o) = m.eval(&s, &u);
+            assert!(
+                (o.p_fric1_w - o.t_fc1_nm * o.slip1_radps).abs()
+                    < 1e-9 * o.p_fric1_w.abs().max(1.0)
+            );
+            assert!(o.p_fric1_w >= 0.0, "{w_c1}: {}", o.p_fric1_w);
+            assert_eq!(d.e_fric1_j, o.p_fric1_w);
+        }
+    }
+}
