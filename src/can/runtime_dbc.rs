@@ -1,8 +1,9 @@
 //! A DBC file given at run time (`ddct log decode --dbc FILE`), parsed with the `can-dbc` crate
 //! (the DBC grammar cantools reads), and a decoder of logged frames with it.
 //!
-//! The built-in contract stays generated at build time from `dbc/ddct.dbc` by `build.rs` with the
-//! std-only parser of [`super::dbc`]; this module is only for a foreign or edited DBC.
+//! The built-in contract stays generated at build time from `dbc/ddct.dbc` by `build.rs` (the same
+//! `can-dbc` parser, through the contract subset of [`super::dbc`]); this module is only for a
+//! foreign or edited DBC.
 //!
 //! Decoding follows cantools:
 //! - Intel (`@1`) signals count their start bit from the least significant bit of byte 0 upwards;
