@@ -17,14 +17,25 @@ def texts(svg) -> set[str]:
     return {"".join(e.itertext()).strip() for e in ET.parse(svg).getroot().iter() if e.tag.endswith("text")}
 
 
+def with_engine_stop(tmp_path):
+    """The bench scenario with ENG_Status stopped for 0.2 s at 12 s (the TCU's EngStatusTimeout,
+    allowed by its limits): a fault code for the plot to mark."""
+    text = SCENARIO.read_text().replace("[limits]\n", '[limits]\nfaults_allowed = ["EngStatusTimeout"]\n')
+    text += '\n[[faults]]\nmessage = "ENG_Status"\nkind = "stop"\nfrom_s = 12.0\nto_s = 12.2\n'
+    path = tmp_path / "launch_shift_stop.toml"
+    path.write_text(text)
+    return path
+
+
 def test_log_plot_overlays_the_simulation(ddct, tmp_path):
     out = tmp_path / "bench"
-    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", SCENARIO, "--out", out],
+    scenario = with_engine_stop(tmp_path)
+    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", scenario, "--out", out],
                 check=False, timeout=300)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     svg = tmp_path / "overlay.svg"
     signals = ["EngSpeed", "DCT_Sensors.InShaft1Speed", "TCU_Status.TcuState", "GearActive"]
-    args = [ddct, "log", "plot", out / "bench.log", "--sim", SCENARIO, "--out", svg]
+    args = [ddct, "log", "plot", out / "bench.log", "--sim", scenario, "--out", svg]
     for s in signals:
         args += ["-s", s]
     r = lib.run(args, check=False)
@@ -35,7 +46,7 @@ def test_log_plot_overlays_the_simulation(ddct, tmp_path):
     t = texts(svg)
     for name in ("ENG_Status.EngSpeed", "DCT_Sensors.InShaft1Speed", "TCU_Status.TcuState", "TCU_Status.GearActive"):
         assert f"{name} (bus)" in t and f"{name} (sim)" in t, (name, sorted(t)[:40])
-    # Lanes named by the DBC's value tables; the run ends with the plant's stop (a timeout).
+    # Lanes named by the DBC's value tables; the engine stop's timeout marked.
     assert {"Init", "Launch", "Drive", "Upshift", "N", "G1", "G3"} <= t, sorted(t)
     assert "EngStatusTimeout" in t
     assert "Signals in rpm" in t
