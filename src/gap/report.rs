@@ -91,6 +91,17 @@ fn finding_row(fd: &Finding) -> String {
 /// The Markdown report.
 pub fn markdown(d: &Diagnosis) -> String {
     let mut s = String::new();
+    verdict_section(&mut s, d);
+    checkable_section(&mut s, d);
+    where_section(&mut s, d);
+    which_section(&mut s, d);
+    how_far_section(&mut s, d);
+    recalibration_section(&mut s, d);
+    s
+}
+
+/// The title, the records and the verdict: findings, fitted shapes, the first finding and how far it closes the gap.
+fn verdict_section(s: &mut String, d: &Diagnosis) {
     let v = &d.verdict;
     let _ = writeln!(s, "# Sim-to-real gap diagnosis\n");
     let _ = writeln!(s, "Training: {}  ", d.train_files.join(", "));
@@ -172,6 +183,10 @@ pub fn markdown(d: &Diagnosis) -> String {
         f(h.reduction_ci95.1, 1),
         f(h.gap_reduction_pct, 1)
     );
+}
+
+/// What the records can check, subsystem by subsystem, and the separability notes.
+fn checkable_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "## What the records can check\n");
     let _ = writeln!(s, "| subsystem | checkable | outputs |\n|---|---|---|");
     for c in &d.checkable {
@@ -187,6 +202,10 @@ pub fn markdown(d: &Diagnosis) -> String {
     for line in &d.separability {
         let _ = writeln!(s, "- {line}");
     }
+}
+
+/// Where: residuals per subsystem, the torque bias maps and the flagged time segments.
+fn where_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "\n## Where\n");
     let _ = writeln!(s, "Residuals of the recalibrated model on the validation records, standardized by each record's sensor-noise floor (0 % = noise):\n");
     let _ = writeln!(s, "| subsystem | excess over noise | z | significant | outputs (RMSE / noise) |\n|---|---|---|---|---|");
@@ -250,6 +269,11 @@ pub fn markdown(d: &Diagnosis) -> String {
             );
         }
     }
+}
+
+/// Which: every class fitted, ranked, and the black-box discrepancy.
+fn which_section(s: &mut String, d: &Diagnosis) {
+    let v = &d.verdict;
     let _ = writeln!(s, "\n## Which\n");
     let _ = writeln!(s, "Every effect class fitted (a bounded piecewise-linear term in its variable, or its library member's parameters) jointly with the recalibration of its subsystem on the training records; first selection round, ranked by validation gain. Kept: ΔBIC < −10 on training, a significant validation gain (paired block bootstrap), closing ≥ 10 % of the validation gap left on its channels and at least half their practical tolerance. Ambiguous: another kept-quality class with ≥ 80 % of the best gain whose paired difference is not significant.\n");
     let _ = writeln!(s, "| rank | class | subsystem | parameters | validation score | ΔBIC | gap explained | kept-quality |\n|---|---|---|---|---|---|---|---|");
@@ -286,6 +310,11 @@ pub fn markdown(d: &Diagnosis) -> String {
             .collect();
         let _ = writeln!(s, "\nBlack-box discrepancy of the torque characteristic (basis over {}): validation standardized SSE {} → {}; share of its gain lost without each variable: {}.", super::blackbox::VARIABLES.join(", "), f(bb.sse_before, 0), f(bb.sse_after, 0), imp.join(", "));
     }
+}
+
+/// How far: equation and replay errors on the validation records.
+fn how_far_section(s: &mut String, d: &Diagnosis) {
+    let h = &d.how_far;
     let _ = writeln!(s, "\n## How far\n");
     let _ = writeln!(s, "Equation error on the validation records (torque at measured x_to, slip and estimated disk temperature; temperatures replayed from measured friction power; positions replayed from the requests; engine report against the flywheel balance):\n");
     let _ = writeln!(s, "| output | n | noise | RMSE nominal | recalibrated | after | fit % nominal → after | reduction (95 % CI) | gap above noise reduced |\n|---|---|---|---|---|---|---|---|---|");
@@ -318,6 +347,10 @@ pub fn markdown(d: &Diagnosis) -> String {
             g(r.rmse_after)
         );
     }
+}
+
+/// The recalibrated parameters and the notes.
+fn recalibration_section(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(s, "\n## Recalibration\n");
     let _ = writeln!(s, "| parameter | nominal | recalibrated |\n|---|---|---|");
     for (k, a, b) in &d.recalibration {
@@ -329,7 +362,6 @@ pub fn markdown(d: &Diagnosis) -> String {
             let _ = writeln!(s, "- {n}");
         }
     }
-    s
 }
 
 fn map_figure(m: &BiasMap) -> Figure {
