@@ -463,3 +463,52 @@ pub fn rows_csv(rows: &[Row]) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn launch(seconds: f64) -> SimScenario {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut sc = SimScenario::load(&root.join("config/scenarios/launch_50.toml")).unwrap();
+        sc.duration_s = seconds;
+        sc
+    }
+
+    /// In lockstep the TCU computes once per plant cycle (a DCT_Sensors frame every 10 ms of the
+    /// DBC, at 0 … 1 000 ms), one row per computation, in time order a cycle apart.
+    #[test]
+    fn the_tcu_computes_once_per_plant_cycle_with_one_row_each() {
+        let r = run_scenario(&launch(1.0), &TcuConfig::default(), &SimOptions::default());
+        let cycle_s = f64::from(crate::can::messages::DctSensors::CYCLE_MS) * 1e-3;
+        let sensors = r
+            .frames
+            .iter()
+            .filter(|(_, f)| f.standard_id() == Some(crate::can::messages::ids::DCT_SENSORS))
+            .count();
+        assert_eq!(sensors, 101);
+        assert_eq!(r.tcu_steps, 101);
+        assert_eq!(r.rows.len(), 101);
+        assert!(r
+            .rows
+            .windows(2)
+            .all(|w| ((w[1].t_s - w[0].t_s) - cycle_s).abs() < 1e-9));
+        assert_eq!(r.frame_count, r.frames.len() as u64);
+    }
+
+    /// Dropping the frames changes nothing but the memory: the same count, the same rows.
+    #[test]
+    fn dropping_the_frames_keeps_the_count_and_the_rows() {
+        let sc = launch(0.5);
+        let kept = run_scenario(&sc, &TcuConfig::default(), &SimOptions::default());
+        let opts = SimOptions {
+            drop_frames: true,
+            ..SimOptions::default()
+        };
+        let dropped = run_scenario(&sc, &TcuConfig::default(), &opts);
+        assert!(dropped.frames.is_empty());
+        assert_eq!(dropped.frame_count, kept.frame_count);
+        assert_eq!(dropped.rows, kept.rows);
+    }
+}
