@@ -28,6 +28,14 @@ pub struct RangeError {
     pub max: f64,
 }
 
+impl RangeError {
+    /// The error without its key, for a loader that names the key itself:
+    /// `3 is outside 0 ..= 1`.
+    pub fn reason(&self) -> String {
+        format!("{} is outside {} ..= {}", self.value, self.min, self.max)
+    }
+}
+
 /// True when `v` is finite and inside `min ..= max`.
 pub fn within(v: f64, min: f64, max: f64) -> bool {
     v.is_finite() && v >= min && v <= max

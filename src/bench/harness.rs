@@ -12,7 +12,7 @@ use crate::daemon::plant::{
 use crate::daemon::tcu::{
     run as run_tcu, TcuDaemonConfig, TcuDaemonError, TcuReport, CYCLE, INPUT_IDS,
 };
-use crate::daemon::Periodic;
+use crate::daemon::{runtime, Periodic};
 use crate::sim::SimScenario;
 use crate::tcu::TcuConfig;
 use std::future::Future;
@@ -41,13 +41,6 @@ pub enum BenchError {
     Plant(#[from] PlantDaemonError),
     #[error("the {0} thread panicked")]
     Panicked(&'static str),
-}
-
-/// A current-thread runtime, as each daemon runs on.
-pub fn runtime() -> std::io::Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
 }
 
 /// Resolves when `stop` turns true (or its sender is gone).

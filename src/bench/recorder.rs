@@ -81,7 +81,7 @@ impl Recorder {
         let (ready_tx, ready_rx) = std::sync::mpsc::channel();
         let thread = std::thread::spawn(move || {
             before();
-            let rt = super::harness::runtime().map_err(RecorderError::Runtime)?;
+            let rt = crate::daemon::runtime().map_err(RecorderError::Runtime)?;
             rt.block_on(record(net, stop_rx, seen_tx, ready_tx))
         });
         match ready_rx.recv_timeout(READY_TIMEOUT) {
@@ -187,7 +187,7 @@ mod tests {
         let bus = crate::can::InProcessBus::new("settle-test");
         let net = Net::Sim(bus.clone());
         let mut rec = Recorder::spawn(net.clone(), || {}).unwrap();
-        let rt = super::super::harness::runtime().unwrap();
+        let rt = crate::daemon::runtime().unwrap();
         let (answered, waited) = rt.block_on(async {
             let mut node = net.open().unwrap();
             node.send(frame(ids::DCT_SENSORS)).await.unwrap();

@@ -28,10 +28,7 @@ pub fn init_tracing(filter: &str) {
 
 /// A single-threaded tokio runtime with I/O and timers.
 pub fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .context("starting the async runtime")
+    ddct::daemon::runtime().context("starting the async runtime")
 }
 
 /// Listens for SIGINT and SIGTERM from this call on (the handlers are installed now, not when

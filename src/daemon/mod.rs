@@ -15,6 +15,13 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::time::Instant;
 
+/// The runtime each daemon (and each node of a bench) runs on: one thread, with I/O and timers.
+pub fn runtime() -> io::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+}
+
 /// One wake-up of a [`Periodic`] timer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tick {

@@ -90,7 +90,7 @@ impl PlantError {
 
     /// A number of the file `path` outside its declared range.
     pub(crate) fn range(path: &std::path::Path, e: crate::ranges::RangeError) -> Self {
-        let reason = format!("{} is outside {} ..= {}", e.value, e.min, e.max);
+        let reason = e.reason();
         Self::key(path, e.key, reason)
     }
 

@@ -31,7 +31,6 @@ use crate::plant::config::{sent_ids, PlantConfig, DEFAULT_TOML};
 use crate::plant::faults::parse_faults;
 use crate::plant::{Mode, PlantError, Scenario};
 use crate::ranges::Ranged;
-use crate::tcu::config::TcuConfigError;
 use crate::tcu::TcuConfig;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -113,13 +112,12 @@ impl TcuOverrides {
     pub fn validate(&self, path: &Path) -> Result<(), ScenarioError> {
         let mut cfg = TcuConfig::default();
         self.apply(&mut cfg);
-        cfg.validate().map_err(|e| match &e {
-            TcuConfigError::OutOfRange(crate::ranges::RangeError { key, .. })
-            | TcuConfigError::Inconsistent { key, .. } => {
+        cfg.validate().map_err(|e| match e.key() {
+            Some(key) => {
                 let key = key.rsplit('.').next().unwrap_or(key);
                 key_err(path, format!("tcu.{key}"), e.to_string())
             }
-            other => key_err(path, "tcu", crate::error_chain::chain(other)),
+            None => key_err(path, "tcu", crate::error_chain::chain(&e)),
         })
     }
 
@@ -343,10 +341,8 @@ impl SimScenario {
             Some(_) => return Err(key_err(path, "duration_s", "must be a number")),
         };
         // A scenario runs at least one 10 ms cycle and at most an hour.
-        crate::ranges::check("", "duration_s", &duration_s, 0.01, 3600.0).map_err(|e| {
-            let reason = format!("{} is outside {} ..= {}", e.value, e.min, e.max);
-            key_err(path, e.key, reason)
-        })?;
+        crate::ranges::check("", "duration_s", &duration_s, 0.01, 3600.0)
+            .map_err(|e| key_err(path, e.key.clone(), e.reason()))?;
         let description = doc
             .get("description")
             .and_then(|v| v.as_str())

@@ -52,6 +52,17 @@ pub enum TcuConfigError {
     },
 }
 
+impl TcuConfigError {
+    /// The dotted key (`table.key`) a range or consistency error is about.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            TcuConfigError::OutOfRange(RangeError { key, .. })
+            | TcuConfigError::Inconsistent { key, .. } => Some(key),
+            _ => None,
+        }
+    }
+}
+
 /// Compensation switches of the inverse of (13).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -317,12 +328,7 @@ impl Default for TcuConfig {
 
 /// A validation error placed in its file, at the line of its key when the key is found.
 fn in_file(e: TcuConfigError, path: &Path, text: &str) -> TcuConfigError {
-    let key = match &e {
-        TcuConfigError::OutOfRange(RangeError { key, .. })
-        | TcuConfigError::Inconsistent { key, .. } => Some(key.as_str()),
-        _ => None,
-    };
-    let line = key.and_then(|k| crate::toml_key::line_of(text, k));
+    let line = e.key().and_then(|k| crate::toml_key::line_of(text, k));
     TcuConfigError::InFile {
         location: match line {
             Some(l) => format!("{} line {l}", path.display()),
