@@ -13,11 +13,13 @@
 
 #![allow(clippy::needless_range_loop)]
 
+use super::disk::{self, DiskRun};
 use super::replay::{self, Measured, Shared};
 use super::shape::Shape;
 use super::terms::{self, Extra, Terms, X_REF_MM};
+use crate::model::clutch;
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
-use crate::model::params::{ClutchParams, Params};
+use crate::model::params::{ClutchParams, Params, ThermalParams5};
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5State, ThermalInputs};
 
@@ -414,31 +416,52 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
 #[derive(Debug, Clone, Default)]
 pub struct ReplayMemo {
     inputs: Vec<(Terms, Option<Measured>)>,
-    disks: Vec<(ReplayKey, [Vec<f64>; 2])>,
+    disks: Vec<(ReplayKey, DiskRun)>,
 }
 
-/// Everything of a model the disk replay ([`replay::disk_estimate`] under [`SetHooks::of`], on
-/// the inputs [`corrected_inputs`] corrected) reads: the parameters, the effect set, the thermal
-/// terms and the terms that correct the inputs ([`InputKey`]). The torque characteristic's terms
-/// are left out: the replay is driven by the measured friction power, not a predicted torque.
+/// Everything of a model the disk replay ([`disk::run`] under [`SetHooks::of`], on the inputs
+/// [`corrected_inputs`] corrected) reads, in two parts: what the heat flows read and what β
+/// reads. The torque characteristic's terms and parameters are left out: the replay is driven
+/// by the measured friction power, not a predicted torque.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct ReplayKey {
-    p: Params,
+    heat: HeatKey,
+    engagement: EngagementKey,
+}
+
+/// The thermal parameters, the heat effects, the thermal terms and the terms that correct the
+/// inputs ([`input_key`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HeatKey {
+    thermal: ThermalParams5,
     set: EffectSet,
     terms: Terms,
+}
+
+/// The clutch's engagement parameters and the engagement effects: what β reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct EngagementKey {
+    clutch: [f64; 6],
+    set: EffectSet,
 }
 
 impl ReplayKey {
     fn of(model: &Model) -> Self {
         let t = &model.terms;
         ReplayKey {
-            p: model.p,
-            set: model.set,
-            terms: Terms {
-                support: t.support,
-                convection: t.convection,
-                partition: t.partition,
-                ..input_key(t)
+            heat: HeatKey {
+                thermal: model.p.thermal5,
+                set: model.set.only(&effects::HEAT_EFFECTS),
+                terms: Terms {
+                    support: t.support,
+                    convection: t.convection,
+                    partition: t.partition,
+                    ..input_key(t)
+                },
+            },
+            engagement: EngagementKey {
+                clutch: clutch::engagement_params(&model.p.clutch),
+                set: model.set.only(&effects::ENGAGEMENT_EFFECTS),
             },
         }
     }
@@ -469,6 +492,33 @@ fn recall<K: PartialEq, V>(v: &mut Vec<(K, V)>, key: K, make: impl FnOnce() -> V
     &v[0].1
 }
 
+/// The disk replay of `model` on `m` from `memo` ([`recall`]); when not there, replayed from
+/// the first step where β changes against an entry that differs only in what β reads
+/// ([`disk::rerun_engagement`]: a kiss-point column of a Jacobian), else from the start.
+fn recall_disk<'a>(
+    memo: &'a mut Vec<(ReplayKey, DiskRun)>,
+    model: &Model,
+    m: &Measured,
+) -> &'a DiskRun {
+    let key = ReplayKey::of(model);
+    let make = |memo: &[(ReplayKey, DiskRun)]| {
+        let h = SetHooks::of(model);
+        match memo.iter().find(|(k, _)| k.heat == key.heat) {
+            Some((_, near)) => disk::rerun_engagement(&model.p, &h, m, near),
+            None => disk::run(&model.p, &h, m),
+        }
+    };
+    match memo.iter().position(|e| e.0 == key) {
+        Some(i) => memo[..=i].rotate_right(1),
+        None => {
+            let run = make(memo);
+            memo.insert(0, (key, run));
+            memo.truncate(2);
+        }
+    }
+    &memo[0].1
+}
+
 /// [`predict`] reusing the corrected inputs and disk replay of `memo` when the model's keys are
 /// ones it holds (the same numbers: each is a function of its key); the result's `disk` is
 /// `None`.
@@ -487,10 +537,8 @@ pub fn predict_reusing(
         corrected_inputs(&model.terms, m)
     });
     let mm = corrected.as_ref().unwrap_or(m);
-    let disk = recall(&mut memo.disks, ReplayKey::of(model), || {
-        replay::disk_estimate(&model.p, &SetHooks::of(model), mm)
-    });
-    predict_inner(model, mm, s, chans, Some(disk))
+    let disk = recall_disk(&mut memo.disks, model, mm);
+    predict_inner(model, mm, s, chans, Some(&*disk.theta))
 }
 
 /// [`predict`] with the disk temperature estimate given (it depends only on the thermal
@@ -669,17 +717,8 @@ pub fn residuals(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::dataset::Dataset;
-    use crate::gap::events::SegmentOptions;
-    use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
-    use crate::model::powertrain::Nominal;
 
-    fn record(p: &Params) -> Measured {
-        let exp = RigExperiment::identification(6, 40.0);
-        let frames = rig_frames(p, Nominal, &exp, SensorNoise::default(), 3, 0.005).unwrap();
-        let d = Dataset::from_records("rig", frames.into_iter().map(Ok), 0.01).unwrap();
-        Measured::new(&d, p, [0.0; 2], &SegmentOptions::default())
-    }
+    use crate::gap::replay::test_record as record;
 
     fn same(a: &Predictions, b: &Predictions) {
         for (x, y) in a.y.iter().zip(&b.y) {
@@ -713,6 +752,17 @@ mod tests {
         });
         let mut memo = ReplayMemo::default();
         let mut replays = 0;
+        // Kiss-point columns: replayed from where β first changes (a step too small to change
+        // it reuses the replay whole).
+        let mut kiss = base;
+        kiss.p.clutch.x_isp0_mm += 0.3;
+        let mut tiny = base;
+        tiny.p.clutch.x_isp0_mm *= 1.0 + 1e-9;
+        for model in [base, kiss, tiny, base] {
+            let fresh = predict(&model, &m, &s, &chans);
+            same(&predict_reusing(&model, &m, &s, &chans, &mut memo), &fresh);
+        }
+        let mut memo = ReplayMemo::default();
         for model in [base, torque, thermal, sensor, base, torque] {
             let fresh = predict(&model, &m, &s, &chans);
             let before = memo.disks.first().map(|e| e.0);

@@ -393,6 +393,7 @@ fn recalibrate(
     train: &[File],
     knots: &Knots,
     wide: bool,
+    threads: usize,
 ) -> Model {
     let mut m = Model::nominal(*nominal);
     for sub in [
@@ -418,7 +419,7 @@ fn recalibrate(
             cached_disk: false,
             max_iter: 40,
         };
-        m = select::fit(&m, nominal, &job, train, knots).0;
+        m = select::fit(&m, nominal, &job, train, knots, threads).0;
     }
     m
 }
@@ -1033,7 +1034,7 @@ pub fn diagnose(
     let phase = |name: &str| tracing::debug!("{name} done");
     context::set_noise(&nominal_model, &mut tr);
     let no_knots = Knots::default();
-    let recal = recalibrate(nominal, &chans, &tr, &no_knots, false);
+    let recal = recalibrate(nominal, &chans, &tr, &no_knots, false, threads);
     context::set_noise(&recal, &mut tr);
     let sigma = context::set_noise(&recal, &mut va);
     context::cache_disk(&recal, &mut tr);

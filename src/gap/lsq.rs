@@ -193,6 +193,31 @@ fn sse_of(r: &[f64]) -> f64 {
     }
 }
 
+/// The residuals of a problem. [`Residuals::eval_many`] evaluates the points of a
+/// finite-difference Jacobian together, so that a problem can spread them over threads; the
+/// solver's results do not depend on how (each point's residuals are a function of the point).
+pub trait Residuals {
+    /// Fills `r` with the residuals at `p`.
+    fn eval(&mut self, p: &[f64], r: &mut [f64]);
+
+    /// [`Residuals::eval`] at every point of `ps` into the matching `rs`; by default one after
+    /// another.
+    fn eval_many(&mut self, ps: &[Vec<f64>], rs: &mut [Vec<f64>]) {
+        for (p, r) in ps.iter().zip(rs.iter_mut()) {
+            self.eval(p, r);
+        }
+    }
+}
+
+/// A closure `f(p, r)` as [`Residuals`], evaluated one point at a time.
+struct Sequential<'a>(&'a mut dyn FnMut(&[f64], &mut [f64]));
+
+impl Residuals for Sequential<'_> {
+    fn eval(&mut self, p: &[f64], r: &mut [f64]) {
+        (self.0)(p, r)
+    }
+}
+
 /// Minimises Σ r(p)² over the box of `specs` by projected Levenberg–Marquardt (Nielsen's damping
 /// update) with a finite-difference Jacobian. `f(p, r)` fills the `n` residuals; non-finite
 /// residuals count as a failed step. Returns the fit with covariance-based intervals.
@@ -214,48 +239,68 @@ pub fn levenberg_marquardt_clustered(
     opts: LmOptions,
     clusters: Option<&[usize]>,
 ) -> Fit {
+    solve(&mut Sequential(f), n, specs, opts, clusters)
+}
+
+/// [`levenberg_marquardt_clustered`] of a problem given as [`Residuals`].
+pub fn solve(
+    f: &mut dyn Residuals,
+    n: usize,
+    specs: &[ParamSpec],
+    opts: LmOptions,
+    clusters: Option<&[usize]>,
+) -> Fit {
     let k = specs.len();
     let to_p = |z: &[f64]| -> Vec<f64> { z.iter().zip(specs).map(|(z, s)| s.to_p(*z)).collect() };
     let zb: Vec<(f64, f64)> = specs.iter().map(|s| s.z_bounds()).collect();
     let mut z: Vec<f64> = specs.iter().map(|s| s.to_z(s.init)).collect();
     let mut r = vec![0.0; n];
-    f(&to_p(&z), &mut r);
+    f.eval(&to_p(&z), &mut r);
     let mut sse = sse_of(&r);
     let mut jac = DMatrix::<f64>::zeros(n, k);
-    let mut rp = vec![0.0; n];
-    let mut rm = vec![0.0; n];
     let mut rn = vec![0.0; n];
     let mut iterations = 0;
     let mut converged = false;
-    let jacobian = |f: &mut dyn FnMut(&[f64], &mut [f64]),
-                    z: &[f64],
-                    r: &[f64],
-                    jac: &mut DMatrix<f64>,
-                    rp: &mut [f64],
-                    rm: &mut [f64]| {
+    // The Jacobian by differences: every column's points first, evaluated together.
+    let jacobian = |f: &mut dyn Residuals, z: &[f64], r: &[f64], jac: &mut DMatrix<f64>| {
+        let mut points = Vec::with_capacity(2 * k);
+        let mut cols = Vec::with_capacity(k);
         for j in 0..k {
             let h = 1e-6 * z[j].abs().max(1.0);
             let up_ok = z[j] + h <= zb[j].1;
             let hs = if up_ok { h } else { -h };
             let mut zp = z.to_vec();
             zp[j] += hs;
-            f(&to_p(&zp), rp);
-            if opts.central && z[j] - hs >= zb[j].0 && z[j] - hs <= zb[j].1 {
+            points.push(to_p(&zp));
+            let central = opts.central && z[j] - hs >= zb[j].0 && z[j] - hs <= zb[j].1;
+            if central {
                 let mut zm = z.to_vec();
                 zm[j] -= hs;
-                f(&to_p(&zm), rm);
+                points.push(to_p(&zm));
+            }
+            cols.push((hs, central));
+        }
+        let mut res = vec![vec![0.0; n]; points.len()];
+        f.eval_many(&points, &mut res);
+        let mut at = 0;
+        for (j, (hs, central)) in cols.into_iter().enumerate() {
+            let rp = &res[at];
+            if central {
+                let rm = &res[at + 1];
                 for i in 0..n {
                     jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * hs);
                 }
+                at += 2;
             } else {
                 for i in 0..n {
                     jac[(i, j)] = (rp[i] - r[i]) / hs;
                 }
+                at += 1;
             }
         }
     };
     if k > 0 && sse.is_finite() {
-        jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+        jacobian(f, &z, &r, &mut jac);
         // Whether `jac` is the Jacobian at `z` (only a converged accepted step leaves it behind).
         let mut fresh = true;
         let mut mu: f64 = -1.0;
@@ -289,7 +334,7 @@ pub fn levenberg_marquardt_clustered(
                 .zip(&z)
                 .map(|(d, z)| d.abs() / z.abs().max(1.0))
                 .fold(0.0, f64::max);
-            f(&to_p(&znew), &mut rn);
+            f.eval(&to_p(&znew), &mut rn);
             let sn = sse_of(&rn);
             // Predicted decrease of ½SSE for the (projected) step: −gᵀδ − ½δᵀAδ.
             let dzv = DVector::from_column_slice(&dz);
@@ -313,7 +358,7 @@ pub fn levenberg_marquardt_clustered(
                 } else {
                     small = 0;
                 }
-                jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+                jacobian(f, &z, &r, &mut jac);
             } else {
                 if moved < opts.tol_step {
                     converged = true;
@@ -330,7 +375,7 @@ pub fn levenberg_marquardt_clustered(
         // Jacobian at the solution for the covariance (the same evaluations again when the last
         // one is at the solution: `f` is deterministic).
         if !fresh {
-            jacobian(f, &z, &r, &mut jac, &mut rp, &mut rm);
+            jacobian(f, &z, &r, &mut jac);
         }
     }
     let p = to_p(&z);

@@ -15,6 +15,7 @@ pub mod classfit;
 pub mod context;
 pub mod dataset;
 pub mod diagnose;
+pub mod disk;
 pub mod events;
 pub mod experiment;
 pub mod finding;

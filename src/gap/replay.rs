@@ -221,6 +221,20 @@ impl Measured {
         }
     }
 
+    /// The samples `k0..k1` of the series a [`ClutchContext`] reads, for loops over many
+    /// samples: indexing a [`Span`] needs one bounds check, not five, and the series a loop does
+    /// not read are not loaded at all.
+    pub fn span(&self, k0: usize, k1: usize) -> Span<'_> {
+        let r = k0..k1;
+        Span {
+            x: [&self.x[0][r.clone()], &self.x[1][r.clone()]],
+            slip: [&self.slip[0][r.clone()], &self.slip[1][r.clone()]],
+            pp: [&self.pp[0][r.clone()], &self.pp[1][r.clone()]],
+            cd: &self.cd[r.clone()],
+            e_cum: [&self.e_cum[0][r.clone()], &self.e_cum[1][r]],
+        }
+    }
+
     /// Context of clutch `i` at sample `k` with an estimated disk temperature.
     #[inline]
     pub fn context(&self, i: usize, k: usize, theta_c: f64) -> ClutchContext {
@@ -232,6 +246,45 @@ impl Measured {
             theta_pp: self.pp[i][k],
             theta_cd: self.cd[k],
             e_fric_j: self.e_cum[i][k],
+        }
+    }
+}
+
+/// The series of a [`Measured`] a [`ClutchContext`] reads, over a range of samples
+/// ([`Measured::span`]): sample `j` of the span is sample `k0 + j` of the record.
+#[derive(Debug, Clone, Copy)]
+pub struct Span<'a> {
+    x: [&'a [f64]; 2],
+    slip: [&'a [f64]; 2],
+    pp: [&'a [f64]; 2],
+    cd: &'a [f64],
+    e_cum: [&'a [f64]; 2],
+}
+
+impl Span<'_> {
+    /// Number of samples.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.cd.len()
+    }
+
+    /// True when the span has no sample.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.cd.is_empty()
+    }
+
+    /// [`Measured::context`] of clutch `i` at the span's sample `j`.
+    #[inline]
+    pub fn context(&self, i: usize, j: usize, theta_c: f64) -> ClutchContext {
+        ClutchContext {
+            clutch: i,
+            x_to_mm: self.x[i][j],
+            slip_radps: self.slip[i][j],
+            theta_c,
+            theta_pp: self.pp[i][j],
+            theta_cd: self.cd[j],
+            e_fric_j: self.e_cum[i][j],
         }
     }
 }
@@ -250,72 +303,7 @@ pub fn cumulative_energy(power: &[f64], e0: f64, dt: f64) -> Vec<f64> {
     v
 }
 
-/// Disk temperatures θ_c1, θ_c2 from (16c)/(16d) driven by the measured plate, central-disk and
-/// housing temperatures and the measured friction power (exact exponential update per sample,
-/// inputs at the interval midpoint). Effects act through the hooks' β and extra heat.
-pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec<f64>; 2] {
-    let a = &p.thermal5;
-    let mut out = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
-    let s0 = m.thermal_at(0);
-    let mut c = [s0.c1, s0.c2];
-    // e^{−λ·dt} of the last λ per clutch: λ changes only when β does (a clutch closing or
-    // opening), so the exponential is taken a few times per engagement, not per sample.
-    let mut decay = [(f64::NAN, 0.0); 2];
-    for k in 0..m.n {
-        out[0].push(c[0]);
-        out[1].push(c[1]);
-        if k + 1 == m.n {
-            break;
-        }
-        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
-        let th = mid(&m.th);
-        let cd = mid(&m.cd);
-        let pp = [mid(&m.pp[0]), mid(&m.pp[1])];
-        // Not clamped at zero: sensor noise on an open clutch must average out, not heat.
-        let pw = [mid(&m.power[0]), mid(&m.power[1])];
-        let beta = [
-            h.clutch_beta(&p.clutch, &m.context(0, k, c[0])),
-            h.clutch_beta(&p.clutch, &m.context(1, k, c[1])),
-        ];
-        let state = Thermal5State {
-            pp1: pp[0],
-            pp2: pp[1],
-            c1: c[0],
-            c2: c[1],
-            cd,
-        };
-        let tin = ThermalInputs {
-            p_fric1_w: pw[0],
-            p_fric2_w: pw[1],
-            beta1: beta[0],
-            beta2: beta[1],
-            theta_h_c: th,
-            w_f_radps: mid(&m.w_f),
-        };
-        let extra = h.extra_heat(&state, &tin);
-        for i in 0..2 {
-            let b = beta[i];
-            // θ̇ = −λθ + g
-            let lam = a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
-            let ex = if i == 0 { extra.c1 } else { extra.c2 };
-            let g = a.alpha4_per_s * b * pp[i]
-                + a.alpha5_per_s * b * cd
-                + a.alpha6_per_s * (1.0 - b) * th
-                + a.alpha7_k_per_j * pw[i]
-                + ex;
-            c[i] = if lam * m.dt > 1e-9 {
-                if decay[i].0 != lam {
-                    decay[i] = (lam, (-lam * m.dt).exp());
-                }
-                let inf = g / lam;
-                inf + (c[i] - inf) * decay[i].1
-            } else {
-                c[i] + (g - lam * c[i]) * m.dt
-            };
-        }
-    }
-    out
-}
+pub use super::disk::disk_estimate;
 
 /// Equation-error torque of clutch `i` at sample `k` (N·m).
 #[inline]
@@ -414,8 +402,9 @@ pub fn thermal_replay_every<H: Hooks + ?Sized>(
         let pw = [mean(&m.power[0]), mean(&m.power[1])];
         let mut u = inputs(pw, mean(&m.th), mean(&m.w_f));
         let (mut b1, mut b2) = (0.0, 0.0);
-        for k in k0..k1 {
-            let ctx = [m.context(0, k, s.c1), m.context(1, k, s.c2)];
+        let span = m.span(k0, k1);
+        for j in 0..span.len() {
+            let ctx = [span.context(0, j, s.c1), span.context(1, j, s.c2)];
             let b = with_beta(p, h, &s, ctx, u);
             b1 += b.beta1;
             b2 += b.beta2;
@@ -592,6 +581,18 @@ pub fn is_rig_record(d: &Dataset) -> bool {
             w_f.iter().filter(|w| (*w - med).abs() < 2.0).count() as f64 >= 0.99 * n as f64
         }
     }
+}
+
+/// A short identification record of the nominal rig under `p` (6 engagements, 40 s, 10 ms
+/// samples), for the tests of the replays and the predictions.
+#[cfg(test)]
+pub fn test_record(p: &Params) -> Measured {
+    use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
+    use crate::model::powertrain::Nominal;
+    let exp = RigExperiment::identification(6, 40.0);
+    let frames = rig_frames(p, Nominal, &exp, SensorNoise::default(), 3, 0.005).unwrap();
+    let d = Dataset::from_records("rig", frames.into_iter().map(Ok), 0.01).unwrap();
+    Measured::new(&d, p, [0.0; 2], &SegmentOptions::default())
 }
 
 #[cfg(test)]

@@ -90,13 +90,102 @@ pub struct Job {
     pub max_iter: usize,
 }
 
-/// Fits `job` on the training records starting from `base`.
+/// A job's least-squares problem: the model of a parameter vector and its residuals.
+struct Problem<'a> {
+    base: &'a Model,
+    job: &'a Job,
+    files: &'a [File],
+    knots: &'a Knots,
+    /// The classes' parameter slices, then the recalibration's from `nc` on.
+    slices: &'a [(ClassId, usize, usize)],
+    nc: usize,
+}
+
+impl Problem<'_> {
+    /// The model of the parameters `v`; `None` when its clutch parameters are not valid.
+    fn build(&self, v: &[f64]) -> Option<Model> {
+        let mut m = *self.base;
+        for (c, a, b) in self.slices {
+            classfit::apply_in(*c, self.knots, &mut m, &v[*a..*b], self.job.form);
+        }
+        for (k, x) in self.job.recal.iter().zip(&v[self.nc..]) {
+            keys::set(&mut m.p, k, *x);
+        }
+        m.p.clutch.validate().ok()?;
+        Some(m)
+    }
+
+    /// Every fit sample's scaled residual at `v` into `r`, in a fixed order (NaN predictions
+    /// count as large residuals, an invalid model as larger ones).
+    fn residuals(&self, v: &[f64], r: &mut [f64], memo: &mut [ReplayMemo], buf: &mut Vec<f64>) {
+        let Some(model) = self.build(v) else {
+            r.iter_mut().for_each(|x| *x = 1e6);
+            return;
+        };
+        buf.clear();
+        let job = self.job;
+        let preds = context::fit_predictions(&model, self.files, &job.chans, job.cached_disk, memo);
+        for (file, pr) in self.files.iter().zip(&preds) {
+            for &c in &job.chans {
+                let y = &pr.y[c.index()];
+                for &k in file.fit.get(c) {
+                    let e = super::candidates::measured(&file.m, c, k)
+                        - y.get(k).copied().unwrap_or(f64::NAN);
+                    buf.push(e / file.sigma[c.index()]);
+                }
+            }
+        }
+        for (ri, b) in r.iter_mut().zip(buf.iter()) {
+            *ri = if b.is_finite() { *b } else { 1e3 };
+        }
+    }
+}
+
+/// A [`Problem`] as the solver sees it, with each record's replay memo: the points of a
+/// Jacobian go to up to `threads` threads, each with a copy of the memo (the replays it holds
+/// are shared, not copied), so every point's residuals are what one thread would compute.
+struct FitResiduals<'a> {
+    problem: &'a Problem<'a>,
+    memo: Vec<ReplayMemo>,
+    buf: Vec<f64>,
+    threads: usize,
+}
+
+impl lsq::Residuals for FitResiduals<'_> {
+    fn eval(&mut self, p: &[f64], r: &mut [f64]) {
+        self.problem.residuals(p, r, &mut self.memo, &mut self.buf);
+    }
+
+    fn eval_many(&mut self, ps: &[Vec<f64>], rs: &mut [Vec<f64>]) {
+        if self.threads <= 1 || ps.len() < 2 {
+            for (p, r) in ps.iter().zip(rs.iter_mut()) {
+                self.eval(p, r);
+            }
+            return;
+        }
+        let (problem, memo) = (self.problem, &self.memo);
+        let n = rs.first().map_or(0, Vec::len);
+        let done = crate::par::map(self.threads, ps, |_, p| {
+            let mut r = vec![0.0; n];
+            let (mut m, mut buf) = (memo.clone(), Vec::with_capacity(n));
+            problem.residuals(p, &mut r, &mut m, &mut buf);
+            r
+        });
+        for (r, d) in rs.iter_mut().zip(done) {
+            *r = d;
+        }
+    }
+}
+
+/// Fits `job` on the training records starting from `base`, a Jacobian's evaluations on up to
+/// `threads` threads.
 pub fn fit(
     base: &Model,
     nominal: &Params,
     job: &Job,
     files: &[File],
     knots: &Knots,
+    threads: usize,
 ) -> (Model, Option<Fit>) {
     // The classes' parameters first (one slice each), then the recalibration's.
     let mut specs: Vec<ParamSpec> = Vec::new();
@@ -116,47 +205,26 @@ pub fn fit(
     if specs.is_empty() || n == 0 {
         return (*base, None);
     }
-    let build = |v: &[f64]| -> Option<Model> {
-        let mut m = *base;
-        for (c, a, b) in &slices {
-            classfit::apply_in(*c, knots, &mut m, &v[*a..*b], job.form);
-        }
-        for (k, x) in job.recal.iter().zip(&v[nc..]) {
-            keys::set(&mut m.p, k, *x);
-        }
-        m.p.clutch.validate().ok()?;
-        Some(m)
+    let problem = Problem {
+        base,
+        job,
+        files,
+        knots,
+        slices: &slices,
+        nc,
     };
-    let mut buf = Vec::with_capacity(n);
-    let mut memo = vec![ReplayMemo::default(); files.len()];
-    let mut f = |v: &[f64], r: &mut [f64]| match build(v) {
-        Some(model) => {
-            buf.clear();
-            let preds =
-                context::fit_predictions(&model, files, &job.chans, job.cached_disk, &mut memo);
-            // Every fit sample in a fixed order (NaN predictions count as large residuals).
-            for (file, pr) in files.iter().zip(&preds) {
-                for &c in &job.chans {
-                    let y = &pr.y[c.index()];
-                    for &k in file.fit.get(c) {
-                        let e = super::candidates::measured(&file.m, c, k)
-                            - y.get(k).copied().unwrap_or(f64::NAN);
-                        buf.push(e / file.sigma[c.index()]);
-                    }
-                }
-            }
-            for (ri, b) in r.iter_mut().zip(&buf) {
-                *ri = if b.is_finite() { *b } else { 1e3 };
-            }
-        }
-        None => r.iter_mut().for_each(|x| *x = 1e6),
+    let mut f = FitResiduals {
+        problem: &problem,
+        memo: vec![ReplayMemo::default(); files.len()],
+        buf: Vec::with_capacity(n),
+        threads,
     };
     let opts = LmOptions {
         max_iter: job.max_iter,
         tol_sse: 1e-6,
         ..LmOptions::default()
     };
-    let mut fit = lsq::levenberg_marquardt(&mut f, n, &specs, opts);
+    let mut fit = lsq::solve(&mut f, n, &specs, opts, None);
     // A shape that zigzags (turns more than once) is fitting noise or trading against the
     // recalibration: refitted as a monotone curve in the direction of its total change, from no
     // effect, jointly with the same recalibration.
@@ -181,7 +249,7 @@ pub fn fit(
             }
         }
         if refit {
-            fit = lsq::levenberg_marquardt(&mut f, n, &sp, opts);
+            fit = lsq::solve(&mut f, n, &sp, opts, None);
         }
         // Classes whose least squares has more than one basin start again from each of their
         // other starting points (the rest of the parameters from where they started); the
@@ -192,14 +260,14 @@ pub fn fit(
                 for (s, x) in sp[*a..*b].iter_mut().zip(&start) {
                     s.init = x.clamp(s.lo, s.hi);
                 }
-                let alt = lsq::levenberg_marquardt(&mut f, n, &sp, opts);
+                let alt = lsq::solve(&mut f, n, &sp, opts, None);
                 if alt.sse < fit.sse {
                     fit = alt;
                 }
             }
         }
     }
-    let model = build(&fit.p).unwrap_or(*base);
+    let model = problem.build(&fit.p).unwrap_or(*base);
     (model, Some(fit))
 }
 
@@ -353,7 +421,7 @@ fn first_of_each<T: PartialEq + Copy>(v: Vec<T>) -> Vec<T> {
 /// whether the disk temperature was taken from the cache.
 fn fit_classes(s: &Setup, base: &Model, classes: &[ClassId]) -> Option<(Model, Fit, bool)> {
     let job = job_for(s, classes)?;
-    let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots);
+    let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots, s.threads);
     let fit = fit?;
     let tq: Vec<Channel> = classfit::group_channels(Subsystem::TorqueCharacteristic)
         .into_iter()
@@ -541,7 +609,7 @@ fn reading_error(class: ClassId, m: &Model) -> Option<(f64, f64, &'static str)> 
 
 /// Fits a job and returns only the model.
 pub fn fit_model(base: &Model, s: &Setup, job: &Job) -> Model {
-    fit(base, s.nominal, job, s.train, s.knots).0
+    fit(base, s.nominal, job, s.train, s.knots, s.threads).0
 }
 
 /// One round of the selection.

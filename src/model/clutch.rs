@@ -131,6 +131,19 @@ pub fn x_isp(p: &ClutchParams, theta_fs: f64) -> f64 {
     p.x_isp2_mm_per_c2 * d * d + p.x_isp1_mm_per_c * d + p.x_isp0_mm
 }
 
+/// Every parameter [`u_fs`] reads ((7)–(9): λ, the kiss point's λ0, λ1, λ2 and θ_a, x_to,max):
+/// whether the clutch is engaged (β of (16)) depends on the clutch parameters only through these.
+pub fn engagement_params(p: &ClutchParams) -> [f64; 6] {
+    [
+        p.lambda,
+        p.x_isp0_mm,
+        p.x_isp1_mm_per_c,
+        p.x_isp2_mm_per_c2,
+        p.theta_a_c,
+        p.x_to_max_mm,
+    ]
+}
+
 /// Maximum flat-spring compression u_fs,max(θ) of (8) (mm).
 #[inline]
 pub fn u_fs_max(p: &ClutchParams, theta_fs: f64) -> f64 {
@@ -282,6 +295,28 @@ mod tests {
 
     fn cp() -> ClutchParams {
         Params::default().clutch
+    }
+
+    /// Each clutch parameter moved by 10 % (and 0.01 where zero): u_fs moves somewhere on a grid
+    /// exactly when the parameter is one of [`engagement_params`].
+    #[test]
+    fn the_engagement_parameters_are_those_u_fs_reads() {
+        let p = cp();
+        let table = toml::Table::try_from(p).unwrap();
+        for key in table.keys() {
+            let mut t = table.clone();
+            let v = t[key].as_float().unwrap();
+            t[key] = toml::Value::Float(if v == 0.0 { 0.01 } else { v * 1.1 });
+            let q: ClutchParams = t.try_into().unwrap();
+            let mut moved = false;
+            for x in 0..=100 {
+                for th in [-20.0, 25.0, 140.0, 300.0] {
+                    moved |= u_fs(&p, x as f64 * 0.1, th) != u_fs(&q, x as f64 * 0.1, th);
+                }
+            }
+            let listed = engagement_params(&p) != engagement_params(&q);
+            assert_eq!(moved, listed, "{key}: u_fs moved {moved}, listed {listed}");
+        }
     }
 
     #[test]

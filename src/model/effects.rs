@@ -624,6 +624,15 @@ impl EffectSet {
         self.slots[id.index()].is_some()
     }
 
+    /// The set with only the effects of `ids` kept (the others off).
+    pub fn only(&self, ids: &[EffectId]) -> EffectSet {
+        let mut s = EffectSet::default();
+        for &id in ids {
+            s.slots[id.index()] = self.slots[id.index()];
+        }
+        s
+    }
+
     /// True when no effect is active.
     pub fn is_nominal(&self) -> bool {
         self.slots.iter().all(Option::is_none)
@@ -938,6 +947,14 @@ pub fn capacity(p: &ClutchParams, set: &EffectSet, c: &TorqueContext) -> f64 {
     }
     magnitude(p, set, c, 0.0)
 }
+
+/// The effects [`beta`] reads (whether a clutch is engaged).
+pub const ENGAGEMENT_EFFECTS: [EffectId; 1] = [EffectId::KissPointWear];
+
+/// The effects [`thermal5_extra`] reads (extra heat flows). A replay of the thermal model (16)
+/// under a set depends on the set only through these and [`ENGAGEMENT_EFFECTS`] (the others act
+/// on the torque, the actuator, the engine or the driveline).
+pub const HEAT_EFFECTS: [EffectId; 1] = [EffectId::SupportConduction];
 
 /// β of the thermal model with effects: 1 when the flat spring is compressed.
 #[inline]
@@ -1268,6 +1285,63 @@ mod tests {
             serde_json::to_string(&Subsystem::TorqueCharacteristic).unwrap(),
             "\"torque_characteristic\""
         );
+    }
+
+    /// Of every effect at its typical and at its extreme parameters, exactly those of
+    /// [`ENGAGEMENT_EFFECTS`] move β and exactly those of [`HEAT_EFFECTS`] the extra heat of (16).
+    #[test]
+    fn only_the_engagement_and_heat_effects_move_beta_and_heat() {
+        let p = cp();
+        let s = Thermal5State {
+            pp1: 90.0,
+            pp2: 70.0,
+            c1: 130.0,
+            c2: 60.0,
+            cd: 100.0,
+        };
+        let u = ThermalInputs {
+            p_fric1_w: 4000.0,
+            p_fric2_w: 0.0,
+            beta1: 1.0,
+            beta2: 0.0,
+            theta_h_c: 45.0,
+            w_f_radps: 200.0,
+        };
+        let (mut moves_beta, mut moves_heat) = (Vec::new(), Vec::new());
+        for id in EffectId::ALL {
+            let specs = id.params();
+            for pick in [0, 1, 2] {
+                let v: Vec<f64> = specs
+                    .iter()
+                    .map(|q| [q.typical, q.bounds.0, q.bounds.1][pick])
+                    .collect();
+                let set = EffectSet::single(id, &v).unwrap();
+                if thermal5_extra(&set, &s, &u) != Thermal5State::default()
+                    && !moves_heat.contains(&id)
+                {
+                    moves_heat.push(id);
+                }
+                for x in [2.0, 4.5, 5.2, 6.0, 8.0] {
+                    for th in [20.0, 140.0, 300.0] {
+                        let mut c = TorqueContext::new(x, 30.0, th);
+                        c.e_fric_j = 5e7;
+                        if beta(&p, &set, &c) != beta(&p, &EffectSet::nominal(), &c)
+                            && !moves_beta.contains(&id)
+                        {
+                            moves_beta.push(id);
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(moves_beta, ENGAGEMENT_EFFECTS.to_vec());
+        assert_eq!(moves_heat, HEAT_EFFECTS.to_vec());
+        let typical = EffectId::FrictionPressure.params()[0].typical;
+        let other = EffectSet::single(EffectId::FrictionPressure, &[typical]).unwrap();
+        assert!(other.only(&ENGAGEMENT_EFFECTS).is_nominal());
+        let wear = EffectSet::single(EffectId::KissPointWear, &[0.01]).unwrap();
+        assert_eq!(wear.only(&ENGAGEMENT_EFFECTS), wear);
+        assert!(wear.only(&HEAT_EFFECTS).is_nominal());
     }
 
     #[test]

@@ -1,0 +1,212 @@
+//! The clutch-disk temperatures θ_c1, θ_c2 estimated from the measurements: the disk equations
+//! (16c)/(16d) driven by the *measured* pressure-plate, central-disk and housing temperatures and
+//! the *measured* friction power (the disk temperature itself is not measured on the bench), an
+//! exact exponential update per sample with the inputs at the interval midpoint. Effects act
+//! through the hooks' β (engagement) and extra heat.
+//!
+//! A fit's Jacobian moves one parameter at a time. A parameter that acts only through β (the kiss
+//! point (9), x_to,max, λ of (7), kiss-point wear) leaves the estimate exactly as it was up to the
+//! first sample where β changes — and with the small steps of a finite-difference Jacobian, β
+//! rarely changes at all. [`rerun_engagement`] replays only from there ([`first_change`]),
+//! giving the same numbers, bit for bit, as a replay from the start.
+
+use std::sync::Arc;
+
+use super::replay::Measured;
+use crate::model::params::Params;
+use crate::model::powertrain::Hooks;
+use crate::model::thermal::{Thermal5State, ThermalInputs};
+
+/// A disk replay: the temperatures at every sample and the β each step used.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiskRun {
+    /// θ_c of clutch 0/1 at every sample (°C).
+    pub theta: Arc<[Vec<f64>; 2]>,
+    /// β of clutch 0/1 over the step from sample k to k + 1 (one fewer than the samples).
+    beta: Arc<[Vec<f64>; 2]>,
+}
+
+/// [`run`]'s temperatures.
+pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec<f64>; 2] {
+    Arc::unwrap_or_clone(run(p, h, m).theta)
+}
+
+/// The disk replay of the whole record from the measured start.
+pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
+    let s0 = m.thermal_at(0);
+    let mut theta = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
+    let mut beta = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
+    if m.n > 0 {
+        theta[0].push(s0.c1);
+        theta[1].push(s0.c2);
+    }
+    extend(p, h, m, &mut theta, &mut beta);
+    DiskRun {
+        theta: Arc::new(theta),
+        beta: Arc::new(beta),
+    }
+}
+
+/// The disk replay of a model that differs from the one of `reference` only in what β reads
+/// (the clutch's engagement parameters, the engagement effects): the reference's samples up to
+/// the first step whose β changes, replayed from there. Equal to [`run`] of the model.
+pub fn rerun_engagement<H: Hooks + ?Sized>(
+    p: &Params,
+    h: &H,
+    m: &Measured,
+    reference: &DiskRun,
+) -> DiskRun {
+    let k = first_change(p, h, m, reference);
+    if k == reference.beta[0].len() {
+        return reference.clone();
+    }
+    let mut theta = [0, 1].map(|i| reference.theta[i][..=k].to_vec());
+    let mut beta = [0, 1].map(|i| reference.beta[i][..k].to_vec());
+    extend(p, h, m, &mut theta, &mut beta);
+    DiskRun {
+        theta: Arc::new(theta),
+        beta: Arc::new(beta),
+    }
+}
+
+/// The first step at which β under `h` and `p`, at the reference's temperatures, differs from
+/// the reference's β (the number of steps when none does).
+fn first_change<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured, reference: &DiskRun) -> usize {
+    let (theta, beta) = (&*reference.theta, &*reference.beta);
+    let steps = beta[0].len().min(beta[1].len());
+    let span = m.span(0, steps);
+    let (th, b) = (
+        [&theta[0][..steps], &theta[1][..steps]],
+        [&beta[0][..steps], &beta[1][..steps]],
+    );
+    (0..steps)
+        .find(|&k| {
+            (0..2).any(|i| h.clutch_beta(&p.clutch, &span.context(i, k, th[i][k])) != b[i][k])
+        })
+        .unwrap_or(steps)
+}
+
+/// Continues a replay (temperatures up to some sample k, β up to step k − 1) to the end of the
+/// record.
+fn extend<H: Hooks + ?Sized>(
+    p: &Params,
+    h: &H,
+    m: &Measured,
+    theta: &mut [Vec<f64>; 2],
+    beta_out: &mut [Vec<f64>; 2],
+) {
+    let a = &p.thermal5;
+    let n = m.n;
+    let Some(k0) = theta[0].len().checked_sub(1) else {
+        return;
+    };
+    let mut c = [theta[0][k0], theta[1][k0]];
+    // e^{−λ·dt} of the last λ per clutch: λ changes only when β does (a clutch closing or
+    // opening), so the exponential is taken a few times per engagement, not per sample.
+    let mut decay = [(f64::NAN, 0.0); 2];
+    let span = m.span(0, n);
+    let (th, cd, wf) = (&m.th[..n], &m.cd[..n], &m.w_f[..n]);
+    let (pp, pw) = (
+        [&m.pp[0][..n], &m.pp[1][..n]],
+        [&m.power[0][..n], &m.power[1][..n]],
+    );
+    for k in k0..n - 1 {
+        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+        let (th_m, cd_m) = (mid(th), mid(cd));
+        let pp_m = [mid(pp[0]), mid(pp[1])];
+        // Not clamped at zero: sensor noise on an open clutch must average out, not heat.
+        let pw_m = [mid(pw[0]), mid(pw[1])];
+        let beta = [0, 1].map(|i| h.clutch_beta(&p.clutch, &span.context(i, k, c[i])));
+        let state = Thermal5State {
+            pp1: pp_m[0],
+            pp2: pp_m[1],
+            c1: c[0],
+            c2: c[1],
+            cd: cd_m,
+        };
+        let tin = ThermalInputs {
+            p_fric1_w: pw_m[0],
+            p_fric2_w: pw_m[1],
+            beta1: beta[0],
+            beta2: beta[1],
+            theta_h_c: th_m,
+            w_f_radps: mid(wf),
+        };
+        let extra = h.extra_heat(&state, &tin);
+        for i in 0..2 {
+            let b = beta[i];
+            // θ̇ = −λθ + g
+            let lam = a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
+            let ex = if i == 0 { extra.c1 } else { extra.c2 };
+            let g = a.alpha4_per_s * b * pp_m[i]
+                + a.alpha5_per_s * b * cd_m
+                + a.alpha6_per_s * (1.0 - b) * th_m
+                + a.alpha7_k_per_j * pw_m[i]
+                + ex;
+            c[i] = if lam * m.dt > 1e-9 {
+                if decay[i].0 != lam {
+                    decay[i] = (lam, (-lam * m.dt).exp());
+                }
+                let inf = g / lam;
+                inf + (c[i] - inf) * decay[i].1
+            } else {
+                c[i] + (g - lam * c[i]) * m.dt
+            };
+            theta[i].push(c[i]);
+            beta_out[i].push(b);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gap::replay::test_record;
+    use crate::model::effects::{EffectId, EffectSet};
+    use crate::model::powertrain::Nominal;
+
+    fn bits(r: &DiskRun) -> Vec<u64> {
+        r.theta.iter().flatten().map(|v| v.to_bits()).collect()
+    }
+
+    /// Kiss points moved by a Jacobian's step, by tenths of a millimetre, by wear: the replay
+    /// resumed where β first changes is the replay from the start, bit for bit; a step too small
+    /// to change β anywhere leaves the reference as it is.
+    #[test]
+    fn a_resumed_replay_is_the_replay_from_the_start() {
+        let p = Params::default();
+        let m = test_record(&p);
+        let reference = run(&p, &Nominal, &m);
+        assert_eq!(reference.theta[0].len(), m.n);
+        assert_eq!(reference.beta[0].len(), m.n - 1);
+        let moved = |f: &dyn Fn(&mut Params)| {
+            let mut q = p;
+            f(&mut q);
+            q
+        };
+        let tiny = moved(&|q| q.clutch.x_isp0_mm *= 1.0 + 1e-9);
+        assert_eq!(first_change(&tiny, &Nominal, &m, &reference), m.n - 1);
+        assert_eq!(
+            bits(&rerun_engagement(&tiny, &Nominal, &m, &reference)),
+            bits(&reference)
+        );
+        for q in [
+            moved(&|q| q.clutch.x_isp0_mm += 0.3),
+            moved(&|q| q.clutch.x_isp0_mm -= 0.2),
+            moved(&|q| q.clutch.x_isp1_mm_per_c *= 3.0),
+        ] {
+            let k = first_change(&q, &Nominal, &m, &reference);
+            assert!(k < m.n - 1, "β changes somewhere on this record ({q:?})");
+            let resumed = rerun_engagement(&q, &Nominal, &m, &reference);
+            assert_eq!(bits(&resumed), bits(&run(&q, &Nominal, &m)));
+            assert_ne!(bits(&resumed), bits(&reference));
+        }
+        // An engagement effect, through the hooks.
+        let wear = crate::gap::candidates::SetHooks(
+            EffectSet::single(EffectId::KissPointWear, &[0.02]).unwrap(),
+            None,
+        );
+        let resumed = rerun_engagement(&p, &wear, &m, &reference);
+        assert_eq!(bits(&resumed), bits(&run(&p, &wear, &m)));
+    }
+}
