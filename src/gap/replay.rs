@@ -478,13 +478,17 @@ pub fn actuator_replay(a: &ActuatorParams, x_req: &[f64], x0: f64, dt: f64) -> V
         if k + 1 == x_req.len() {
             break;
         }
-        let f = |x: f64| actuator::derivative(a, x, r);
-        for _ in 0..SUB {
-            let k1 = f(x);
-            let k2 = f(x + 0.5 * h * k1);
-            let k3 = f(x + 0.5 * h * k2);
-            let k4 = f(x + h * k3);
-            x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        // At rest on its (clamped) request the lag's rate is exactly zero, and so is every
+        // RK4 stage: the substeps would leave the position as it is.
+        if actuator::clamp_request(a, r, x) != x {
+            let f = |x: f64| actuator::derivative(a, x, r);
+            for _ in 0..SUB {
+                let k1 = f(x);
+                let k2 = f(x + 0.5 * h * k1);
+                let k3 = f(x + 0.5 * h * k2);
+                let k4 = f(x + h * k3);
+                x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            }
         }
         // Settled: snap to the request (the exponential approach would otherwise run into
         // subnormal numbers, which are two orders of magnitude slower).
@@ -600,6 +604,55 @@ mod tests {
     use super::*;
     use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
     use crate::model::powertrain::Nominal;
+
+    /// Requests that step, ramp, hold, leave the actuator's range and are missing: the replay
+    /// that skips the substeps of a settled actuator gives every sample of the one that takes
+    /// them all, bit for bit.
+    #[test]
+    fn a_settled_actuator_skips_its_substeps_and_nothing_else() {
+        let a = Params::default().actuator;
+        let mut req = Vec::new();
+        for k in 0..3000 {
+            let t = k as f64 * 0.01;
+            req.push(match k / 300 {
+                0 => 0.5,
+                1 => 6.2,
+                2 => 6.2 + 0.01 * (k % 300) as f64,
+                3 => a.x_max_mm + 3.0,
+                4 => f64::NAN,
+                5 => a.x_min_mm - 1.0,
+                6 => 4.0 + (t * 3.0).sin(),
+                _ => 5.5,
+            });
+        }
+        let every_substep = |x0: f64| {
+            let (h, mut x) = (0.01 / 10.0, x0);
+            let mut out = Vec::new();
+            for (k, &r) in req.iter().enumerate() {
+                out.push(x);
+                if k + 1 == req.len() {
+                    break;
+                }
+                let f = |x: f64| actuator::derivative(&a, x, r);
+                for _ in 0..10 {
+                    let k1 = f(x);
+                    let k2 = f(x + 0.5 * h * k1);
+                    let k3 = f(x + 0.5 * h * k2);
+                    let k4 = f(x + h * k3);
+                    x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+                }
+                if (x - r).abs() < 1e-9 {
+                    x = r;
+                }
+            }
+            out
+        };
+        for x0 in [0.5, 3.0] {
+            let fast = actuator_replay(&a, &req, x0, 0.01);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&fast), bits(&every_substep(x0)));
+        }
+    }
 
     #[test]
     fn replays_reproduce_the_generating_model() {

@@ -145,13 +145,36 @@ pub struct RecordDef {
 impl RecordDef {
     /// Dyno speed (rad/s) at `t`.
     pub fn speed_radps(&self, t: f64) -> f64 {
+        // The knots are in time order (a timeline only moves forward): the first knot after
+        // `t` by bisection.
+        let k = &self.speed;
+        self.speed_in(t, k.partition_point(|p| p.0 <= t).min(k.len() - 1))
+    }
+
+    /// [`Self::speed_radps`] with the knot searched from `hint` (the last call's): a step or two
+    /// for the slowly advancing times of a simulation, whose millions of calls a bisection over
+    /// a long record's knots would dominate.
+    pub fn speed_radps_from(&self, t: f64, hint: &mut usize) -> f64 {
+        let k = &self.speed;
+        let mut j = (*hint).min(k.len() - 1);
+        while j > 0 && k[j - 1].0 > t {
+            j -= 1;
+        }
+        while j + 1 < k.len() && k[j].0 <= t {
+            j += 1;
+        }
+        *hint = j;
+        self.speed_in(t, j)
+    }
+
+    /// The speed at `t` on the segment ending at knot `j` (the first knot after `t`, or the last).
+    fn speed_in(&self, t: f64, j: usize) -> f64 {
         let k = &self.speed;
         let rpm = if t <= k[0].0 {
             k[0].1
         } else if t >= k[k.len() - 1].0 {
             k[k.len() - 1].1
         } else {
-            let j = k.iter().position(|p| p.0 > t).unwrap_or(k.len() - 1);
             let (a, b) = (k[j - 1], k[j]);
             if b.0 > a.0 {
                 a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
@@ -168,8 +191,23 @@ impl RecordDef {
 
     /// The request of clutch `i` as the bench's controller sends it: held over each 10 ms cycle.
     pub fn request(&self, i: usize, t: f64) -> f64 {
-        let tk = (t / SAMPLE_S + 1e-9).floor() * SAMPLE_S;
-        self.raw_request(i, tk)
+        self.raw_request(i, Self::cycle_start(t))
+    }
+
+    /// Both clutches' [`Self::request`] at `t`, taken from `held` (the cycle start and the
+    /// requests of the last call) while `t` is in the same cycle: the search over the
+    /// engagements runs once per cycle, not at every step of a simulation.
+    pub fn requests_held(&self, t: f64, held: &mut (f64, [f64; 2])) -> [f64; 2] {
+        let tk = Self::cycle_start(t);
+        if tk.to_bits() != held.0.to_bits() {
+            *held = (tk, [self.raw_request(0, tk), self.raw_request(1, tk)]);
+        }
+        held.1
+    }
+
+    /// The start of the 10 ms controller cycle holding `t`.
+    fn cycle_start(t: f64) -> f64 {
+        (t / SAMPLE_S + 1e-9).floor() * SAMPLE_S
     }
 
     fn raw_request(&self, i: usize, t: f64) -> f64 {
@@ -449,6 +487,63 @@ pub fn all() -> Vec<RecordDef> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The knot found by bisection, or searched from the last one, is the one a scan from the
+    /// start finds, at every 1 ms of every record of the experiments (and half a step on); the
+    /// requests held over a cycle are the requests.
+    #[test]
+    fn the_dyno_speed_by_bisection_is_the_scanned_one() {
+        let scanned = |rec: &RecordDef, t: f64| -> f64 {
+            let k = &rec.speed;
+            let rpm = if t <= k[0].0 {
+                k[0].1
+            } else if t >= k[k.len() - 1].0 {
+                k[k.len() - 1].1
+            } else {
+                let j = k.iter().position(|p| p.0 > t).unwrap_or(k.len() - 1);
+                let (a, b) = (k[j - 1], k[j]);
+                if b.0 > a.0 {
+                    a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
+                } else {
+                    b.1
+                }
+            };
+            rpm * std::f64::consts::PI / 30.0
+        };
+        let recs = all();
+        assert!(recs.iter().any(|r| r.speed.len() > 3));
+        for rec in &recs {
+            assert!(
+                rec.speed.windows(2).all(|w| w[0].0 <= w[1].0),
+                "{}",
+                rec.name
+            );
+            let mut hint = 0;
+            for j in 0..(rec.duration_s * 1000.0) as usize + 10 {
+                let t = j as f64 * 1e-3;
+                let want = scanned(rec, t).to_bits();
+                assert_eq!(rec.speed_radps(t).to_bits(), want);
+                assert_eq!(rec.speed_radps_from(t, &mut hint).to_bits(), want);
+                // A stage half a step on, then back.
+                let mut h2 = hint;
+                let _ = rec.speed_radps_from(t + 5e-4, &mut h2);
+                assert_eq!(rec.speed_radps_from(t, &mut h2).to_bits(), want);
+            }
+            let mut held = (f64::NAN, [0.0; 2]);
+            for j in 0..(rec.duration_s * 2000.0) as usize {
+                let t = j as f64 * 5e-4;
+                let r = rec.requests_held(t, &mut held);
+                for (i, r) in r.iter().enumerate() {
+                    assert_eq!(r.to_bits(), rec.request(i, t).to_bits());
+                }
+            }
+            let mut far = rec.speed.len() + 5;
+            assert_eq!(
+                rec.speed_radps_from(0.0, &mut far).to_bits(),
+                scanned(rec, 0.0).to_bits()
+            );
+        }
+    }
 
     #[test]
     fn records_are_moderate_and_engagements_do_not_overlap_per_clutch() {

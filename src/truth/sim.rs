@@ -86,10 +86,24 @@ impl Default for Noise {
 /// Exact update of a first-order lag τ·ẏ = u − y over a step `h` with the input held.
 #[inline]
 pub fn lag_step(y: f64, u: f64, h: f64, tau: f64) -> f64 {
-    if tau > 0.0 {
-        u + (y - u) * (-h / tau).exp()
-    } else {
-        u
+    Lag::new(h, tau).step(y, u)
+}
+
+/// [`lag_step`] for a fixed step and time constant, its exponential taken once.
+#[derive(Debug, Clone, Copy)]
+pub struct Lag(Option<f64>);
+
+impl Lag {
+    pub fn new(h: f64, tau: f64) -> Self {
+        Lag((tau > 0.0).then(|| (-h / tau).exp()))
+    }
+
+    #[inline]
+    pub fn step(self, y: f64, u: f64) -> f64 {
+        match self.0 {
+            Some(a) => u + (y - u) * a,
+            None => u,
+        }
     }
 }
 
@@ -263,6 +277,8 @@ struct Rig<'a> {
     fx: Fx<'a>,
     /// Q(ω) cache per clutch: (ω, Q).
     q_cache: [(f64, f64); 2],
+    /// The dyno speed's knot of the last call ([`RecordDef::speed_radps_from`]).
+    speed_hint: usize,
 }
 
 impl Rig<'_> {
@@ -288,7 +304,7 @@ impl Rig<'_> {
     /// Derivative of the state at time `t` with the actuator requests `r`.
     fn deriv(&mut self, s: &State, t: f64, r: [f64; 2], d: &Discrete) -> (State, Out) {
         let ph = self.ph;
-        let w = self.rec.speed_radps(t);
+        let w = self.rec.speed_radps_from(t, &mut self.speed_hint);
         let th_h = self.rec.housing_c(t);
         let fx = &self.fx;
         // Clamp loads first (the cross-clutch effect needs the other one).
@@ -430,6 +446,7 @@ pub fn simulate(
         rec,
         fx: Fx::new(effects),
         q_cache: [(f64::NAN, 0.0); 2],
+        speed_hint: 0,
     };
     let n = rec.samples();
     let steps = (n - 1) * SUB;
@@ -455,21 +472,22 @@ pub fn simulate(
     let mut work = 0.0;
     let mut p_prev = 0.0;
     let h = STEP_S;
-    let tc_lag = rig.fx.tc_lag;
+    let tc_lags = rig.fx.tc_lag.map(|tau| Lag::new(h, tau));
     // The true temperatures the thermocouples see, `tc_delay` late (the pack at rest before t = 0).
     let delay_steps = (rig.fx.tc_delay / h).round() as usize;
     let mut seen: [std::collections::VecDeque<f64>; 3] =
         std::array::from_fn(|_| std::collections::VecDeque::from(vec![rec.theta0_c; delay_steps]));
     let dead = rig.fx.dead_time;
+    let mut held = (f64::NAN, [0.0; 2]);
     for j in 0..=steps {
         let t = j as f64 * h;
         let tm = t + 0.5 * h - dead;
-        let r = [rec.request(0, tm.max(-1.0)), rec.request(1, tm.max(-1.0))];
+        let r = rec.requests_held(tm.max(-1.0), &mut held);
         let r = if tm < 0.0 { [0.0; 2] } else { r };
         let (k1, out) = rig.deriv(&s, t, r, &d);
         t_ms[0].push(out.torque[0]);
         t_ms[1].push(out.torque[1]);
-        let w = rec.speed_radps(t);
+        let w = rec.speed_radps_from(t, &mut rig.speed_hint);
         let p = (out.torque[0] + out.torque[1]) * w;
         if j > 0 {
             work += 0.5 * (p + p_prev) * h;
@@ -507,8 +525,8 @@ pub fn simulate(
         for (k, j5) in [0usize, 1, 4].into_iter().enumerate() {
             seen[k].push_back(s.th[j5]);
             let x = seen[k].pop_front().unwrap_or(s.th[j5]);
-            d.tc[k][0] = lag_step(d.tc[k][0], x, h, tc_lag[0]);
-            d.tc[k][1] = lag_step(d.tc[k][1], d.tc[k][0], h, tc_lag[1]);
+            d.tc[k][0] = tc_lags[0].step(d.tc[k][0], x);
+            d.tc[k][1] = tc_lags[1].step(d.tc[k][1], d.tc[k][0]);
         }
         if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
             if (j + 1) % SUB == 0 {
@@ -523,9 +541,9 @@ pub fn simulate(
     let tau_f = rig.fx.torque_filter;
     if tau_f > 0.0 {
         for v in t_ms.iter_mut() {
-            let mut y = v[0];
+            let (mut y, lag) = (v[0], Lag::new(h, tau_f));
             for x in v.iter_mut() {
-                y = lag_step(y, *x, h, tau_f);
+                y = lag.step(y, *x);
                 *x = y;
             }
         }
