@@ -12,6 +12,7 @@ wall time, not CPU time):
             vectorised torque against the numpy peer in benches/model_peer.py
   diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7);
             with --short the identification (7 min) and validation profiles; no peer
+  blind     `ddct gap blind` of 10 trials (2 with --short), seed 1: wall time per trial
 
 --short (what CI runs) makes one run of each with small inputs and asserts nothing about time:
 it checks that every comparison still runs and that its outputs agree. The table goes to stdout,
@@ -170,6 +171,21 @@ def diagnose_rows(out, short):
     }]
 
 
+def blind_rows(out, short):
+    """`ddct gap blind`: the wall time per trial (trials on every core, as the command runs)."""
+    trials = 2 if short else 10
+    wall, cpu, _ = run([DDCT, "gap", "blind", "--trials", str(trials), "--seed", "1",
+                        "--out", str(out / "blind")])
+    return [{
+        "what": f"ddct gap blind, {trials} trials (seed 1)",
+        "ddct": f"{wall / trials:.1f} s wall per trial, {cpu / trials:.1f} s CPU per trial",
+        "peer": "-",
+        "ratio_wall": None,
+        "ratio_cpu": None,
+        "s_per_trial": wall / trials,
+    }]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--short", action="store_true", help="one small run of each (CI)")
@@ -182,6 +198,7 @@ def main():
     check_decoded(dec, 20_000 if a.short else 400_000)
     rows = sim_rows(runs, a.short) + dec + model_rows()
     rows += diagnose_rows(out, a.short)
+    rows += blind_rows(out, a.short)
     print(f"{'what':<48} {'ddct':<44} {'peer':<52} {'x wall':>8} {'x CPU':>8}")
     for r in rows:
         f = lambda v: f"{v:8.1f}" if v is not None else f"{'-':>8}"
