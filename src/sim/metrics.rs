@@ -365,6 +365,8 @@ mod tests {
                 let run = run_scenario(&sc, &cfg, &opts);
                 let want = reference::compute(&run.rows, &cfg);
                 assert_same(&compute(&run.rows, &cfg), &want, &sc.name);
+                // As the run computed them, with the scenario's calibration.
+                assert_same(&run.metrics, &want, &sc.name);
                 names.push(sc.name);
             }
         }
