@@ -31,6 +31,7 @@ use crate::can::{CanFrame, Received};
 use crate::model::gear::Gear;
 use crate::plant::Plant;
 use crate::tcu::{Tcu, TcuConfig, TcuInputs, TimedFrame};
+use metrics::Metrics;
 use serde::Serialize;
 use std::time::Duration;
 
@@ -217,6 +218,10 @@ pub struct SimOptions {
     /// Count the frames instead of keeping them (`SimRun::frames` left empty): memory then no
     /// longer grows with the frames of a long scenario.
     pub drop_frames: bool,
+    /// Feed the rows to the metrics only instead of also keeping them (`SimRun::rows` left
+    /// empty; `SimRun::metrics` is computed either way): memory then no longer grows with the
+    /// length of the run. For callers that need no row (no CSV, no figure).
+    pub drop_rows: bool,
 }
 
 /// Everything a run produced.
@@ -225,7 +230,11 @@ pub struct SimRun {
     pub scenario: String,
     pub description: String,
     pub duration_s: f64,
+    /// One row per TCU cycle (empty with `SimOptions::drop_rows`).
     pub rows: Vec<Row>,
+    /// The metrics of all the rows, computed as they came (with the scenario's calibration).
+    #[serde(skip)]
+    pub metrics: Metrics,
     /// Every frame the plant sent (after injections) and the TCU sent, with its time (empty
     /// with `SimOptions::drop_frames`).
     #[serde(skip)]
@@ -294,11 +303,8 @@ pub fn run_with(
     let mut pending: Vec<(Duration, CanFrame)> = Vec::new();
     let mut inbox: Vec<TimedFrame> = Vec::new();
     let mut view = BusView::default();
-    let mut rows = Vec::with_capacity((duration.as_millis() / 10 + 2) as usize);
-    let mut log = Vec::new();
+    let mut rec = Recorder::new(opts, tcu.config(), duration);
     let mut frozen = vec![None; opts.injections.len()];
-    let mut steps = 0;
-    let mut frame_count = 0u64;
     let mut t = Duration::ZERO;
     // On the 1 ms grid, visiting only the instants where something happens: the plant's cycle,
     // a frame falling due, the TCU's poll timeout (a frame due between two grid points is
@@ -318,11 +324,7 @@ pub fn run_with(
             let Some(f) = apply_injection(&opts.injections, &mut frozen, d, f) else {
                 continue;
             };
-            view.take(&f);
-            frame_count += 1;
-            if !opts.drop_frames {
-                log.push((d, f));
-            }
+            rec.frame(&mut view, d, f);
             if crate::tcu::is_sync_frame(&f) {
                 sync = true;
             }
@@ -332,13 +334,8 @@ pub fn run_with(
         if sync || fallback {
             let o = tcu.step(t, &TcuInputs { frames: &inbox });
             inbox.clear();
-            steps += 1;
             for f in &o.frames {
-                view.take(f);
-                frame_count += 1;
-                if !opts.drop_frames {
-                    log.push((t, *f));
-                }
+                rec.frame(&mut view, t, *f);
                 to_plant.push(Received {
                     frame: *f,
                     timestamp: t,
@@ -349,7 +346,7 @@ pub fn run_with(
             r.n_e_ref_rpm = o.trace.w_e_ref_radps / crate::model::engine::RPM;
             r.n_c_ref_rpm = o.trace.w_c_ref_radps / crate::model::engine::RPM;
             r.phase = o.trace.phase;
-            rows.push(r);
+            rec.row(r);
         }
         let next = [
             Some(plant.poll_timeout()),
@@ -362,18 +359,76 @@ pub fn run_with(
         .unwrap_or(duration);
         t = ceil_ms(next).max(t + ms);
     }
-    SimTrace {
-        rows,
-        frames: log,
-        frame_count,
-        tcu_steps: steps,
+    rec.finish()
+}
+
+/// What a run records as it goes: every frame counted (and kept unless
+/// `SimOptions::drop_frames`), every row fed to the metrics (and kept unless
+/// `SimOptions::drop_rows`).
+struct Recorder {
+    keep_frames: bool,
+    keep_rows: bool,
+    rows: Vec<Row>,
+    metrics: metrics::Stream,
+    frames: Vec<(Duration, CanFrame)>,
+    frame_count: u64,
+    tcu_steps: u64,
+}
+
+impl Recorder {
+    fn new(opts: &SimOptions, cfg: &TcuConfig, duration: Duration) -> Self {
+        let rows = if opts.drop_rows {
+            Vec::new()
+        } else {
+            Vec::with_capacity((duration.as_millis() / 10 + 2) as usize)
+        };
+        Self {
+            keep_frames: !opts.drop_frames,
+            keep_rows: !opts.drop_rows,
+            rows,
+            metrics: metrics::Stream::new(cfg),
+            frames: Vec::new(),
+            frame_count: 0,
+            tcu_steps: 0,
+        }
+    }
+
+    /// A frame on the bus at `at`: decoded into `view`, counted, kept.
+    fn frame(&mut self, view: &mut BusView, at: Duration, f: CanFrame) {
+        view.take(&f);
+        self.frame_count += 1;
+        if self.keep_frames {
+            self.frames.push((at, f));
+        }
+    }
+
+    /// The row of one TCU computation.
+    fn row(&mut self, r: Row) {
+        self.tcu_steps += 1;
+        self.metrics.push(&r);
+        if self.keep_rows {
+            self.rows.push(r);
+        }
+    }
+
+    fn finish(self) -> SimTrace {
+        SimTrace {
+            rows: self.rows,
+            metrics: self.metrics.finish(),
+            frames: self.frames,
+            frame_count: self.frame_count,
+            tcu_steps: self.tcu_steps,
+        }
     }
 }
 
 /// What [`run_with`] recorded.
 #[derive(Debug, Clone)]
 pub struct SimTrace {
+    /// One row per TCU cycle (empty with `SimOptions::drop_rows`).
     pub rows: Vec<Row>,
+    /// The metrics of all the rows (with the TCU's calibration).
+    pub metrics: Metrics,
     /// Every frame with its time (empty with `SimOptions::drop_frames`).
     pub frames: Vec<(Duration, CanFrame)>,
     pub frame_count: u64,
@@ -390,6 +445,7 @@ pub fn run_scenario(sc: &SimScenario, base: &TcuConfig, opts: &SimOptions) -> Si
     let duration = Duration::from_secs_f64(sc.duration_s);
     let SimTrace {
         rows,
+        metrics,
         frames,
         frame_count,
         tcu_steps,
@@ -399,6 +455,7 @@ pub fn run_scenario(sc: &SimScenario, base: &TcuConfig, opts: &SimOptions) -> Si
         description: sc.description.clone(),
         duration_s: sc.duration_s,
         rows,
+        metrics,
         frames,
         frame_count,
         tcu_steps,
@@ -510,5 +567,25 @@ mod tests {
         assert!(dropped.frames.is_empty());
         assert_eq!(dropped.frame_count, kept.frame_count);
         assert_eq!(dropped.rows, kept.rows);
+    }
+
+    /// Dropping the rows keeps the metrics: the stream's are those of the rows kept.
+    #[test]
+    fn dropping_the_rows_keeps_the_metrics() {
+        let sc = launch(3.0);
+        let cfg = TcuConfig::default();
+        let kept = run_scenario(&sc, &cfg, &SimOptions::default());
+        let opts = SimOptions {
+            drop_rows: true,
+            ..SimOptions::default()
+        };
+        let dropped = run_scenario(&sc, &cfg, &opts);
+        assert!(dropped.rows.is_empty() && kept.rows.len() == 301);
+        assert_eq!(dropped.tcu_steps, kept.tcu_steps);
+        assert_eq!(dropped.frames, kept.frames);
+        let slice = metrics::compute(&kept.rows, &cfg);
+        assert_eq!(format!("{:?}", dropped.metrics), format!("{slice:?}"));
+        assert_eq!(format!("{:?}", kept.metrics), format!("{slice:?}"));
+        assert_eq!(dropped.metrics.launches.len(), 1);
     }
 }
