@@ -13,6 +13,7 @@ pub mod decode;
 pub mod e2e;
 pub mod frame;
 pub mod gear;
+pub mod lines;
 pub mod messages;
 pub mod monitor;
 pub mod replay;
