@@ -55,6 +55,13 @@ impl CsvRows {
         self.text.clear();
     }
 
+    /// The rows appended since [`CsvRows::clear`], handed over; the next go into `buffer`
+    /// (emptied first: a buffer handed over before, for reuse).
+    pub fn take_text(&mut self, mut buffer: Vec<u8>) -> Vec<u8> {
+        buffer.clear();
+        std::mem::replace(&mut self.text, buffer)
+    }
+
     /// Appends a frame's rows, one per signal; a frame with none has one row with the signal,
     /// value and unit empty.
     pub fn push_frame<'s>(
@@ -234,6 +241,10 @@ mod tests {
                     1795664797.622242,vcan0,0x130,DCT_Sensors,T,-0,degC,ok\n\
                     1.000001,vcan0,0x130,,,,,ok\n";
         assert_eq!(String::from_utf8_lossy(rows.text()), want);
+        let taken = rows.take_text(b"old".to_vec());
+        assert_eq!(String::from_utf8_lossy(&taken), want);
+        assert!(rows.text().is_empty());
+        rows.push_frame(&frame(1_000_001, ""), []);
         rows.clear();
         assert!(rows.text().is_empty());
     }
