@@ -47,6 +47,8 @@ pub(super) fn csv_builtin<R: Read>(
             to_writer,
             spare,
             rows: CsvRows::new(),
+            blocks: Vec::new(),
+            texts: Vec::new(),
         };
         let decoded = decode_blocks(reader, dec, run, frames_per_block, &mut blocks);
         // The writer ends with the last block.
@@ -107,30 +109,32 @@ struct BlockSender {
     /// Blocks and texts the writer is done with.
     spare: Receiver<Block>,
     rows: CsvRows,
+    /// Those received, for reuse (their memory stays mapped: no page faults for new ones).
+    blocks: Vec<DecodedBlock>,
+    texts: Vec<Vec<u8>>,
 }
 
 impl BlockSender {
     /// Sends `block` to the writer (as rows written here when the writer is behind) and leaves
     /// an empty one in its place; false when the writer has stopped.
     fn send(&mut self, block: &mut DecodedBlock) -> bool {
-        let mut empty = DecodedBlock::default();
-        let mut text = Vec::new();
         for spare in self.spare.try_iter() {
             match spare {
-                Block::Decoded(b) => empty = b,
-                Block::Rows(t) => text = t,
+                Block::Decoded(b) => self.blocks.push(b),
+                Block::Rows(t) => self.texts.push(t),
             }
         }
+        let empty = self.blocks.pop().unwrap_or_default();
         match self
             .to_writer
             .try_send(Block::Decoded(std::mem::replace(block, empty)))
         {
             Ok(()) => true,
-            Err(TrySendError::Full(Block::Decoded(full))) => {
+            Err(TrySendError::Full(Block::Decoded(mut full))) => {
                 self.rows.push_block(&full);
-                *block = full;
-                block.clear();
-                let rows = self.rows.take_text(text);
+                full.clear();
+                self.blocks.push(std::mem::replace(block, full));
+                let rows = self.rows.take_text(self.texts.pop().unwrap_or_default());
                 self.to_writer.send(Block::Rows(rows)).is_ok()
             }
             Err(_) => false,
