@@ -13,6 +13,7 @@ pub mod error_chain;
 pub mod gap;
 pub mod io_error;
 pub mod model;
+pub mod num_text;
 pub mod par;
 pub mod plant;
 pub mod plot;

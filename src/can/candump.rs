@@ -5,11 +5,14 @@
 //! Input also accepts an optional trailing ` R`/` T` (receive/transmit direction) and lower-case
 //! hex; a malformed line is an error naming its line number. CAN FD lines (`##`) are rejected.
 //! [`LogReader::any_format`] also reads candump's screen output ([`super::candump_screen`]).
+//! [`LogReader`] reads the log in large blocks and parses a line in the form candump writes in
+//! place ([`parse_canonical`]); any other line goes through [`parse_line`] with its reasons.
 
 use super::frame::{CanFrame, FrameError};
+use super::lines::BlockLines;
 use embedded_can::Frame as _;
 use std::fmt::Write as _;
-use std::io::{self, BufRead, Write};
+use std::io::{self, Read, Write};
 use std::time::Duration;
 use thiserror::Error;
 
@@ -28,6 +31,40 @@ pub struct LogRecord {
     pub iface: String,
     pub frame: CanFrame,
     pub direction: Option<Direction>,
+}
+
+/// One log line read without copying its interface name (see [`LogReader::next_ref`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RecordRef<'a> {
+    /// Time since the Unix epoch (microsecond resolution).
+    pub timestamp: Duration,
+    pub iface: &'a str,
+    pub frame: CanFrame,
+    pub direction: Option<Direction>,
+}
+
+impl RecordRef<'_> {
+    /// The record with its own copy of the interface name.
+    pub fn to_record(&self) -> LogRecord {
+        LogRecord {
+            timestamp: self.timestamp,
+            iface: self.iface.to_string(),
+            frame: self.frame,
+            direction: self.direction,
+        }
+    }
+}
+
+impl LogRecord {
+    /// The record as a [`RecordRef`].
+    pub fn view(&self) -> RecordRef<'_> {
+        RecordRef {
+            timestamp: self.timestamp,
+            iface: &self.iface,
+            frame: self.frame,
+            direction: self.direction,
+        }
+    }
 }
 
 /// What is wrong with a log line.
@@ -66,13 +103,27 @@ pub enum LogError {
     Io(#[from] io::Error),
 }
 
-fn hex_val(c: u8) -> Option<u8> {
-    match c {
-        b'0'..=b'9' => Some(c - b'0'),
-        b'a'..=b'f' => Some(c - b'a' + 10),
-        b'A'..=b'F' => Some(c - b'A' + 10),
-        _ => None,
+/// The value of each byte as a hex digit (either case); `NOT_HEX` for the others.
+const HEX_DIGITS: [u8; 256] = {
+    let mut t = [NOT_HEX; 256];
+    let mut c = 0;
+    while c < 10 {
+        t[b'0' as usize + c] = c as u8;
+        c += 1;
     }
+    let mut c = 0;
+    while c < 6 {
+        t[b'a' as usize + c] = 10 + c as u8;
+        t[b'A' as usize + c] = 10 + c as u8;
+        c += 1;
+    }
+    t
+};
+const NOT_HEX: u8 = 0xFF;
+
+fn hex_val(c: u8) -> Option<u8> {
+    let v = HEX_DIGITS[usize::from(c)];
+    (v != NOT_HEX).then_some(v)
 }
 
 fn parse_hex_u32(s: &str) -> Option<u32> {
@@ -164,6 +215,96 @@ pub fn parse_line(line: &str) -> Result<LogRecord, LineError> {
     })
 }
 
+/// Parses a line in the form `candump -l` (and [`format_record`]) writes it, without allocating:
+/// `(SECONDS.MICROS) IFACE ID#DATA` with an optional ` R`/` T`, one space between the fields,
+/// 3 hex digits of a standard id or 8 of an extended one, and the line end (`\n`, `\r\n`).
+/// `None` for any other line, which [`parse_line`] judges with its reasons; on every line this
+/// accepts, [`parse_line`] gives the same record.
+pub fn parse_canonical(line: &[u8]) -> Option<RecordRef<'_>> {
+    let line = line.strip_suffix(b"\n").unwrap_or(line);
+    let line = line.strip_suffix(b"\r").unwrap_or(line);
+    let (timestamp, rest) = canonical_timestamp(line.strip_prefix(b"(")?)?;
+    let (iface, rest) = canonical_iface(rest)?;
+    let (frame, rest) = canonical_frame(rest)?;
+    let direction = match rest {
+        b"" => None,
+        b" R" => Some(Direction::Rx),
+        b" T" => Some(Direction::Tx),
+        _ => return None,
+    };
+    Some(RecordRef {
+        timestamp,
+        iface,
+        frame,
+        direction,
+    })
+}
+
+/// `SECONDS.MICROS) ` (1 to 19 digits of seconds, 6 of microseconds) and what follows it.
+fn canonical_timestamp(s: &[u8]) -> Option<(Duration, &[u8])> {
+    let int_digits = s.iter().take(20).take_while(|c| c.is_ascii_digit()).count();
+    if int_digits == 0 || int_digits > 19 {
+        return None;
+    }
+    let (secs, rest) = s.split_at(int_digits);
+    let (frac, rest) = rest.split_first_chunk::<9>()?;
+    if frac[0] != b'.' || frac[7..] != *b") " {
+        return None;
+    }
+    let micros = decimal(&frac[1..7])?;
+    Some((Duration::new(decimal(secs)?, micros as u32 * 1000), rest))
+}
+
+/// The value of a run of decimal digits (at most 19: no overflow).
+fn decimal(digits: &[u8]) -> Option<u64> {
+    digits.iter().try_fold(0u64, |acc, c| {
+        c.is_ascii_digit().then(|| acc * 10 + u64::from(c - b'0'))
+    })
+}
+
+/// `IFACE ` (printable ASCII but `#`) and what follows it.
+fn canonical_iface(s: &[u8]) -> Option<(&str, &[u8])> {
+    let len = s
+        .iter()
+        .take_while(|c| c.is_ascii_graphic() && **c != b'#')
+        .count();
+    let (name, rest) = s.split_at(len);
+    if len == 0 {
+        return None;
+    }
+    Some((std::str::from_utf8(name).ok()?, rest.strip_prefix(b" ")?))
+}
+
+/// `ID#DATA` (3 hex digits of an id up to 7FF, or 8 up to 1FFFFFFF; pairs of hex digits, at
+/// most 8) as a data frame, and what follows it.
+fn canonical_frame(s: &[u8]) -> Option<(CanFrame, &[u8])> {
+    let id_len = s
+        .iter()
+        .take(9)
+        .take_while(|c| hex_val(**c).is_some())
+        .count();
+    let id = s[..id_len].iter().fold(0u32, |acc, c| {
+        acc << 4 | u32::from(HEX_DIGITS[usize::from(*c)])
+    });
+    let mut rest = s[id_len..].strip_prefix(b"#")?;
+    let mut data = [0u8; 8];
+    let mut len = 0;
+    while let [hi, lo, tail @ ..] = rest {
+        let (Some(hi), Some(lo)) = (hex_val(*hi), hex_val(*lo)) else {
+            break;
+        };
+        *data.get_mut(len)? = hi << 4 | lo;
+        len += 1;
+        rest = tail;
+    }
+    let frame = match id_len {
+        3 if id <= 0x7FF => CanFrame::standard(id as u16, &data[..len]).ok()?,
+        8 => CanFrame::extended(id, &data[..len]).ok()?,
+        _ => return None,
+    };
+    Some((frame, rest))
+}
+
 /// Formats one record exactly as `candump -l` does (no direction flag unless the record has one).
 pub fn format_record(r: &LogRecord) -> String {
     let mut s = String::with_capacity(48);
@@ -211,23 +352,24 @@ fn push_line(
 /// The time a line without one is stamped with (seconds since the Unix epoch).
 pub type ArrivalClock = Box<dyn FnMut() -> Duration>;
 
-/// Reads records from a candump log, one `Result` per non-empty line.
+/// Reads records from a candump log, one `Result` per non-empty line. The log is read in large
+/// blocks; a line in the form candump writes is parsed in place ([`parse_canonical`]), any other
+/// by [`parse_line`] (and the screen parser with [`LogReader::any_format`]).
 pub struct LogReader<R> {
-    input: R,
-    line_no: usize,
-    buf: String,
+    lines: BlockLines<R>,
     /// `Some`: screen-format lines are read too, stamped by this clock when they carry no time.
     arrival: Option<ArrivalClock>,
+    /// The record of the last line outside the canonical form.
+    other: Option<LogRecord>,
 }
 
-impl<R: BufRead> LogReader<R> {
+impl<R: Read> LogReader<R> {
     /// Reads `candump -l` / `-L` logs only.
     pub fn new(input: R) -> Self {
         Self {
-            input,
-            line_no: 0,
-            buf: String::new(),
+            lines: BlockLines::new(input),
             arrival: None,
+            other: None,
         }
     }
 
@@ -241,48 +383,77 @@ impl<R: BufRead> LogReader<R> {
         }
     }
 
-    fn parse(&mut self) -> Result<LogRecord, LineError> {
-        let log = parse_line(&self.buf);
-        let Some(arrival) = self.arrival.as_mut() else {
-            return log;
+    /// The next record, its interface name borrowed from the reader (no allocation for a line
+    /// in the canonical form); `None` at the end of the log.
+    pub fn next_ref(&mut self) -> Option<Result<RecordRef<'_>, LogError>> {
+        let (line_no, range) = match self.next_nonblank() {
+            Ok(Some(line)) => line,
+            Ok(None) => return None,
+            Err(e) => return Some(Err(e.into())),
         };
-        if log.is_ok() || self.buf.contains('#') {
-            return log;
+        let line = self.lines.get(range);
+        if let Some(r) = parse_canonical(line) {
+            return Some(Ok(r));
         }
-        let s = super::candump_screen::parse_screen_line(&self.buf)?;
-        Ok(LogRecord {
-            timestamp: s.timestamp.unwrap_or_else(arrival),
-            iface: s.iface,
-            frame: s.frame,
-            direction: s.direction,
+        // Not UTF-8: what reading it as a line of text reported.
+        let parsed = std::str::from_utf8(line)
+            .map_err(|_| LineError::Timestamp)
+            .and_then(|text| parse_other(text, self.arrival.as_mut()));
+        Some(match parsed {
+            Ok(r) => Ok(self.other.insert(r).view()),
+            Err(kind) => Err(LogError::Line {
+                line: line_no,
+                kind,
+            }),
         })
+    }
+
+    /// The next line that is not blank (only white space), with its number.
+    fn next_nonblank(&mut self) -> io::Result<Option<(usize, std::ops::Range<usize>)>> {
+        loop {
+            let Some((no, range)) = self.lines.next_line()? else {
+                return Ok(None);
+            };
+            if !is_blank(self.lines.get(range.clone())) {
+                return Ok(Some((no, range)));
+            }
+        }
     }
 }
 
-impl<R: BufRead> Iterator for LogReader<R> {
+/// Whether a line is white space only (a line that is not UTF-8 is not).
+fn is_blank(line: &[u8]) -> bool {
+    match line.first() {
+        Some(b) if b.is_ascii() && !b.is_ascii_whitespace() => false,
+        _ => std::str::from_utf8(line).is_ok_and(|s| s.trim().is_empty()),
+    }
+}
+
+/// A line outside the canonical form: [`parse_line`]'s verdict, or with `arrival` (screen
+/// format read too) the screen parser's for a line without `#`, stamped by `arrival` when it
+/// carries no time.
+fn parse_other(line: &str, arrival: Option<&mut ArrivalClock>) -> Result<LogRecord, LineError> {
+    let log = parse_line(line);
+    let Some(arrival) = arrival else {
+        return log;
+    };
+    if log.is_ok() || line.contains('#') {
+        return log;
+    }
+    let s = super::candump_screen::parse_screen_line(line)?;
+    Ok(LogRecord {
+        timestamp: s.timestamp.unwrap_or_else(arrival),
+        iface: s.iface,
+        frame: s.frame,
+        direction: s.direction,
+    })
+}
+
+impl<R: Read> Iterator for LogReader<R> {
     type Item = Result<LogRecord, LogError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            self.buf.clear();
-            self.line_no += 1;
-            match self.input.read_line(&mut self.buf) {
-                Ok(0) => return None,
-                Ok(_) => {}
-                Err(e) if e.kind() == io::ErrorKind::InvalidData => {
-                    return Some(Err(LogError::Line {
-                        line: self.line_no,
-                        kind: LineError::Timestamp,
-                    }))
-                }
-                Err(e) => return Some(Err(e.into())),
-            }
-            if self.buf.trim().is_empty() {
-                continue;
-            }
-            let line = self.line_no;
-            return Some(self.parse().map_err(|kind| LogError::Line { line, kind }));
-        }
+        self.next_ref().map(|r| r.map(|r| r.to_record()))
     }
 }
 
@@ -419,5 +590,98 @@ mod tests {
             Err(LogError::Line { line, .. }) => assert_eq!(*line, 4),
             other => panic!("{other:?}"),
         }
+    }
+
+    /// xorshift64*: a seeded stream of test inputs.
+    struct Rng(u64);
+    impl Rng {
+        fn below(&mut self, n: usize) -> usize {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 33) as usize % n
+        }
+    }
+
+    #[test]
+    fn canonical_lines_parse_in_place_as_parse_line_parses_them() {
+        let lines = [
+            SAMPLE.to_string(),
+            "(0000000001.000001) can1 12345678#deadbeef T\n".into(),
+            "(1.000000) vcan0 123#\r\n".into(),
+            "(1.000000) vcan0 7FF#0011223344556677 R".into(),
+            "(9999999999999999999.999999) a)b 000#00".into(),
+        ];
+        for line in &lines {
+            let r = parse_canonical(line.as_bytes()).expect(line);
+            assert_eq!(Ok(r.to_record()), parse_line(line), "{line}");
+        }
+        // Mutations of canonical lines: whatever the in-place parser accepts, parse_line reads
+        // the same; every line candump writes it accepts.
+        let alphabet = b"0123456789abcdefABCDEFR#(). \t\r\n-xT";
+        let mut rng = Rng(0x5DEE_CE66);
+        let mut accepted = 0;
+        for _ in 0..200_000 {
+            let mut line = lines[rng.below(lines.len())].clone().into_bytes();
+            for _ in 0..=rng.below(3) {
+                let pos = rng.below(line.len() + 1);
+                let c = alphabet[rng.below(alphabet.len())];
+                match rng.below(3) {
+                    0 => line.insert(pos, c),
+                    1 if pos < line.len() => line[pos] = c,
+                    _ if pos < line.len() => {
+                        line.remove(pos);
+                    }
+                    _ => {}
+                }
+            }
+            let text = String::from_utf8(line).unwrap();
+            if let Some(r) = parse_canonical(text.as_bytes()) {
+                assert_eq!(Ok(r.to_record()), parse_line(&text), "{text:?}");
+                assert_eq!(
+                    parse_canonical(format_record(&r.to_record()).as_bytes()),
+                    Some(r)
+                );
+                accepted += 1;
+            }
+        }
+        assert!(accepted > 10_000, "{accepted}");
+    }
+
+    #[test]
+    fn lines_outside_the_canonical_form_keep_parse_line_s_verdict() {
+        for line in [
+            "(1.000000)  vcan0 123#00",
+            "(1.000000) vcan0 123#00 ",
+            "(1.000000) vcan0 123#R",
+            "(1.000000) vcan0 800#00",
+            "(1.000000) vcan0 1234#00",
+            "(1.000000) vcan0 3FFFFFFF#00",
+            "(00000000000000000001.000000) vcan0 123#00",
+            "(1.000000) vcan0 123#0011223344556677889",
+            "(1.000000)\tvcan0 123#00",
+        ] {
+            assert_eq!(parse_canonical(line.as_bytes()), None, "{line}");
+        }
+        // The general parser still reads the ones that are valid.
+        let r = LogReader::new("(1.000000)  vcan0 123#00\n(1.000000) vcan0 123#R2\n".as_bytes());
+        let ids: Vec<_> = r.map(|r| r.unwrap().frame.raw_id()).collect();
+        assert_eq!(ids, [0x123, 0x123]);
+    }
+
+    #[test]
+    fn reader_skips_blank_lines_and_names_lines_that_are_not_text() {
+        let mut bytes = format!("{SAMPLE}\n \t\n\u{a0}\u{2003}\r\n").into_bytes();
+        bytes.extend_from_slice(b"(1.000000) vcan0 \xff#00\n\n");
+        bytes.extend_from_slice(SAMPLE.as_bytes());
+        let mut reader = LogReader::new(&bytes[..]);
+        let first = reader.next_ref().unwrap().unwrap();
+        assert_eq!(first.iface, "vcan0");
+        match reader.next_ref() {
+            Some(Err(LogError::Line { line: 4, kind })) => assert_eq!(kind, LineError::Timestamp),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(reader.next().unwrap().unwrap(), parse_line(SAMPLE).unwrap());
+        assert!(reader.next_ref().is_none());
     }
 }

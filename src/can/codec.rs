@@ -237,6 +237,14 @@ impl MessageDef {
             })
             .collect())
     }
+
+    /// The physical values of [`MessageDef::decode_lenient`] alone, every signal's in order,
+    /// appended to `out` (nothing on an error): many frames' values into one vector.
+    pub fn values_into(&self, data: &[u8], out: &mut Vec<f64>) -> Result<(), CodecError> {
+        let payload = self.payload(data)?;
+        out.extend(self.signals.iter().map(|s| s.decode_physical(payload)));
+        Ok(())
+    }
 }
 
 /// One decoded signal for display.

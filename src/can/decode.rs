@@ -5,6 +5,7 @@
 use super::candump::LogRecord;
 use super::codec::{CodecError, DecodedSignal, MessageDef};
 use super::e2e::{E2eChecker, E2eConfig, E2eError};
+use super::frame::CanFrame;
 use super::messages::{message_def, Message};
 use embedded_can::Frame as _;
 use std::time::Duration;
@@ -45,6 +46,24 @@ pub struct DecodedFrame {
     pub error: Option<CodecError>,
 }
 
+/// What [`LogDecoder::track`] finds in a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameFound {
+    pub message: Option<&'static MessageDef>,
+    pub e2e: E2eVerdict,
+}
+
+/// Why the strict decode rejects a frame whose contract message is `message` (`None`: not in
+/// the contract), if it does; extended and remote frames are simply outside the contract.
+fn strict_error(frame: &CanFrame, message: Option<&MessageDef>) -> Option<CodecError> {
+    let id = frame.raw_id();
+    match message {
+        Some(_) => Message::decode(id, frame.bytes()).err(),
+        None => (!frame.is_extended() && !frame.is_remote_frame())
+            .then_some(CodecError::UnknownId { id }),
+    }
+}
+
 /// A message that went silent for longer than the E2E timeout.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Gap<'a> {
@@ -54,28 +73,36 @@ pub struct Gap<'a> {
 }
 
 /// The silences of a frame sequence, shared by the built-in and the `--dbc` decoders: per
-/// message (`K`) the time last seen, and every interval of at least `timeout_cycles` of the
-/// message's cycle (messages without a cycle are never silent).
+/// message (`K`: a small number, the id or the index of the message) the time last seen, and
+/// every interval of at least `timeout_cycles` of the message's cycle (messages without a cycle
+/// are never silent).
 #[derive(Debug)]
 pub struct Silences<'a, K> {
-    last_seen: std::collections::HashMap<K, Duration>,
+    /// By key: the time last seen (a table, not a hash map: one look-up per frame).
+    last_seen: Vec<Option<Duration>>,
     gaps: Vec<Gap<'a>>,
+    key: std::marker::PhantomData<K>,
 }
 
 impl<K> Default for Silences<'_, K> {
     fn default() -> Self {
         Silences {
-            last_seen: std::collections::HashMap::new(),
+            last_seen: Vec::new(),
             gaps: Vec::new(),
+            key: std::marker::PhantomData,
         }
     }
 }
 
-impl<'a, K: Eq + std::hash::Hash> Silences<'a, K> {
+impl<'a, K: Into<usize>> Silences<'a, K> {
     /// Message `key` (named `name`, cycle `cycle_ms`) seen at `t`.
     pub fn seen(&mut self, key: K, name: &'a str, cycle_ms: u64, timeout_cycles: u64, t: Duration) {
+        let key = key.into();
+        if key >= self.last_seen.len() {
+            self.last_seen.resize(key + 1, None);
+        }
         let limit = Duration::from_millis(cycle_ms * timeout_cycles);
-        if let Some(last) = self.last_seen.insert(key, t) {
+        if let Some(last) = self.last_seen[key].replace(t) {
             if cycle_ms > 0 && t.saturating_sub(last) >= limit {
                 self.gaps.push(Gap {
                     message: name,
@@ -116,27 +143,43 @@ impl LogDecoder {
 
     /// Decodes one record.
     pub fn decode(&mut self, r: &LogRecord) -> DecodedFrame {
-        let id = r.frame.raw_id();
-        let def = (!r.frame.is_extended() && !r.frame.is_remote_frame())
+        let found = self.track(r.timestamp, &r.frame);
+        // A payload of the wrong length has no signals (the strict decode names the error).
+        let signals = found
+            .message
+            .and_then(|def| def.decode_lenient(r.frame.bytes()).ok())
+            .unwrap_or_default();
+        DecodedFrame {
+            timestamp: r.timestamp,
+            iface: r.iface.clone(),
+            id: r.frame.raw_id(),
+            message: found.message,
+            signals,
+            e2e: found.e2e,
+            error: strict_error(&r.frame, found.message),
+        }
+    }
+
+    /// What [`LogDecoder::decode`] finds in a frame seen at `timestamp` but its signals, the
+    /// interface name and the strict decode's error (for output that decodes the signals as it
+    /// needs them and shows neither): the contract's message and the E2E verdict. The E2E and
+    /// silence tracking advance as with [`LogDecoder::decode`]; no allocation.
+    pub fn track(&mut self, timestamp: Duration, frame: &CanFrame) -> FrameFound {
+        let id = frame.raw_id();
+        let def = (!frame.is_extended() && !frame.is_remote_frame())
             .then(|| message_def(id))
             .flatten();
         let Some(def) = def else {
-            return DecodedFrame {
-                timestamp: r.timestamp,
-                iface: r.iface.clone(),
-                id,
+            return FrameFound {
                 message: None,
-                signals: Vec::new(),
                 e2e: E2eVerdict::NotInContract,
-                error: (!r.frame.is_extended() && !r.frame.is_remote_frame())
-                    .then_some(CodecError::UnknownId { id }),
             };
         };
         let checker = self
             .checker
-            .get_or_insert_with(|| E2eChecker::all(self.config, r.timestamp));
+            .get_or_insert_with(|| E2eChecker::all(self.config, timestamp));
         let e2e = if def.e2e {
-            match checker.check(r.timestamp, id, r.frame.bytes()) {
+            match checker.check(timestamp, id, frame.bytes()) {
                 Ok(()) => E2eVerdict::Ok,
                 Err(e) => E2eVerdict::Failed(e),
             }
@@ -148,19 +191,11 @@ impl LogDecoder {
             def.name,
             u64::from(def.cycle_ms),
             u64::from(self.config.timeout_cycles),
-            r.timestamp,
+            timestamp,
         );
-        let data = r.frame.bytes();
-        let signals = def.decode_lenient(data).unwrap_or_default();
-        let error = Message::decode(id, data).err();
-        DecodedFrame {
-            timestamp: r.timestamp,
-            iface: r.iface.clone(),
-            id,
+        FrameFound {
             message: Some(def),
-            signals,
             e2e,
-            error,
         }
     }
 
@@ -185,6 +220,46 @@ mod tests {
             frame: CanFrame::standard(id, data).unwrap(),
             direction: None,
         }
+    }
+
+    /// `track` advances the E2E and silence state as `decode` does and finds the same message
+    /// and verdict; `values_into` gives `decode`'s values.
+    #[test]
+    fn track_and_values_agree_with_decode() {
+        let mut tx = E2eSender::new();
+        let (mut full, mut tracked) = (LogDecoder::default(), LogDecoder::default());
+        let mut values = Vec::new();
+        for k in 0..60u64 {
+            let mut d = EngStatus {
+                eng_speed: 800.0 + k as f64,
+                ..Default::default()
+            }
+            .encode()
+            .unwrap();
+            // Every seventh frame repeats its counter; a silence after the 30th.
+            if k % 7 != 0 {
+                tx.protect(ids::ENG_STATUS, &mut d);
+            }
+            let t = 10 * k + if k > 30 { 500 } else { 0 };
+            let frames = [
+                rec(t, ids::ENG_STATUS, &d),
+                rec(t, ids::BENCH_TORQUE, &d[..(k % 9) as usize]),
+                rec(t, 0x7FF, &[1]),
+            ];
+            for r in &frames {
+                let f = full.decode(r);
+                let found = tracked.track(r.timestamp, &r.frame);
+                assert_eq!((found.message, found.e2e), (f.message, f.e2e));
+                values.clear();
+                if let Some(def) = found.message {
+                    let _ = def.values_into(r.frame.bytes(), &mut values);
+                }
+                let want: Vec<f64> = f.signals.iter().map(|s| s.value).collect();
+                assert_eq!(values, want);
+            }
+        }
+        assert_eq!(tracked.gaps(), full.gaps());
+        assert!(!full.gaps().is_empty());
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The bus layer: the DBC contract (generated message types), E2E protection, the `Bus` trait
 //! with its SocketCAN and in-process implementations, and candump log I/O; `runtime_dbc` decodes
 //! logs with a DBC file given at run time instead of the contract; `columnar` writes decoded
-//! signals as Parquet.
+//! signals as Parquet, `decode_csv` as CSV.
 
 pub mod bus;
 pub mod candump;
@@ -10,9 +10,11 @@ pub mod codec;
 pub mod columnar;
 pub mod dbc;
 pub mod decode;
+pub mod decode_csv;
 pub mod e2e;
 pub mod frame;
 pub mod gear;
+pub mod lines;
 pub mod messages;
 pub mod monitor;
 pub mod replay;

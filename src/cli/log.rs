@@ -1,12 +1,15 @@
 //! `ddct log`: decode, record and replay candump logs.
 
+mod csv;
+
 use super::args::open_can;
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
-use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
+use ddct::can::candump::{LineError, LogError, LogReader, LogRecord, LogWriter};
 use ddct::can::columnar::{SignalRow, SignalWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
+use ddct::can::decode_csv::{CsvFrame, CsvRows, CsvSignal, CSV_HEADER};
 use ddct::can::e2e::E2eConfig;
 use ddct::can::runtime_dbc::{self, RuntimeDbc};
 use ddct::can::socketcan::MMSG_BATCH;
@@ -406,6 +409,52 @@ enum AnyDecoder<'a> {
     Runtime(runtime_dbc::Decoder<'a>),
 }
 
+/// What `ddct log decode` tells about the log besides the decoded frames.
+struct Decoding<'a> {
+    file: &'a std::path::Path,
+    pb: ProgressBar,
+    /// Standard input: the progress counts frames.
+    per_frame: bool,
+    /// The ids `-m` selects (empty: all).
+    filter: Vec<u32>,
+    bad_lines: usize,
+    /// Frames by E2E verdict (a handful of verdicts: a list, not a map, per frame).
+    verdicts: Vec<(&'static str, usize)>,
+}
+
+impl Decoding<'_> {
+    fn wanted(&self, id: u32) -> bool {
+        self.filter.is_empty() || self.filter.contains(&id)
+    }
+
+    /// A line that is not a frame: named on stderr, counted.
+    fn bad_line(&mut self, line: usize, kind: &LineError) {
+        self.bad_lines += 1;
+        self.pb
+            .suspend(|| eprintln!("{}:{line}: {kind}", self.file.display()));
+    }
+
+    /// Frames read: the progress on standard input.
+    fn frames_read(&self, n: u64) {
+        if self.per_frame {
+            self.pb.inc(n);
+        }
+    }
+
+    fn verdict(&mut self, e2e: &'static str) {
+        match self.verdicts.iter_mut().find(|(v, _)| *v == e2e) {
+            Some((_, n)) => *n += 1,
+            None => self.verdicts.push((e2e, 1)),
+        }
+    }
+}
+
+/// Whether an error is the reader of the output going away (`ddct log decode … | head`).
+fn broken_pipe(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<std::io::Error>()
+        .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe)
+}
+
 fn decode(
     file: &PathBuf,
     format: Format,
@@ -428,7 +477,7 @@ fn decode(
         per_frame,
     } = open_decode_input(file)?;
     let stdout = std::io::stdout();
-    let sink: Box<dyn Write> = if let (Some(p), None) = (out_path, &parquet) {
+    let sink: Box<dyn Write + Send> = if let (Some(p), None) = (out_path, &parquet) {
         Box::new(create(p)?)
     } else if stdout.is_terminal() && !pb.is_hidden() {
         Box::new(AroundBar {
@@ -437,40 +486,108 @@ fn decode(
             partial: Vec::new(),
         })
     } else {
-        Box::new(stdout.lock())
+        Box::new(stdout)
     };
     let mut out = BufWriter::new(sink);
     let mut decoder = match &runtime {
         Some(db) => AnyDecoder::Runtime(runtime_dbc::Decoder::new(db, E2eConfig::default())),
         None => AnyDecoder::Builtin(LogDecoder::default()),
     };
-    let mut bad_lines = 0usize;
-    let mut verdicts: BTreeMap<&'static str, usize> = BTreeMap::new();
-    // One line buffer for the whole log (CSV).
-    let mut line = String::with_capacity(128);
-    if format == Format::Csv {
-        writeln!(out, "time_s,iface,id,message,signal,value,unit,e2e")?;
+    let mut reader = LogReader::any_format(reader, Box::new(wall_clock));
+    let mut run = Decoding {
+        file,
+        pb,
+        per_frame,
+        filter,
+        bad_lines: 0,
+        verdicts: Vec::new(),
+    };
+    let decoded = match (&mut decoder, format) {
+        (AnyDecoder::Builtin(dec), Format::Csv) => {
+            csv::csv_builtin(&mut reader, dec, &mut run, &mut out)
+        }
+        (dec, _) => frame_by_frame(&mut reader, dec, format, &mut run, &mut out, &mut parquet),
     }
-    for item in LogReader::any_format(reader, Box::new(wall_clock)) {
+    .and_then(|()| Ok(out.flush()?));
+    match decoded {
+        Err(e) if broken_pipe(&e) => return Ok(ExitCode::SUCCESS),
+        other => other?,
+    }
+    run.pb.finish_and_clear();
+    if let (Some(w), Some(p)) = (parquet, out_path) {
+        let rows = w
+            .finish()
+            .with_context(|| format!("writing {}", p.display()))?;
+        eprintln!("{}: {rows} rows", p.display());
+    }
+    let gaps = match &decoder {
+        AnyDecoder::Builtin(dec) => dec.gaps(),
+        AnyDecoder::Runtime(dec) => dec.gaps(),
+    };
+    report_decoding(&run, gaps, quiet)
+}
+
+/// The summary of `ddct log decode` on stderr: frames by E2E verdict, the silences (unless
+/// `quiet`), the malformed lines (exit code 2).
+fn report_decoding(
+    run: &Decoding<'_>,
+    gaps: &[ddct::can::decode::Gap<'_>],
+    quiet: bool,
+) -> anyhow::Result<ExitCode> {
+    let by_name: BTreeMap<_, _> = run.verdicts.iter().copied().collect();
+    let summary: Vec<String> = by_name.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    eprintln!("frames by E2E verdict: {}", summary.join(", "));
+    for g in gaps.iter().filter(|_| !quiet) {
+        eprintln!(
+            "gap: {} silent from {:.6} to {:.6} s ({} ms)",
+            g.message,
+            g.from.as_secs_f64(),
+            g.to.as_secs_f64(),
+            (g.to - g.from).as_millis()
+        );
+    }
+    if run.bad_lines > 0 {
+        eprintln!(
+            "{}: {} malformed line(s)",
+            run.file.display(),
+            run.bad_lines
+        );
+        return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Every other format and the `--dbc` decoder: each frame decoded into a [`Shown`] and written
+/// as the format asks.
+fn frame_by_frame<R: std::io::Read, W: Write + Send>(
+    reader: &mut LogReader<R>,
+    decoder: &mut AnyDecoder<'_>,
+    format: Format,
+    run: &mut Decoding<'_>,
+    out: &mut impl Write,
+    parquet: &mut Option<SignalWriter<W>>,
+) -> anyhow::Result<()> {
+    let mut rows = CsvRows::new();
+    if format == Format::Csv {
+        out.write_all(CSV_HEADER.as_bytes())?;
+    }
+    for item in reader.by_ref() {
         let rec = match item {
             Ok(r) => r,
             Err(LogError::Line { line, kind }) => {
-                bad_lines += 1;
-                pb.suspend(|| eprintln!("{}:{line}: {kind}", file.display()));
+                run.bad_line(line, &kind);
                 continue;
             }
-            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+            Err(e) => return Err(e).with_context(|| format!("{}", run.file.display())),
         };
-        if per_frame {
-            pb.inc(1);
-        }
+        run.frames_read(1);
         // Every frame goes through the decoder (its E2E and gap tracking); only the selected
         // ones are turned into output.
-        let wanted = filter.is_empty() || filter.contains(&rec.frame.raw_id());
+        let wanted = run.wanted(rec.frame.raw_id());
         let table = format == Format::Table;
         let builtin;
         let runtime_decoded;
-        let d = match &mut decoder {
+        let d = match decoder {
             AnyDecoder::Builtin(dec) => {
                 builtin = dec.decode(&rec);
                 if !wanted {
@@ -486,53 +603,19 @@ fn decode(
                 Shown::runtime(&rec, &runtime_decoded, table)
             }
         };
-        *verdicts.entry(d.e2e).or_default() += 1;
-        let written = match format {
-            Format::Table => writeln!(out, "{}", table_line(&d)),
-            Format::Csv => write_csv(&mut out, &mut line, &d),
-            Format::Json => writeln!(out, "{}", json_line(&d)),
+        run.verdict(d.e2e);
+        match format {
+            Format::Table => writeln!(out, "{}", table_line(&d))?,
+            Format::Csv => write_csv(out, &mut rows, &d)?,
+            Format::Json => writeln!(out, "{}", json_line(&d))?,
             Format::Parquet => {
                 if let Some(w) = parquet.as_mut() {
                     push_parquet(w, &d)?;
                 }
-                Ok(())
             }
-        };
-        if let Err(e) = written {
-            if e.kind() == std::io::ErrorKind::BrokenPipe {
-                return Ok(ExitCode::SUCCESS);
-            }
-            return Err(e.into());
         }
     }
-    out.flush()?;
-    pb.finish_and_clear();
-    if let (Some(w), Some(p)) = (parquet, out_path) {
-        let rows = w
-            .finish()
-            .with_context(|| format!("writing {}", p.display()))?;
-        eprintln!("{}: {rows} rows", p.display());
-    }
-    let summary: Vec<String> = verdicts.iter().map(|(k, v)| format!("{k} {v}")).collect();
-    eprintln!("frames by E2E verdict: {}", summary.join(", "));
-    let gaps = match &decoder {
-        AnyDecoder::Builtin(dec) => dec.gaps(),
-        AnyDecoder::Runtime(dec) => dec.gaps(),
-    };
-    for g in gaps.iter().filter(|_| !quiet) {
-        eprintln!(
-            "gap: {} silent from {:.6} to {:.6} s ({} ms)",
-            g.message,
-            g.from.as_secs_f64(),
-            g.to.as_secs_f64(),
-            (g.to - g.from).as_millis()
-        );
-    }
-    if bad_lines > 0 {
-        eprintln!("{}: {bad_lines} malformed line(s)", file.display());
-        return Ok(ExitCode::from(2));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
 fn plot(
@@ -679,47 +762,23 @@ fn push_parquet<'a, W: Write + Send>(w: &mut SignalWriter<W>, d: &Shown<'a>) -> 
     Ok(())
 }
 
-/// Writes a frame's CSV rows (one per signal) through the reused buffer `buf`: the frame's
-/// prefix (time, interface, id, message) is formatted once per frame, not per signal.
-fn write_csv(out: &mut impl Write, buf: &mut String, d: &Shown<'_>) -> std::io::Result<()> {
-    use std::fmt::Write as _;
-    buf.clear();
-    let name = d.name.unwrap_or("");
-    let _ = write!(
-        buf,
-        "{:.6},{},0x{:03X},{name},",
-        d.timestamp.as_secs_f64(),
-        d.iface,
-        d.id
-    );
-    if d.signals.is_empty() {
-        let _ = writeln!(buf, ",,,{}", d.e2e);
-        return out.write_all(buf.as_bytes());
-    }
-    let prefix = buf.len();
-    for sig in &d.signals {
-        buf.truncate(prefix);
-        buf.push_str(sig.name);
-        buf.push(',');
-        push_value(buf, sig.value);
-        let _ = writeln!(buf, ",{},{}", sig.unit, d.e2e);
-        out.write_all(buf.as_bytes())?;
-    }
-    Ok(())
-}
-
-/// Appends `v` as `{}` prints it (the shortest text that reads back to the same f64), with
-/// integral values (counters, CRCs, gears, most speeds) through integer formatting.
-fn push_value(buf: &mut String, v: f64) {
-    use std::fmt::Write as _;
-    // |v| < 2^53 and integral: exact as i64, and `{}` of the f64 prints the same digits; −0.0
-    // prints "-0" and goes the general way.
-    if v.fract() == 0.0 && v.abs() < 9.007_199_254_740_992e15 && !(v == 0.0 && v.is_sign_negative())
-    {
-        let _ = write!(buf, "{}", v as i64);
-    } else {
-        let _ = write!(buf, "{v}");
-    }
+/// Writes a frame's CSV rows (one per signal) through the reused rows `rows`.
+fn write_csv(out: &mut impl Write, rows: &mut CsvRows, d: &Shown<'_>) -> std::io::Result<()> {
+    rows.clear();
+    let frame = CsvFrame {
+        timestamp: d.timestamp,
+        iface: d.iface,
+        id: d.id,
+        message: d.name.unwrap_or(""),
+        e2e: d.e2e,
+    };
+    let signals = d.signals.iter().map(|s| CsvSignal {
+        name: s.name,
+        value: s.value,
+        unit: s.unit,
+    });
+    rows.push_frame(&frame, signals);
+    out.write_all(rows.text())
 }
 
 fn json_line(d: &Shown<'_>) -> String {
