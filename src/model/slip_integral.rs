@@ -92,21 +92,44 @@ pub fn p(y: f64) -> f64 {
     f * y * y * y.cbrt()
 }
 
-/// Q(ω) of (6) for radii `r1 < r2` (m) and x = γ|ω| (1/m): the closed form above. Falls back to
-/// `None` for a facing so narrow ((R2−R1)/(R2+R1) < 2 %) that the difference of P would lose
-/// digits; the caller then integrates directly.
+/// Below this x = γ|ω| (1/m), [`q`] takes the leading term of P at zero: x² and P(xR) would leave
+/// the normal range further down (the quotient became 0/0 near x = 1e-160).
+pub const X_TINY: f64 = 1e-60;
+/// Above this x, [`q`] is its saturated value (R1 + R2)/2: x² would overflow further up.
+pub const X_HUGE: f64 = 1e60;
+
+/// True when the closed form [`q`] applies to the facing `r1 < r2` (m): not for a facing so
+/// narrow ((R2−R1)/(R2+R1) < 2 %) that the difference of P would lose digits. A NaN radius
+/// compares as neither: false as well.
 #[inline]
-pub fn q(r1: f64, r2: f64, x: f64) -> Option<f64> {
-    // A NaN radius compares as neither: `None` as well.
-    let wide_enough = matches!(
+pub fn closed_form_applies(r1: f64, r2: f64) -> bool {
+    matches!(
         (r2 - r1).partial_cmp(&(0.02 * (r2 + r1))),
         Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
-    );
-    if !wide_enough {
+    )
+}
+
+/// Q(ω) of (6) for radii `r1 < r2` (m) and x = γ|ω| (1/m): the closed form above. Falls back to
+/// `None` when [`closed_form_applies`] is false; the caller then integrates directly.
+///
+/// At the ends of the range of x the quotient is taken in the form that stays in range: below
+/// [`X_TINY`], P(Y) = 3/7·Y^{7/3} to double precision (the next term is 7Y²/117 relative), so
+/// Q = 3/7·x^{1/3}·(R2^{7/3} − R1^{7/3})/(R2 − R1); above [`X_HUGE`] both ends are saturated and
+/// Q = (R2² − R1²)/(2(R2 − R1)) = (R1 + R2)/2 exactly.
+#[inline]
+pub fn q(r1: f64, r2: f64, x: f64) -> Option<f64> {
+    if !closed_form_applies(r1, r2) {
         return None;
     }
     if x == 0.0 {
         return Some(0.0);
+    }
+    if x < X_TINY {
+        let r73 = |r: f64| r * r * r.cbrt();
+        return Some(3.0 / 7.0 * x.cbrt() * (r73(r2) - r73(r1)) / (r2 - r1));
+    }
+    if x > X_HUGE {
+        return Some(0.5 * (r1 + r2));
     }
     Some((p(x * r2) - p(x * r1)) / ((r2 - r1) * x * x))
 }
@@ -168,6 +191,34 @@ mod tests {
                 })
                 .sum()
         }
+    }
+
+    /// The ends of the range of x: finite, and continuous with the quotient across
+    /// [`X_TINY`] and [`X_HUGE`] (it gave 0/0 = NaN for x below about 1e-160 before).
+    #[test]
+    fn q_at_extreme_slips() {
+        let (r1, r2) = (0.075, 0.115);
+        let at = |x: f64| q(r1, r2, x).unwrap();
+        for x in [
+            f64::MIN_POSITIVE,
+            1e-300,
+            1e-170,
+            1e-100,
+            1e100,
+            1e300,
+            f64::MAX,
+        ] {
+            assert!(at(x).is_finite() && at(x) >= 0.0, "q({x:e}) = {}", at(x));
+        }
+        assert!(at(5e-324) >= 0.0 && at(5e-324) < 1e-100);
+        for (lo, hi) in [
+            (X_TINY * (1.0 - 1e-15), X_TINY * (1.0 + 1e-15)),
+            (X_HUGE * (1.0 - 1e-15), X_HUGE * (1.0 + 1e-15)),
+        ] {
+            let (a, b) = (at(lo), at(hi));
+            assert!((a - b).abs() <= 1e-13 * b, "{lo:e}: {a} vs {b}");
+        }
+        assert_eq!(at(1e300), 0.5 * (r1 + r2));
     }
 
     #[test]
