@@ -192,10 +192,15 @@ fn needs_scalar(k: &Consts, slip: f64, theta: f64) -> bool {
 #[inline(always)]
 fn point<A: Arith>(k: &Consts, tab: &[Cubic; N], x_to: f64, slip: f64, theta: f64) -> f64 {
     let force = clamp_force::<A>(k, x_to, theta);
-    let mu_d = k.c1 * sin_reduced::<A>(k.c2 * theta + k.c3) + k.c4;
+    // 2·(μ_d − μ_s) and 2·R_μ (the factor 2 of (13) in the constants).
+    let mu_excess2 = A::madd(
+        k.c1_2,
+        sin_reduced::<A>(k.c2 * theta + k.c3),
+        k.c4_less_mu_s_2,
+    );
     let q = slip_shape::<A>(k, tab, k.gamma * slip.abs());
-    let r_mu = A::madd(mu_d - k.mu_s, q, k.mu_s_rm);
-    let t = (2.0 * r_mu * force).copysign(slip);
+    let r_mu2 = A::madd(mu_excess2, q, k.mu_s_rm_2);
+    let t = (r_mu2 * force).copysign(slip);
     if (force == 0.0) | (slip == 0.0) {
         0.0
     } else {
@@ -203,17 +208,19 @@ fn point<A: Arith>(k: &Consts, tab: &[Cubic; N], x_to: f64, slip: f64, theta: f6
     }
 }
 
-/// F(u_fs(x_to, θ)) of (7)–(10) (N), the operations of [`clutch::normal_force`]; NaN
-/// compressions clamp to 0 as `f64::max` does there.
+/// F(u_fs(x_to, θ)) of (7)–(10) (N), as [`clutch::normal_force`] (λ in m per mm);
+/// NaN compressions clamp to 0 as `f64::max` does there.
 #[inline(always)]
 fn clamp_force<A: Arith>(k: &Consts, x_to: f64, theta: f64) -> f64 {
     let d = theta - k.theta_a;
+    // As (9) is written in `clutch::x_isp`: x_to − x0 cancels near the kiss point.
     let x0 = k.x_isp2 * d * d + k.x_isp1 * d + k.x_isp0;
-    let u = k.lambda * (x_to - x0);
-    let u_max = k.lambda * (k.x_to_max - x0);
+    // Compressions in m.
+    let u = k.lambda_m * (x_to - x0);
+    let u_max = k.lambda_m * (k.x_to_max - x0);
     let hi = if u_max > 0.0 { u_max } else { 0.0 };
     let lo = if u > 0.0 { u } else { 0.0 };
-    let u = (if lo < hi { lo } else { hi }) * 1e-3;
+    let u = if lo < hi { lo } else { hi };
     A::madd(A::madd(k.p3, u, k.p2), u, k.p1) * u
 }
 
@@ -221,38 +228,23 @@ fn clamp_force<A: Arith>(k: &Consts, x_to: f64, theta: f64) -> f64 {
 #[inline(always)]
 fn slip_shape<A: Arith>(k: &Consts, tab: &[Cubic; N], x: f64) -> f64 {
     let (c, inv_x2) = cbrt_and_inv_square::<A>(x);
-    let g1 = p_over_x2::<A>(
-        tab,
-        x * k.r1,
-        c * k.r1_73,
-        k.half_r1_sq,
-        k.p_sat_offset,
-        inv_x2,
-    );
-    let g2 = p_over_x2::<A>(
-        tab,
-        x * k.r2,
-        c * k.r2_73,
-        k.half_r2_sq,
-        k.p_sat_offset,
-        inv_x2,
-    );
-    (g2 - g1) * k.inv_dr
+    p_over_x2::<A>(k, &k.outer, tab, x, c, inv_x2) - p_over_x2::<A>(k, &k.inner, tab, x, c, inv_x2)
 }
 
-/// P(y)/x² for y = x·R: f(y)·R^{7/3}·x^{1/3} (`c_r73`) below Y_SAT, else
-/// (P(Y_SAT) − Y_SAT²/2)·x⁻² + R²/2; both computed, one selected.
+/// P(xR)/((R2 − R1)·x²) for one facing radius R: f(xR)·R^{7/3}·x^{1/3}/(R2 − R1) below Y_SAT,
+/// else ((P(Y_SAT) − Y_SAT²/2)·x⁻² + R²/2)/(R2 − R1); both computed, one selected.
 #[inline(always)]
 fn p_over_x2<A: Arith>(
+    k: &Consts,
+    r: &Radius,
     tab: &[Cubic; N],
-    y: f64,
-    c_r73: f64,
-    half_r_sq: f64,
-    offset: f64,
+    x: f64,
+    c: f64,
     inv_x2: f64,
 ) -> f64 {
-    let interpolated = f_interpolated::<A>(tab, y) * c_r73;
-    let saturated = A::madd(offset, inv_x2, half_r_sq);
+    let y = x * r.r;
+    let interpolated = f_interpolated::<A>(tab, y) * (c * r.r73);
+    let saturated = A::madd(k.p_sat_offset, inv_x2, r.half_r_sq);
     if y >= Y_SAT {
         saturated
     } else {
@@ -275,7 +267,8 @@ fn f_interpolated<A: Arith>(tab: &[Cubic; N], y: f64) -> f64 {
     let v = if v < LAST_KNOT { v } else { LAST_KNOT };
     let big = v + ROUND;
     let kf = big - ROUND;
-    let idx = (big.to_bits().wrapping_sub(ROUND.to_bits()) as usize) & (N - 1);
+    // The low bits of `big` are those of the integer (ROUND's are zero).
+    let idx = big.to_bits() as usize & (N - 1);
     let s = u - kf;
     let [a0, a1, a2, a3] = tab[idx];
     A::madd(A::madd(A::madd(a3, s, a2), s, a1), s, a0)
@@ -300,14 +293,14 @@ const SIN_H: [f64; 8] = [
     2.731_448_873_171_023e-15,
 ];
 
-/// sin(a) for |a| ≤ ARG_MAX: a = kπ + r with |r| ≤ π/2, sin(a) = (−1)^k·sin(r),
-/// sin(r) = r + r·z·h(z), z = r².
+/// sin(a) for |a| ≤ ARG_MAX: a = kπ + r with |r| ≤ π/2 (a − k·PI_A is exact, the rest rounds
+/// once per term), sin(a) = (−1)^k·sin(r), sin(r) = r + r·z·h(z), z = r².
 #[inline(always)]
 pub(crate) fn sin_reduced<A: Arith>(a: f64) -> f64 {
     let big = a * std::f64::consts::FRAC_1_PI + ROUND;
     let kf = big - ROUND;
     let odd = big.to_bits() << 63;
-    let r = ((a - kf * PI_A) - kf * PI_B) - kf * PI_C;
+    let r = A::madd(-kf, PI_C, A::madd(-kf, PI_B, A::madd(-kf, PI_A, a)));
     let z = r * r;
     let mut h = SIN_H[7];
     for &c in SIN_H[..7].iter().rev() {
@@ -321,43 +314,35 @@ pub(crate) fn sin_reduced<A: Arith>(a: f64) -> f64 {
 const INV_CBRT_BIAS: f64 = 1_430_197_064.0;
 const TWO52: f64 = 4_503_599_627_370_496.0;
 
-/// x^{−1/3} for x in [X_MIN, X_MAX], to a few ulp: the high word of x divided by −3 plus a bias
-/// (about 4 % off), then one step of order 5 and one of order 2 of r ← r·(1 − e)^{−1/3},
-/// e = 1 − x·r³ (errors 4e-7, then below 1e-18 before round-off).
+/// x^{−1/3} for x in [X_MIN, X_MAX] within 4e-6: the high word of x divided by −3 plus a bias
+/// (within 4.3 %), then one step of order 4 of r ← r·(1 − e)^{−1/3}, e = 1 − x·r³.
 #[inline(always)]
-fn inv_cbrt<A: Arith>(x: f64) -> f64 {
+fn inv_cbrt_rough<A: Arith>(x: f64) -> f64 {
     let hx = f64::from_bits(TWO52.to_bits() | (x.to_bits() >> 32)) - TWO52;
-    let t = INV_CBRT_BIAS - hx * (1.0 / 3.0);
-    let hi = (t + ROUND).to_bits().wrapping_sub(ROUND.to_bits()) & 0xFFFF_FFFF;
-    let mut r = f64::from_bits(hi << 32);
-    // (1 − e)^{−1/3} = 1 + e/3 + 2e²/9 + 14e³/81 + 35e⁴/243 + 91e⁵/729 + …
+    // The integer nearest to t is in the low 32 bits of t + ROUND: the high word of r.
+    let t = A::madd(hx, -1.0 / 3.0, INV_CBRT_BIAS) + ROUND;
+    let r = f64::from_bits(t.to_bits() << 32);
+    // (1 − e)^{−1/3} = 1 + e/3 + 2e²/9 + 14e³/81 + 35e⁴/243 + O(e⁵)
     let e = A::madd(-x, r * r * r, 1.0);
     let s = A::madd(
-        A::madd(A::madd(91.0 / 729.0, e, 35.0 / 243.0), e, 14.0 / 81.0),
+        A::madd(A::madd(35.0 / 243.0, e, 14.0 / 81.0), e, 2.0 / 9.0),
         e,
-        2.0 / 9.0,
+        1.0 / 3.0,
     );
-    r = A::madd(r * e, A::madd(s, e, 1.0 / 3.0), r);
-    let e = A::madd(-x, r * r * r, 1.0);
-    A::madd(r * e, A::madd(2.0 / 9.0, e, 1.0 / 3.0), r)
+    A::madd(r * e, s, r)
 }
 
 /// (x^{1/3}, x⁻²) for x in [X_MIN, X_MAX]. The cube root: t = x·r² cut to 17 significant bits,
-/// so t³ and the residual d = x − t³ are exact, then x^{1/3} = t·(1 − d/x)^{−1/3} to three
-/// terms (d/x < 1e-4), within 0.51 ulp.
+/// so t³ and the residual d = x − t³ are exact, then x^{1/3} = t·(1 − δ)^{−1/3}, δ = d/x
+/// (|δ| < 1e-4), to three terms: within 0.51 ulp. One division gives 1/x for δ and x⁻².
 #[inline(always)]
 pub(crate) fn cbrt_and_inv_square<A: Arith>(x: f64) -> (f64, f64) {
-    let r = inv_cbrt::<A>(x);
-    let rr = r * r;
-    let t = f64::from_bits((x * rr).to_bits() & 0xFFFF_FFF0_0000_0000);
-    let d = x - t * t * t;
-    let e = d * (r * rr);
-    let c = A::madd(
-        t * e,
-        A::madd(A::madd(14.0 / 81.0, e, 2.0 / 9.0), e, 1.0 / 3.0),
-        t,
-    );
-    (c, rr * rr * rr)
+    let r = inv_cbrt_rough::<A>(x);
+    let t = f64::from_bits((x * (r * r)).to_bits() & 0xFFFF_FFF0_0000_0000);
+    let inv_x = 1.0 / x;
+    let delta = (x - t * t * t) * inv_x;
+    let s = A::madd(A::madd(14.0 / 81.0, delta, 2.0 / 9.0), delta, 1.0 / 3.0);
+    (A::madd(t * delta, s, t), inv_x * inv_x)
 }
 
 /// Multiply-add as two roundings (baseline) or one (FMA).
@@ -386,64 +371,69 @@ impl Arith for Fused {
     }
 }
 
+/// One facing radius R in the form (6) uses it, all divided by R2 − R1.
+struct Radius {
+    r: f64,
+    /// R^{7/3}/(R2 − R1).
+    r73: f64,
+    /// R²/(2(R2 − R1)).
+    half_r_sq: f64,
+}
+
 /// Everything per call: the parameters in the form the loop uses.
 struct Consts {
     theta_a: f64,
     x_isp2: f64,
     x_isp1: f64,
     x_isp0: f64,
-    lambda: f64,
+    /// λ·1e-3: compression in m per mm of bearing travel.
+    lambda_m: f64,
     x_to_max: f64,
     p1: f64,
     p2: f64,
     p3: f64,
-    c1: f64,
+    /// 2·c1.
+    c1_2: f64,
     c2: f64,
     c3: f64,
-    c4: f64,
-    mu_s: f64,
-    /// μ_s·(R1 + R2)/2, as [`clutch::r_mu`] computes it.
-    mu_s_rm: f64,
+    /// 2·(c4 − μ_s).
+    c4_less_mu_s_2: f64,
+    /// 2·μ_s·(R1 + R2)/2.
+    mu_s_rm_2: f64,
     gamma: f64,
-    r1: f64,
-    r2: f64,
-    /// R^{7/3}.
-    r1_73: f64,
-    r2_73: f64,
-    half_r1_sq: f64,
-    half_r2_sq: f64,
-    inv_dr: f64,
+    inner: Radius,
+    outer: Radius,
+    /// (P(Y_SAT) − Y_SAT²/2)/(R2 − R1).
     p_sat_offset: f64,
 }
 
 impl Consts {
     fn new(p: &ClutchParams) -> Consts {
-        let r73 = |r: f64| r * r * r.cbrt();
+        let dr = p.r2_m - p.r1_m;
+        let radius = |r: f64| Radius {
+            r,
+            r73: r * r * r.cbrt() / dr,
+            half_r_sq: 0.5 * r * r / dr,
+        };
         Consts {
             theta_a: p.theta_a_c,
             x_isp2: p.x_isp2_mm_per_c2,
             x_isp1: p.x_isp1_mm_per_c,
             x_isp0: p.x_isp0_mm,
-            lambda: p.lambda,
+            lambda_m: p.lambda * 1e-3,
             x_to_max: p.x_to_max_mm,
             p1: p.p1_n_per_m,
             p2: p.p2_n_per_m2,
             p3: p.p3_n_per_m3,
-            c1: p.c1,
+            c1_2: 2.0 * p.c1,
             c2: p.c2_rad_per_c,
             c3: p.c3_rad,
-            c4: p.c4,
-            mu_s: p.mu_s,
-            mu_s_rm: p.mu_s * 0.5 * (p.r1_m + p.r2_m),
+            c4_less_mu_s_2: 2.0 * (p.c4 - p.mu_s),
+            mu_s_rm_2: p.mu_s * (p.r1_m + p.r2_m),
             gamma: p.gamma_s_per_m,
-            r1: p.r1_m,
-            r2: p.r2_m,
-            r1_73: r73(p.r1_m),
-            r2_73: r73(p.r2_m),
-            half_r1_sq: 0.5 * p.r1_m * p.r1_m,
-            half_r2_sq: 0.5 * p.r2_m * p.r2_m,
-            inv_dr: 1.0 / (p.r2_m - p.r1_m),
-            p_sat_offset: slip_integral::p_sat_offset(),
+            inner: radius(p.r1_m),
+            outer: radius(p.r2_m),
+            p_sat_offset: slip_integral::p_sat_offset() / dr,
         }
     }
 }
