@@ -79,6 +79,54 @@ fn batch_difference(c: &ClutchParams, xs: &[f64], ws: &[f64], ths: &[f64]) -> f6
         .fold(0.0, f64::max)
 }
 
+/// Points of the per-element rows.
+const POINTS: usize = 200_000;
+
+/// Per-element cost over many points (numpy's vectorised best case): the batch function over
+/// structure-of-arrays slices, its baseline code, the batch on two threads and the scalar
+/// function in a loop (ns per point), and the batch's largest difference from the scalar.
+fn per_element(c: &ClutchParams) -> (f64, f64, f64, f64, f64) {
+    let m = POINTS;
+    let pts: Vec<(f64, f64, f64)> = (0..m)
+        .map(|i| {
+            let a = (i as f64 * 0.618_033_988_7).fract();
+            let b = (i as f64 * 0.414_213_562_3).fract();
+            let d = (i as f64 * 0.732_050_807_5).fract();
+            (3.0 + 4.2 * a, -200.0 + 400.0 * b, 20.0 + 230.0 * d)
+        })
+        .collect();
+    let xs: Vec<f64> = pts.iter().map(|q| q.0).collect();
+    let ws: Vec<f64> = pts.iter().map(|q| q.1).collect();
+    let ths: Vec<f64> = pts.iter().map(|q| q.2).collect();
+    let mut out = vec![0.0; m];
+    let batch_ns = time_ns(10, || {
+        clutch_batch::torque_batch(c, &xs, &ws, &ths, black_box(&mut out)).unwrap();
+    }) / m as f64;
+    let portable_ns = time_ns(10, || {
+        clutch_batch::torque_batch_portable(c, &xs, &ws, &ths, black_box(&mut out)).unwrap();
+    }) / m as f64;
+    let scalar_loop_ns = time_ns(3, || {
+        let mut acc = 0.0;
+        for &(x, w, th) in &pts {
+            acc += clutch::torque(c, x, w, th);
+        }
+        black_box(acc);
+    }) / m as f64;
+    let two_threads_ns = time_ns(10, || {
+        let h = m / 2;
+        let (lo, hi) = out.split_at_mut(h);
+        std::thread::scope(|sc| {
+            let first =
+                sc.spawn(|| clutch_batch::torque_batch(c, &xs[..h], &ws[..h], &ths[..h], lo));
+            clutch_batch::torque_batch(c, &xs[h..], &ws[h..], &ths[h..], hi).unwrap();
+            first.join().unwrap().unwrap();
+        });
+        black_box(&out);
+    }) / m as f64;
+    let diff = batch_difference(c, &xs, &ws, &ths);
+    (batch_ns, portable_ns, two_threads_ns, scalar_loop_ns, diff)
+}
+
 fn main() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let p = Params::load(root.join("config/params.toml")).expect("config/params.toml");
@@ -131,47 +179,9 @@ fn main() {
         let mut x = s;
         black_box(pt.step(&mut x, black_box(&u), 1e-3));
     });
-    // Per-element cost over many points (numpy's vectorised best case): the batch function over
-    // structure-of-arrays slices, the scalar function in a loop, and the batch on two threads.
-    let m = 200_000;
-    let pts: Vec<(f64, f64, f64)> = (0..m)
-        .map(|i| {
-            let a = (i as f64 * 0.618_033_988_7).fract();
-            let b = (i as f64 * 0.414_213_562_3).fract();
-            let d = (i as f64 * 0.732_050_807_5).fract();
-            (3.0 + 4.2 * a, -200.0 + 400.0 * b, 20.0 + 230.0 * d)
-        })
-        .collect();
-    let xs: Vec<f64> = pts.iter().map(|q| q.0).collect();
-    let ws: Vec<f64> = pts.iter().map(|q| q.1).collect();
-    let ths: Vec<f64> = pts.iter().map(|q| q.2).collect();
-    let mut out = vec![0.0; m];
-    let torque_vec_ns = time_ns(10, || {
-        clutch_batch::torque_batch(&c, &xs, &ws, &ths, black_box(&mut out)).unwrap();
-    }) / m as f64;
-    let portable_ns = time_ns(10, || {
-        clutch_batch::torque_batch_portable(&c, &xs, &ws, &ths, black_box(&mut out)).unwrap();
-    }) / m as f64;
-    let scalar_loop_ns = time_ns(3, || {
-        let mut acc = 0.0;
-        for &(x, w, th) in &pts {
-            acc += clutch::torque(&c, x, w, th);
-        }
-        black_box(acc);
-    }) / m as f64;
-    let two_threads_ns = time_ns(10, || {
-        let h = m / 2;
-        let (lo, hi) = out.split_at_mut(h);
-        std::thread::scope(|sc| {
-            let first =
-                sc.spawn(|| clutch_batch::torque_batch(&c, &xs[..h], &ws[..h], &ths[..h], lo));
-            clutch_batch::torque_batch(&c, &xs[h..], &ws[h..], &ths[h..], hi).unwrap();
-            first.join().unwrap().unwrap();
-        });
-        black_box(&out);
-    }) / m as f64;
-    let batch_diff = batch_difference(&c, &xs, &ws, &ths);
+    let (torque_vec_ns, portable_ns, two_threads_ns, scalar_loop_ns, batch_diff) = per_element(&c);
     let batch_agrees = batch_diff <= 1e-12;
+    let m = POINTS;
 
     let o = pt.outputs(&s, &u);
     println!("ddct model bench (release build; best of 5)");
