@@ -9,7 +9,8 @@ wall time, not CPU time):
   decode    `ddct log decode --format csv` against `cantools decode` on the same candump log
             (400 k frames, 20 k with --short) of the rig plant, both written to /dev/null
   model     `cargo bench --bench model`: torque (13), its inverse, the plant derivative and the
-            vectorised torque against the numpy peer in benches/model_peer.py
+            vectorised torque (clutch_batch::torque_batch) against the numpy peer in
+            benches/model_peer.py; fails when the peer or the batch disagrees with ddct
   diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7);
             with --short the identification (7 min) and validation profiles; no peer
   blind     `ddct gap blind` of 10 trials (2 with --short), seed 1: wall time per trial
@@ -139,6 +140,7 @@ def model_rows():
     if p.returncode != 0:
         sys.exit(f"perf: cargo bench --bench model failed:\n{p.stdout}\n{p.stderr}")
     rows = []
+    batch_checked = False
     for line in p.stdout.splitlines():
         m = re.match(r"(.+?)\s{2,}([0-9.]+)\s+([0-9.]+)\s+([0-9.]+)\s*$", line)
         if m:
@@ -151,6 +153,13 @@ def model_rows():
             })
         elif line.startswith("peer agreement") and "false" in line:
             sys.exit(f"perf: the numpy peer disagrees with ddct: {line}")
+        elif line.startswith("batch agreement"):
+            # The vectorised torque (clutch_batch::torque_batch) against the scalar torque().
+            if "batch = scalar: true" not in line:
+                sys.exit(f"perf: the batch torque disagrees with the scalar torque: {line}")
+            batch_checked = True
+    if not batch_checked:
+        sys.exit(f"perf: no batch agreement line in cargo bench's output:\n{p.stdout}")
     if not rows:
         sys.exit(f"perf: no rows in cargo bench's output:\n{p.stdout}")
     return rows

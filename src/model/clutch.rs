@@ -407,6 +407,26 @@ mod tests {
         }
     }
 
+    /// A slip far below any physical one still gives the sign of the slip times the static
+    /// capacity (the slip integral underflowed to 0/0 = NaN below about 1e-160 rad/s before), and
+    /// one far above any physical one the fully sliding torque.
+    #[test]
+    fn torque_at_extreme_slips_is_finite() {
+        let p = cp();
+        let cap = capacity(&p, 5.5, 100.0);
+        for w in [5e-324, 1e-300, 1e-170, 1e-100] {
+            for sign in [1.0, -1.0] {
+                let t = torque(&p, 5.5, sign * w, 100.0);
+                assert!((t - sign * cap).abs() <= 1e-15 * cap, "{w:e}: {t} vs {cap}");
+            }
+        }
+        let full = 2.0 * (mu_d(&p, 100.0) * 0.5 * (p.r1_m + p.r2_m)) * normal_force(&p, 5.5, 100.0);
+        for w in [1e100, 1e300, f64::MAX] {
+            let t = torque(&p, 5.5, -w, 100.0);
+            assert!((t + full).abs() <= 1e-14 * full, "{w:e}: {t} vs {full}");
+        }
+    }
+
     #[test]
     fn invert_rejects_nan() {
         let p = cp();

@@ -1,11 +1,13 @@
 //! Pure physics of the dry dual-clutch driveline (paper Sects. 3–5): friction and equivalent
 //! radius (4)–(6), flat spring (7)–(10), clutch torque (11)/(13) and its inverse ([`clutch`]),
-//! thermal models (16)/(17) ([`thermal`]), driveline (18)–(20) with stick/slip ([`driveline`]),
-//! engine and actuators, a fixed-step RK4 integrator ([`integrator`]) and the assembled powertrain
-//! ([`powertrain`]). All parameters come from one TOML file ([`params`]). No I/O, no clock.
+//! (13) over many points at once ([`clutch_batch`]), thermal models (16)/(17) ([`thermal`]),
+//! driveline (18)–(20) with stick/slip ([`driveline`]), engine and actuators, a fixed-step RK4
+//! integrator ([`integrator`]) and the assembled powertrain ([`powertrain`]). All parameters come
+//! from one TOML file ([`params`]). No I/O, no clock.
 
 pub mod actuator;
 pub mod clutch;
+pub mod clutch_batch;
 pub mod driveline;
 pub mod effects;
 pub mod engine;

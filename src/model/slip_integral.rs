@@ -72,6 +72,39 @@ static TABLE: LazyLock<Table> = LazyLock::new(|| {
     Table { f, df, p_sat: p }
 });
 
+/// The interpolant of [`p`] per table interval k, as the cubic a0 + s·(a1 + s·(a2 + s·a3)) in the
+/// local coordinate s = Y/H − k ∈ [0, 1] (the Hermite form of [`p`] expanded once: one 32-byte
+/// record per lookup, four multiply-adds), for the batch torque of
+/// [`super::clutch_batch`].
+pub type Cubic = [f64; 4];
+
+static CUBICS: LazyLock<Box<[Cubic; N]>> = LazyLock::new(|| {
+    let tab = &*TABLE;
+    let mut c = Box::new([[0.0; 4]; N]);
+    for (k, ck) in c.iter_mut().enumerate() {
+        let (f0, f1) = (tab.f[k], tab.f[k + 1]);
+        let (d0, d1) = (H * tab.df[k], H * tab.df[k + 1]);
+        *ck = [
+            f0,
+            d0,
+            3.0 * (f1 - f0) - 2.0 * d0 - d1,
+            2.0 * (f0 - f1) + d0 + d1,
+        ];
+    }
+    c
+});
+
+/// The per-interval cubics of f (P(Y) = f(Y)·Y^{7/3}) for Y in [0, [`Y_SAT`]], interval k
+/// covering [k·H, (k+1)·H] with H = Y_SAT/[`N`].
+pub fn cubics() -> &'static [Cubic; N] {
+    &CUBICS
+}
+
+/// P(Y_SAT) − Y_SAT²/2: beyond saturation P(Y) = this + Y²/2.
+pub fn p_sat_offset() -> f64 {
+    TABLE.p_sat - 0.5 * Y_SAT * Y_SAT
+}
+
 /// P(Y) = ∫_0^Y y·tanh(y)^{1/3} dy for Y ≥ 0.
 #[inline]
 pub fn p(y: f64) -> f64 {
@@ -92,21 +125,44 @@ pub fn p(y: f64) -> f64 {
     f * y * y * y.cbrt()
 }
 
-/// Q(ω) of (6) for radii `r1 < r2` (m) and x = γ|ω| (1/m): the closed form above. Falls back to
-/// `None` for a facing so narrow ((R2−R1)/(R2+R1) < 2 %) that the difference of P would lose
-/// digits; the caller then integrates directly.
+/// Below this x = γ|ω| (1/m), [`q`] takes the leading term of P at zero: x² and P(xR) would leave
+/// the normal range further down (the quotient became 0/0 near x = 1e-160).
+pub const X_TINY: f64 = 1e-60;
+/// Above this x, [`q`] is its saturated value (R1 + R2)/2: x² would overflow further up.
+pub const X_HUGE: f64 = 1e60;
+
+/// True when the closed form [`q`] applies to the facing `r1 < r2` (m): not for a facing so
+/// narrow ((R2−R1)/(R2+R1) < 2 %) that the difference of P would lose digits. A NaN radius
+/// compares as neither: false as well.
 #[inline]
-pub fn q(r1: f64, r2: f64, x: f64) -> Option<f64> {
-    // A NaN radius compares as neither: `None` as well.
-    let wide_enough = matches!(
+pub fn closed_form_applies(r1: f64, r2: f64) -> bool {
+    matches!(
         (r2 - r1).partial_cmp(&(0.02 * (r2 + r1))),
         Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
-    );
-    if !wide_enough {
+    )
+}
+
+/// Q(ω) of (6) for radii `r1 < r2` (m) and x = γ|ω| (1/m): the closed form above. Falls back to
+/// `None` when [`closed_form_applies`] is false; the caller then integrates directly.
+///
+/// At the ends of the range of x the quotient is taken in the form that stays in range: below
+/// [`X_TINY`], P(Y) = 3/7·Y^{7/3} to double precision (the next term is 7Y²/117 relative), so
+/// Q = 3/7·x^{1/3}·(R2^{7/3} − R1^{7/3})/(R2 − R1); above [`X_HUGE`] both ends are saturated and
+/// Q = (R2² − R1²)/(2(R2 − R1)) = (R1 + R2)/2 exactly.
+#[inline]
+pub fn q(r1: f64, r2: f64, x: f64) -> Option<f64> {
+    if !closed_form_applies(r1, r2) {
         return None;
     }
     if x == 0.0 {
         return Some(0.0);
+    }
+    if x < X_TINY {
+        let r73 = |r: f64| r * r * r.cbrt();
+        return Some(3.0 / 7.0 * x.cbrt() * (r73(r2) - r73(r1)) / (r2 - r1));
+    }
+    if x > X_HUGE {
+        return Some(0.5 * (r1 + r2));
     }
     Some((p(x * r2) - p(x * r1)) / ((r2 - r1) * x * x))
 }
@@ -168,6 +224,53 @@ mod tests {
                 })
                 .sum()
         }
+    }
+
+    /// The ends of the range of x: finite, and continuous with the quotient across
+    /// [`X_TINY`] and [`X_HUGE`] (it gave 0/0 = NaN for x below about 1e-160 before).
+    #[test]
+    fn q_at_extreme_slips() {
+        let (r1, r2) = (0.075, 0.115);
+        let at = |x: f64| q(r1, r2, x).unwrap();
+        for x in [
+            f64::MIN_POSITIVE,
+            1e-300,
+            1e-170,
+            1e-100,
+            1e100,
+            1e300,
+            f64::MAX,
+        ] {
+            assert!(at(x).is_finite() && at(x) >= 0.0, "q({x:e}) = {}", at(x));
+        }
+        assert!(at(5e-324) >= 0.0 && at(5e-324) < 1e-100);
+        for (lo, hi) in [
+            (X_TINY * (1.0 - 1e-15), X_TINY * (1.0 + 1e-15)),
+            (X_HUGE * (1.0 - 1e-15), X_HUGE * (1.0 + 1e-15)),
+        ] {
+            let (a, b) = (at(lo), at(hi));
+            assert!((a - b).abs() <= 1e-13 * b, "{lo:e}: {a} vs {b}");
+        }
+        assert_eq!(at(1e300), 0.5 * (r1 + r2));
+    }
+
+    /// The expanded cubics give the Hermite interpolant of [`p`]: f·Y^{7/3} within round-off of
+    /// P across and between the knots, and the offset gives P beyond saturation.
+    #[test]
+    fn cubics_reproduce_p() {
+        let c = cubics();
+        let mut worst: f64 = 0.0;
+        for i in 1..=20_000 {
+            let y = Y_SAT * i as f64 / 20_000.0 * (1.0 - 1e-12);
+            let k = ((y / H) as usize).min(N - 1);
+            let s = y / H - k as f64;
+            let [a0, a1, a2, a3] = c[k];
+            let f = a0 + s * (a1 + s * (a2 + s * a3));
+            worst = worst.max((f * y * y * y.cbrt() - p(y)).abs() / p(y));
+        }
+        assert!(worst < 1e-14, "worst relative difference {worst:e}");
+        let y = 40.0;
+        assert!((p_sat_offset() + 0.5 * y * y - p(y)).abs() <= 1e-13 * p(y));
     }
 
     #[test]
