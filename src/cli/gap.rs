@@ -257,16 +257,24 @@ fn load_params(p: &Option<PathBuf>) -> anyhow::Result<Params> {
 /// Loads the records of `files` in order: each file is checked and cut at its gaps in time into
 /// segments, each segment a record of its own; the cuts and the segments left out are noted on
 /// stderr (stdout may be JSON).
-fn load_all(files: &[PathBuf]) -> anyhow::Result<Vec<Dataset>> {
-    let mut out = Vec::new();
-    for f in files {
-        let s = Segments::load(f)?;
+/// The training and the validation records, every file read on its own thread (decoding a
+/// long candump log is a second of work); notes and the first error in the order given.
+fn load_train_validate(
+    train: &[PathBuf],
+    validate: &[PathBuf],
+) -> anyhow::Result<(Vec<Dataset>, Vec<Dataset>)> {
+    let files: Vec<&PathBuf> = train.iter().chain(validate).collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let loaded = ddct::par::map(threads, &files, |_, f| Segments::load(f));
+    let (mut tr, mut va) = (Vec::new(), Vec::new());
+    for (i, s) in loaded.into_iter().enumerate() {
+        let s = s?;
         for n in s.notes() {
             eprintln!("note: {n}");
         }
-        out.extend(s.datasets);
+        if i < train.len() { &mut tr } else { &mut va }.extend(s.datasets);
     }
-    Ok(out)
+    Ok((tr, va))
 }
 
 pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
@@ -275,8 +283,7 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
         Some(f) => Some(Params::load(f).with_context(|| format!("reading {}", f.display()))?),
         None => None,
     };
-    let train = load_all(&a.train)?;
-    let val = load_all(&a.validate)?;
+    let (train, val) = load_train_validate(&a.train, &a.validate)?;
     let opts = IdentifyOptions {
         joint: !a.staged_only,
         split_half: !a.staged_only,
@@ -389,8 +396,7 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
 fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     let t0 = Instant::now();
     let p = load_params(&a.params)?;
-    let train = load_all(&a.train)?;
-    let val = load_all(&a.validate)?;
+    let (train, val) = load_train_validate(&a.train, &a.validate)?;
     let t_load = t0.elapsed().as_secs_f64();
     let opts = DiagnoseOptions {
         carry_energy: a.carry_energy,

@@ -19,7 +19,7 @@ use super::shape::Shape;
 use super::terms::{self, Extra, Terms, X_REF_MM};
 use crate::model::clutch;
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
-use crate::model::params::{ClutchParams, Params, ThermalParams5};
+use crate::model::params::{ClutchParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5State, ThermalInputs};
 
@@ -429,11 +429,11 @@ struct ReplayKey {
     engagement: EngagementKey,
 }
 
-/// The thermal parameters, the heat effects, the thermal terms and the terms that correct the
-/// inputs ([`input_key`]).
+/// The thermal parameters the replay reads ([`disk::thermal_params`]), the heat effects, the
+/// thermal terms and the terms that correct the inputs ([`input_key`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct HeatKey {
-    thermal: ThermalParams5,
+    thermal: [f64; 5],
     set: EffectSet,
     terms: Terms,
 }
@@ -450,7 +450,7 @@ impl ReplayKey {
         let t = &model.terms;
         ReplayKey {
             heat: HeatKey {
-                thermal: model.p.thermal5,
+                thermal: disk::thermal_params(&model.p.thermal5),
                 set: model.set.only(&effects::HEAT_EFFECTS),
                 terms: Terms {
                     support: t.support,
@@ -529,14 +529,14 @@ pub fn predict_reusing(
     chans: &[Channel],
     memo: &mut ReplayMemo,
 ) -> Predictions {
-    if !want_torque(s, chans) {
-        // No disk replay to reuse (and none in the result).
-        return predict(model, m, s, chans);
-    }
     let corrected = recall(&mut memo.inputs, input_key(&model.terms), || {
         corrected_inputs(&model.terms, m)
     });
     let mm = corrected.as_ref().unwrap_or(m);
+    if !want_torque(s, chans) {
+        // No disk replay (and none in the result).
+        return predict_inner(model, mm, s, chans, None);
+    }
     let disk = recall_disk(&mut memo.disks, model, mm);
     predict_inner(model, mm, s, chans, Some(&*disk.theta))
 }
@@ -565,6 +565,7 @@ fn want_torque(s: &Samples, chans: &[Channel]) -> bool {
     (0..2).any(|i| chans.contains(&Channel::Torque(i)) && !s.get(Channel::Torque(i)).is_empty())
 }
 
+/// The predictions of `model` on `m` with the disk replay `disk`.
 fn predict_inner(
     model: &Model,
     m: &Measured,
