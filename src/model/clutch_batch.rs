@@ -70,21 +70,18 @@ pub fn torque_batch(
     theta_c: &[f64],
     out: &mut [f64],
 ) -> Result<(), BatchError> {
-    check_lengths(x_to_mm, slip_radps, theta_c, out)?;
-    if !slip_integral::closed_form_applies(p.r1_m, p.r2_m) {
-        scalar(p, x_to_mm, slip_radps, theta_c, out);
-        return Ok(());
-    }
-    let k = Consts::new(p);
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+    if slip_integral::closed_form_applies(p.r1_m, p.r2_m)
+        && std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("fma")
+    {
+        check_lengths(x_to_mm, slip_radps, theta_c, out)?;
         // SAFETY: `run_avx2_fma` only needs the processor to support AVX2 and FMA, which was
         // just checked at run time; it is otherwise safe code (slices, no raw pointers).
-        unsafe { run_avx2_fma(p, &k, x_to_mm, slip_radps, theta_c, out) };
+        unsafe { run_avx2_fma(p, &Consts::new(p), x_to_mm, slip_radps, theta_c, out) };
         return Ok(());
     }
-    run::<Plain>(p, &k, x_to_mm, slip_radps, theta_c, out);
-    Ok(())
+    torque_batch_portable(p, x_to_mm, slip_radps, theta_c, out)
 }
 
 /// [`torque_batch`] without the run-time dispatch: the code compiled for the baseline target
