@@ -9,8 +9,19 @@ pub fn map<T: Sync, R: Send>(
     items: &[T],
     f: impl Fn(usize, &T) -> R + Sync,
 ) -> Vec<R> {
+    map_with(threads, items, || (), |_, i, t| f(i, t))
+}
+
+/// [`map`] with a state per thread: `init()` once on each thread, then `f(&mut state, i, item)`
+/// for the items that thread takes (scratch buffers, caches that are only a matter of speed).
+pub fn map_with<T: Sync, S, R: Send>(
+    threads: usize,
+    items: &[T],
+    init: impl Fn() -> S + Sync,
+    f: impl Fn(&mut S, usize, &T) -> R + Sync,
+) -> Vec<R> {
     let order: Vec<usize> = (0..items.len()).collect();
-    run(threads, items, &order, f)
+    run(threads, items, &order, init, f)
 }
 
 /// [`map`] with the items taken from the queue in decreasing `cost` (equal costs in index
@@ -25,28 +36,30 @@ pub fn map_costliest_first<T: Sync, R: Send, C: Ord>(
 ) -> Vec<R> {
     let mut order: Vec<usize> = (0..items.len()).collect();
     order.sort_by(|a, b| cost(&items[*b]).cmp(&cost(&items[*a])).then(a.cmp(b)));
-    run(threads, items, &order, f)
+    run(threads, items, &order, || (), |_, i, t| f(i, t))
 }
 
-/// The items in the queue order `order` (a permutation of the indices), results by index.
-fn run<T: Sync, R: Send>(
+/// The items in the queue order `order` (a permutation of the indices), results by index; each
+/// thread's state from `init`.
+fn run<T: Sync, S, R: Send>(
     threads: usize,
     items: &[T],
     order: &[usize],
-    f: impl Fn(usize, &T) -> R + Sync,
+    init: impl Fn() -> S + Sync,
+    f: impl Fn(&mut S, usize, &T) -> R + Sync,
 ) -> Vec<R> {
     let threads = threads.clamp(1, items.len().max(1));
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut done: Vec<(usize, R)> = std::thread::scope(|sc| {
         let handles: Vec<_> = (0..threads)
             .map(|_| {
-                let (next, f) = (&next, &f);
+                let (next, init, f) = (&next, &init, &f);
                 sc.spawn(move || {
-                    let mut mine = Vec::new();
+                    let (mut mine, mut state) = (Vec::new(), init());
                     loop {
                         let q = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         let Some(&i) = order.get(q) else { break };
-                        mine.push((i, f(i, &items[i])));
+                        mine.push((i, f(&mut state, i, &items[i])));
                     }
                     mine
                 })
@@ -64,6 +77,38 @@ fn run<T: Sync, R: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One state per thread, kept across the items the thread takes; the results as `map`'s.
+    #[test]
+    fn one_state_per_thread() {
+        let items: Vec<u64> = (0..40).collect();
+        let inits = std::sync::atomic::AtomicUsize::new(0);
+        let out = map_with(
+            2,
+            &items,
+            || {
+                inits.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                0u64
+            },
+            |seen, _, &x| {
+                *seen += 1;
+                (x * 3, *seen)
+            },
+        );
+        assert_eq!(
+            out.iter().map(|r| r.0).collect::<Vec<_>>(),
+            items.iter().map(|x| x * 3).collect::<Vec<_>>()
+        );
+        assert!(inits.into_inner() <= 2);
+        // Each thread's count runs 1, 2, … over its items: the states were kept. With a and b
+        // items on the two threads (a + b = 40), the counts are 1..=a and 1..=b.
+        let a = out.iter().map(|r| r.1).max().unwrap();
+        let b = 40 - a;
+        for v in 1..=a {
+            let n = out.iter().filter(|r| r.1 == v).count();
+            assert_eq!(n, 1 + usize::from(v <= b), "count {v}");
+        }
+    }
 
     /// Every item once, in order, whatever the thread count and however uneven the items.
     #[test]

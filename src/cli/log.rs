@@ -434,6 +434,19 @@ impl Decoding<'_> {
             .suspend(|| eprintln!("{}:{line}: {kind}", self.file.display()));
     }
 
+    /// The record of a log item; a malformed line is named, counted and skipped (`None`), any
+    /// other error ends the decode naming the file.
+    fn record<T>(&mut self, item: Result<T, LogError>) -> anyhow::Result<Option<T>> {
+        match item {
+            Ok(r) => Ok(Some(r)),
+            Err(LogError::Line { line, kind }) => {
+                self.bad_line(line, &kind);
+                Ok(None)
+            }
+            Err(e) => Err(e).with_context(|| format!("{}", self.file.display())),
+        }
+    }
+
     /// Frames read: the progress on standard input.
     fn frames_read(&self, n: u64) {
         if self.per_frame {
@@ -572,13 +585,8 @@ fn frame_by_frame<R: std::io::Read, W: Write + Send>(
         out.write_all(CSV_HEADER.as_bytes())?;
     }
     for item in reader.by_ref() {
-        let rec = match item {
-            Ok(r) => r,
-            Err(LogError::Line { line, kind }) => {
-                run.bad_line(line, &kind);
-                continue;
-            }
-            Err(e) => return Err(e).with_context(|| format!("{}", run.file.display())),
+        let Some(rec) = run.record(item)? else {
+            continue;
         };
         run.frames_read(1);
         // Every frame goes through the decoder (its E2E and gap tracking); only the selected

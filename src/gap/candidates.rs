@@ -478,13 +478,13 @@ fn input_key(t: &Terms) -> Terms {
     }
 }
 
-/// The entry of `v` whose key is `key`, moved to the front (computed by `make` and put there
-/// when there is none; at most two entries kept).
-fn recall<K: PartialEq, V>(v: &mut Vec<(K, V)>, key: K, make: impl FnOnce() -> V) -> &V {
+/// The entry of `v` whose key is `key`, moved to the front (computed by `make`, which sees the
+/// entries kept, and put there when there is none; at most two entries kept).
+fn recall<K: PartialEq, V>(v: &mut Vec<(K, V)>, key: K, make: impl FnOnce(&[(K, V)]) -> V) -> &V {
     match v.iter().position(|e| e.0 == key) {
         Some(i) => v[..=i].rotate_right(1),
         None => {
-            let value = make();
+            let value = make(v);
             v.insert(0, (key, value));
             v.truncate(2);
         }
@@ -501,22 +501,13 @@ fn recall_disk<'a>(
     m: &Measured,
 ) -> &'a DiskRun {
     let key = ReplayKey::of(model);
-    let make = |memo: &[(ReplayKey, DiskRun)]| {
+    recall(memo, key, |kept| {
         let h = SetHooks::of(model);
-        match memo.iter().find(|(k, _)| k.heat == key.heat) {
+        match kept.iter().find(|(k, _)| k.heat == key.heat) {
             Some((_, near)) => disk::rerun_engagement(&model.p, &h, m, near),
             None => disk::run(&model.p, &h, m),
         }
-    };
-    match memo.iter().position(|e| e.0 == key) {
-        Some(i) => memo[..=i].rotate_right(1),
-        None => {
-            let run = make(memo);
-            memo.insert(0, (key, run));
-            memo.truncate(2);
-        }
-    }
-    &memo[0].1
+    })
 }
 
 /// [`predict`] reusing the corrected inputs and disk replay of `memo` when the model's keys are
@@ -529,7 +520,7 @@ pub fn predict_reusing(
     chans: &[Channel],
     memo: &mut ReplayMemo,
 ) -> Predictions {
-    let corrected = recall(&mut memo.inputs, input_key(&model.terms), || {
+    let corrected = recall(&mut memo.inputs, input_key(&model.terms), |_| {
         corrected_inputs(&model.terms, m)
     });
     let mm = corrected.as_ref().unwrap_or(m);

@@ -142,8 +142,9 @@ impl Problem<'_> {
 }
 
 /// A [`Problem`] as the solver sees it, with each record's replay memo: the points of a
-/// Jacobian go to up to `threads` threads, each with a copy of the memo (the replays it holds
-/// are shared, not copied), so every point's residuals are what one thread would compute.
+/// Jacobian go to up to `threads` threads, each with its copy of the memo (the replays it holds
+/// are shared, not copied); every point's residuals are what one thread would compute, since a
+/// memo only saves work.
 struct FitResiduals<'a> {
     problem: &'a Problem<'a>,
     memo: Vec<ReplayMemo>,
@@ -165,10 +166,10 @@ impl lsq::Residuals for FitResiduals<'_> {
         }
         let (problem, memo) = (self.problem, &self.memo);
         let n = rs.first().map_or(0, Vec::len);
-        let done = crate::par::map(self.threads, ps, |_, p| {
+        let scratch = || (memo.clone(), Vec::with_capacity(n));
+        let done = crate::par::map_with(self.threads, ps, scratch, |(m, buf), _, p| {
             let mut r = vec![0.0; n];
-            let (mut m, mut buf) = (memo.clone(), Vec::with_capacity(n));
-            problem.residuals(p, &mut r, &mut m, &mut buf);
+            problem.residuals(p, &mut r, m, buf);
             r
         });
         for (r, d) in rs.iter_mut().zip(done) {

@@ -93,12 +93,24 @@ pub fn torque_batch_portable(
     theta_c: &[f64],
     out: &mut [f64],
 ) -> Result<(), BatchError> {
-    check_lengths(x_to_mm, slip_radps, theta_c, out)?;
+    batch_in::<Plain>(p, x_to_mm, slip_radps, theta_c, out)
+}
+
+/// The batch in the arithmetic `A`: lengths checked, a facing too narrow for the closed form
+/// computed point by point by [`torque`](super::clutch::torque).
+fn batch_in<A: Arith>(
+    p: &ClutchParams,
+    x: &[f64],
+    w: &[f64],
+    th: &[f64],
+    out: &mut [f64],
+) -> Result<(), BatchError> {
+    check_lengths(x, w, th, out)?;
     if !slip_integral::closed_form_applies(p.r1_m, p.r2_m) {
-        scalar(p, x_to_mm, slip_radps, theta_c, out);
+        scalar(p, x, w, th, out);
         return Ok(());
     }
-    run::<Plain>(p, &Consts::new(p), x_to_mm, slip_radps, theta_c, out);
+    run::<A>(p, &Consts::new(p), x, w, th, out);
     Ok(())
 }
 
@@ -546,25 +558,10 @@ mod tests {
     /// arithmetic run directly (libm's fma where the processor lacks FMA: slow, but the same
     /// values), so both arithmetics are checked on any machine.
     fn paths() -> Vec<(&'static str, Batch)> {
-        fn fused(
-            p: &ClutchParams,
-            x: &[f64],
-            w: &[f64],
-            th: &[f64],
-            o: &mut [f64],
-        ) -> Result<(), BatchError> {
-            check_lengths(x, w, th, o)?;
-            if !slip_integral::closed_form_applies(p.r1_m, p.r2_m) {
-                scalar(p, x, w, th, o);
-            } else {
-                run::<Fused>(p, &Consts::new(p), x, w, th, o);
-            }
-            Ok(())
-        }
         vec![
             ("dispatched", torque_batch as Batch),
             ("portable", torque_batch_portable),
-            ("fused", fused),
+            ("fused", batch_in::<Fused>),
         ]
     }
 

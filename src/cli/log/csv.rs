@@ -5,8 +5,7 @@
 //! and hands the writer the text: both threads share the formatting, the heavier half.
 
 use super::Decoding;
-use anyhow::Context as _;
-use ddct::can::candump::{LogError, LogReader};
+use ddct::can::candump::LogReader;
 use ddct::can::decode::LogDecoder;
 use ddct::can::decode_csv::{CsvRows, DecodedBlock, CSV_HEADER};
 use std::io::{Read, Write};
@@ -73,13 +72,8 @@ fn decode_blocks<R: Read>(
 ) -> anyhow::Result<()> {
     let mut block = DecodedBlock::default();
     while let Some(item) = reader.next_ref() {
-        let rec = match item {
-            Ok(r) => r,
-            Err(LogError::Line { line, kind }) => {
-                run.bad_line(line, &kind);
-                continue;
-            }
-            Err(e) => return Err(e).with_context(|| format!("{}", run.file.display())),
+        let Some(rec) = run.record(item)? else {
+            continue;
         };
         block.frames_read += 1;
         // Every frame goes through the decoder (its E2E and gap tracking); only the selected
