@@ -49,6 +49,16 @@ fn run<T: Sync, S, R: Send>(
     f: impl Fn(&mut S, usize, &T) -> R + Sync,
 ) -> Vec<R> {
     let threads = threads.clamp(1, items.len().max(1));
+    if threads == 1 {
+        // On the calling thread: no thread to start for one.
+        let mut state = init();
+        let mut done: Vec<(usize, R)> = order
+            .iter()
+            .map(|&i| (i, f(&mut state, i, &items[i])))
+            .collect();
+        done.sort_by_key(|(i, _)| *i);
+        return done.into_iter().map(|(_, r)| r).collect();
+    }
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut done: Vec<(usize, R)> = std::thread::scope(|sc| {
         let handles: Vec<_> = (0..threads)

@@ -85,7 +85,10 @@ pub fn spinner(msg: impl Into<std::borrow::Cow<'static, str>>) -> indicatif::Pro
         indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
     );
-    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    // The ticking thread only where the spinner shows (indicatif hides it off a terminal).
+    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    }
     pb
 }
 

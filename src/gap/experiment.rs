@@ -23,7 +23,7 @@ use crate::model::effects::{EffectId, EffectSet};
 use crate::model::gear::Gear;
 use crate::model::params::Params;
 use crate::plant::core::CYCLE;
-use crate::plant::{Mode, Plant, PlantConfig};
+use crate::plant::{Mode, Plant, PlantConfig, StepPolicy};
 use std::time::Duration;
 
 /// Epoch of the records (s): a plausible candump timestamp.
@@ -359,9 +359,11 @@ pub fn experiment_records(
     seed: u64,
     plant_params: &Params,
 ) -> Vec<(String, Vec<LogRecord>)> {
+    // Reality at the reference step: the records are the fixed 1 ms RK4 integration.
     let c = PlantConfig {
         effects: truth.set(),
         params: *plant_params,
+        step: StepPolicy::Fixed,
         ..PlantConfig::default()
     };
     // On the rig the dyno holds the input speed and the brake the output: the sliding

@@ -75,6 +75,24 @@ pub fn load_torque_graded(p: &DrivelineParams, w_out_radps: f64, grade_nm: f64, 
         + p.brake_max_nm * brake * s
 }
 
+/// ∂T_load/∂ω_out of [`load_torque_graded`] (N·m·s/rad, ≥ 0): the stiffness of the road load,
+/// largest at standstill where the constant terms and the brake are regularised over
+/// `load_smoothing_m_per_s` (what limits an explicit step there).
+pub fn load_stiffness(p: &DrivelineParams, w_out_radps: f64, brake: f64) -> f64 {
+    let r = p.wheel_radius_m;
+    let v = r * w_out_radps;
+    let eps = p.load_smoothing_m_per_s;
+    let brake = if brake.is_finite() {
+        brake.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let sech2 = 1.0 - (v / eps).tanh().powi(2);
+    r * ((p.f0_nm + p.brake_max_nm * brake) * sech2 / eps
+        + p.f1_nm_s_per_m
+        + 2.0 * p.f2_nm_s2_per_m2 * v.abs())
+}
+
 /// Grade torque m·g·sin(atan(grade))·R_w (N·m).
 pub fn grade_torque(p: &DrivelineParams, grade: f64) -> f64 {
     if grade == 0.0 {
@@ -288,6 +306,27 @@ pub fn sync_torque(p: &DrivelineParams, w_c: f64, k: f64, w_out: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::model::params::Params;
+
+    /// The load's stiffness is the derivative of the load torque (central differences), from
+    /// standstill through the regularised band to cruising, with and without the brake.
+    #[test]
+    fn load_stiffness_is_the_derivative_of_the_load() {
+        let p = Params::default().driveline;
+        for brake in [0.0, 0.4, 1.0] {
+            for v in [-20.0, -0.02, -0.004, 0.0, 0.003, 0.01, 0.05, 1.0, 30.0] {
+                let w = v / p.wheel_radius_m;
+                let h = 1e-6 * w.abs().max(1e-3);
+                let fd = (load_torque_graded(&p, w + h, 0.0, brake)
+                    - load_torque_graded(&p, w - h, 0.0, brake))
+                    / (2.0 * h);
+                let k = load_stiffness(&p, w, brake);
+                assert!(
+                    (k - fd).abs() <= 1e-5 * fd.abs().max(1.0),
+                    "v {v} brake {brake}: {k} {fd}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn groups_and_rigid_acceleration() {

@@ -273,10 +273,14 @@ pub struct Params {
     pub integrator: IntegratorParams,
 }
 
+/// The embedded file parsed once (checked by the unit test `default_file_is_valid`).
+static DEFAULT: std::sync::LazyLock<Params> = std::sync::LazyLock::new(|| {
+    Params::from_toml_str(DEFAULT_TOML).expect("config/params.toml is valid")
+});
+
 impl Default for Params {
     fn default() -> Self {
-        // The embedded file is checked by the unit test `default_file_is_valid`.
-        Params::from_toml_str(DEFAULT_TOML).expect("config/params.toml is valid")
+        *DEFAULT
     }
 }
 
@@ -285,13 +289,17 @@ impl Params {
     /// (serde: every key required, none unknown, numbers only), then every key's declared range
     /// and the rules between keys.
     pub fn from_toml_str(text: &str) -> Result<Params, ParamsError> {
-        text.parse::<toml::Table>()
-            .map_err(|source| ParamsError::Syntax {
-                source: Box::new(source),
+        // One parse when the file is well-formed; a failure is told apart (syntax or structure)
+        // by parsing the text as a plain table.
+        let p: Params =
+            toml::from_str(text).map_err(|source| match text.parse::<toml::Table>() {
+                Err(syntax) => ParamsError::Syntax {
+                    source: Box::new(syntax),
+                },
+                Ok(_) => ParamsError::Structure {
+                    source: Box::new(source),
+                },
             })?;
-        let p: Params = toml::from_str(text).map_err(|source| ParamsError::Structure {
-            source: Box::new(source),
-        })?;
         p.validate()?;
         Ok(p)
     }

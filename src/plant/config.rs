@@ -29,6 +29,18 @@ pub enum Mode {
     Rig,
 }
 
+/// How the plant integrates (`[plant] step`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum StepPolicy {
+    /// One RK4 step per bus cycle while the cycle is quiet (`plant::core::quiet`: inputs
+    /// constant, each clutch locked or open, no gear moving), the 1 ms step otherwise.
+    #[default]
+    Multirate,
+    /// The 1 ms step (`params.integrator.dt_s`) throughout: the reference.
+    Fixed,
+}
+
 impl Mode {
     pub fn as_str(self) -> &'static str {
         match self {
@@ -47,6 +59,7 @@ struct PlantTable {
     seed: u64,
     scenario: Option<String>,
     rig_profile: Option<String>,
+    step: StepPolicy,
 }
 
 impl Default for PlantTable {
@@ -57,6 +70,7 @@ impl Default for PlantTable {
             seed: 1,
             scenario: None,
             rig_profile: None,
+            step: StepPolicy::Multirate,
         }
     }
 }
@@ -199,6 +213,8 @@ pub struct PlantConfig {
     pub rig_profile: Option<RigProfile>,
     /// The file it came from.
     pub source: Option<PathBuf>,
+    /// Multi-rate or fixed-step integration.
+    pub step: StepPolicy,
 }
 
 impl Default for PlantConfig {
@@ -368,6 +384,7 @@ impl PlantConfig {
             scenario,
             rig_profile,
             source: base.map(Path::to_path_buf),
+            step: plant.step,
         };
         cfg.validate(path)?;
         Ok(cfg)

@@ -17,6 +17,10 @@
 //! saturation and quantisation by the generated encoders), the messages are encoded, E2E applied
 //! and the configured faults applied.
 //!
+//! With `[plant] step = "multirate"` (the default) a quiet cycle — inputs constant, each clutch
+//! locked or open, no gear moving, in vehicle mode — is integrated in one RK4 step of 10 ms
+//! instead of ten of 1 ms (`quiet`).
+//!
 //! Rig mode (paper Sect. 3.3): the dyno is an ideal speed source — the flywheel speed is set to
 //! the dyno speed at the start of each step and the engine torque state to the torque the
 //! clutches take (ENG_Status then reports the dyno torque); the output is held by the wheel
@@ -28,7 +32,7 @@ use super::config::{Mode, PlantConfig};
 use super::faults::{Fault, FaultKind};
 use super::hooks::EffectHooks;
 use super::noise::gauss;
-use super::profile::DriverSample;
+use super::profile::{CycleSampler, DriverSample};
 use crate::can::e2e::{protect, E2eChecker, E2eConfig, E2eError, CRC_BYTE};
 use crate::can::messages::{
     ids, message_def, BenchTemps, BenchTorque, BenchVehicle, DctActuators, DctSensors, DrvPedal,
@@ -43,6 +47,8 @@ use crate::model::powertrain::{Inputs, Outputs, Powertrain, State};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Duration;
+
+mod quiet;
 
 /// The plant's cycle: DCT_Sensors' cycle time in the DBC (every plant message has it).
 pub const CYCLE: Duration = Duration::from_millis(DctSensors::CYCLE_MS as u64);
@@ -107,8 +113,10 @@ pub struct Output {
 /// Counters of the plant core.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct PlantStats {
-    /// Integration steps.
+    /// Integration steps (of 1 ms; a quiet cycle counts its ten).
     pub steps: u64,
+    /// Cycles integrated in one step (`quiet`: `[plant] step = "multirate"`).
+    pub quiet_cycles: u64,
     /// 10 ms cycles sampled.
     pub cycles: u64,
     /// Frames handed out for sending.
@@ -177,11 +185,15 @@ pub struct Plant {
     steps_per_cycle: u64,
     next_cycle: u64,
     theta_h: f64,
+    /// exp(−dt/τ) of the housing air over one step.
+    housing_decay: f64,
     delay: [DelayLine; 2],
     delay_steps: usize,
     x_ref: [f64; 2],
     x_ref_applied: [f64; 2],
     driver: DriverSample,
+    /// The built-in driver sampled once per cycle where it holds still.
+    sampler: CycleSampler,
     latch: Latch,
     checker: E2eChecker,
     sent: Vec<u16>,
@@ -270,6 +282,7 @@ impl Plant {
         let nf = cfg.faults.len();
         Plant {
             theta_h: i.housing_c,
+            housing_decay: (-dt / cfg.housing.tau_s).exp(),
             rig_speed_radps: rig_rpm * RPM,
             pt,
             s,
@@ -288,6 +301,7 @@ impl Plant {
                 lever: GearLever::P,
                 grade: 0.0,
             },
+            sampler: CycleSampler::default(),
             latch: Latch::default(),
             checker,
             counters: vec![0; n],
@@ -357,6 +371,10 @@ impl Plant {
             }
             if self.steps >= target {
                 break;
+            }
+            let at_boundary = self.steps % self.steps_per_cycle == 0;
+            if at_boundary && self.steps + self.steps_per_cycle <= target && self.quiet_cycle() {
+                continue;
             }
             self.substep();
         }
@@ -530,6 +548,7 @@ impl Plant {
     /// Powertrain inputs at time `t` (before the dead time) and the requested positions.
     fn commands(&mut self, t: Duration) -> Inputs {
         let limit = CYCLE * self.cfg.inputs.timeout_cycles;
+        let (cycle, first, last) = self.cycle_span();
         let stats = &mut self.stats;
         let mut u = Inputs {
             theta_h_c: self.theta_h,
@@ -581,7 +600,7 @@ impl Plant {
                 u.gear_odd_req = go;
                 u.gear_even_req = ge;
                 self.driver = match &self.cfg.scenario {
-                    Some(sc) => sc.sample(t.as_secs_f64()),
+                    Some(sc) => self.sampler.sample(sc, t.as_secs_f64(), cycle, first, last),
                     None => {
                         let brake_frac = self.cfg.inputs.brake_switch_fraction;
                         match Self::fresh(&mut self.latch.pedal, t, limit, "DRV_Pedal", stats) {
@@ -606,6 +625,15 @@ impl Plant {
             }
         }
         u
+    }
+
+    /// The current bus cycle (index) and the times of its first and last step (s), as
+    /// [`Self::time`] gives them.
+    fn cycle_span(&self) -> (u64, f64, f64) {
+        let n = self.steps_per_cycle;
+        let cycle = self.steps / n;
+        let at = |k: u64| Duration::from_secs_f64(k as f64 * self.dt).as_secs_f64();
+        (cycle, at(cycle * n), at(cycle * n + n - 1))
     }
 
     /// One integration step.
@@ -645,7 +673,7 @@ impl Plant {
             self.out_fresh = prev_fresh;
         }
         let h = &self.cfg.housing;
-        self.theta_h = h.target_c + (self.theta_h - h.target_c) * (-self.dt / h.tau_s).exp();
+        self.theta_h = h.target_c + (self.theta_h - h.target_c) * self.housing_decay;
         self.steps += 1;
         self.stats.steps += 1;
     }

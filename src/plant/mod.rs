@@ -28,7 +28,7 @@ pub mod hooks;
 pub mod noise;
 pub mod profile;
 
-pub use self::config::{Mode, PlantConfig};
+pub use self::config::{Mode, PlantConfig, StepPolicy};
 pub use self::core::{CycleMessages, OutFrame, Output, Plant, PlantStats, Truth};
 pub use self::faults::{Fault, FaultKind};
 pub use self::profile::{RigProfile, Scenario};

@@ -67,6 +67,12 @@ impl Table {
         self.v[i] + f * (self.v[j] - self.v[i])
     }
 
+    /// True when the table holds one value over [a, b] (a ≤ b), by [`Self::linear`] and by
+    /// [`Self::held`]: no point in (a, b] and the same value at both ends.
+    pub fn constant_over(&self, a: f64, b: f64) -> bool {
+        self.upto(a) == self.upto(b) && self.linear(a) == self.linear(b)
+    }
+
     /// The value of the last point at or before `x` (the first value before the first point).
     pub fn held(&self, x: f64) -> f64 {
         let j = self.upto(x);
@@ -277,6 +283,13 @@ impl Scenario {
     }
 
     /// The driver's inputs at time `t_s`.
+    /// True when the driver does the same thing over [a, b] (see [`Table::constant_over`]).
+    pub fn constant_over(&self, a: f64, b: f64) -> bool {
+        [&self.pedal_pct, &self.brake, &self.lever, &self.grade_pct]
+            .iter()
+            .all(|t| t.constant_over(a, b))
+    }
+
     pub fn sample(&self, t_s: f64) -> DriverSample {
         let code = self.lever.held(t_s).round().clamp(0.0, 3.0) as u64;
         DriverSample {
@@ -285,6 +298,40 @@ impl Scenario {
             lever: GearLever::from_raw(code).unwrap_or_default(),
             grade: self.grade_pct.linear(t_s) / 100.0,
         }
+    }
+}
+
+/// A [`Scenario`] sampled at the steps of bus cycles: a cycle over which the driver holds still
+/// ([`Scenario::constant_over`]) is sampled once; the samples are those of
+/// [`Scenario::sample`], bit for bit.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CycleSampler {
+    /// The cycle (index) the held sample belongs to, and the sample when the cycle is constant.
+    cycle: Option<(u64, Option<DriverSample>)>,
+}
+
+impl CycleSampler {
+    /// The driver at `t_s`, in cycle `cycle` spanning `[start_s, last_s]` (its first and last
+    /// step).
+    pub fn sample(
+        &mut self,
+        sc: &Scenario,
+        t_s: f64,
+        cycle: u64,
+        start_s: f64,
+        last_s: f64,
+    ) -> DriverSample {
+        let held = match self.cycle {
+            Some((c, held)) if c == cycle => held,
+            _ => {
+                let held = sc
+                    .constant_over(start_s, last_s)
+                    .then(|| sc.sample(start_s));
+                self.cycle = Some((cycle, held));
+                held
+            }
+        };
+        held.unwrap_or_else(|| sc.sample(t_s))
     }
 }
 
@@ -430,6 +477,69 @@ impl RigProfile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cycle sampler gives every step of every cycle the scenario's own sample, bit for bit.
+    #[test]
+    fn cycle_sampler_is_the_scenario_sampled_at_every_step() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        // Steps, ramps, a grade and knots off the 1 ms grid.
+        let steps_and_ramps = "t_s = [0.0, 0.5, 1.0, 1.0, 2.0034, 3.5, 3.5, 4.0]\n\
+            pedal_pct = [0.0, 0.0, 0.0, 60.0, 60.0, 10.0, 0.0, 0.0]\n\
+            brake = [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.35, 0.35]\n\
+            lever = [\"N\", \"D\", \"D\", \"D\", \"D\", \"D\", \"D\", \"R\"]\n\
+            grade_pct = [0.0, 0.0, 0.0, 0.0, 5.0, 5.0, 5.0, 0.0]\n";
+        let scenarios = [
+            (
+                "driver_launch",
+                Scenario::load(&root.join("config/scenarios/driver_launch.toml")).unwrap(),
+            ),
+            (
+                "steps_and_ramps",
+                Scenario::from_toml_str(Path::new("s.toml"), steps_and_ramps).unwrap(),
+            ),
+        ];
+        for (name, sc) in scenarios {
+            let mut cs = CycleSampler::default();
+            let (dt, n) = (1e-3, 10u64);
+            let steps = (sc.duration_s / dt) as u64 + 20;
+            for k in 0..steps {
+                let cycle = k / n;
+                let (t, a, b) = (
+                    k as f64 * dt,
+                    (cycle * n) as f64 * dt,
+                    (cycle * n + n - 1) as f64 * dt,
+                );
+                let want = sc.sample(t);
+                let got = cs.sample(&sc, t, cycle, a, b);
+                assert!(
+                    want.pedal.to_bits() == got.pedal.to_bits()
+                        && want.brake.to_bits() == got.brake.to_bits()
+                        && want.grade.to_bits() == got.grade.to_bits()
+                        && want.lever == got.lever,
+                    "{name} at {t} s: {got:?} against {want:?}"
+                );
+            }
+        }
+    }
+
+    /// Constant over an interval: inside a flat segment, before the first and after the last
+    /// point; not across a point (even between equal values), not on a slope.
+    #[test]
+    fn constant_over_flat_segments_only() {
+        let t = Table::new(vec![0.0, 1.0, 2.0, 2.0], vec![5.0, 5.0, 7.0, 1.0]).unwrap();
+        assert!(t.constant_over(0.2, 0.9));
+        assert!(t.constant_over(-2.0, -1.0));
+        assert!(t.constant_over(2.5, 4.0));
+        assert!(t.constant_over(0.3, 0.3));
+        assert!(!t.constant_over(0.5, 1.0));
+        assert!(!t.constant_over(1.2, 1.5));
+        assert!(!t.constant_over(1.9, 2.5));
+        let tt = &t;
+        let values =
+            |a: f64, b: f64| (0..=100).map(move |k| tt.linear(a + (b - a) * k as f64 / 100.0));
+        assert!(values(0.2, 0.9).all(|v| v == 5.0));
+        assert!(values(1.2, 1.5).any(|v| v != t.linear(1.2)));
+    }
 
     #[test]
     fn table_linear_held_and_steps() {
