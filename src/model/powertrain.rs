@@ -687,6 +687,8 @@ impl<H: Hooks> Powertrain<H> {
     }
 
     /// Break-away: a locked clutch whose needed torque exceeds its static capacity slips.
+    /// Returns the forces at the final `s` when it computed them (a clutch still locked), for the
+    /// step's first RK4 stage.
     fn check_breakaway(
         &self,
         s: &mut State,
@@ -694,12 +696,13 @@ impl<H: Hooks> Powertrain<H> {
         grade_nm: f64,
         fz: &mut Option<Frozen>,
         rep: &mut StepReport,
-    ) {
+    ) -> Option<Forces> {
         for _ in 0..2 {
             if !s.locked(0) && !s.locked(1) {
-                return;
+                return None;
             }
-            let out = self.outputs_from(&self.forces(&self.frozen_at(s, grade_nm, fz), s, u));
+            let fc = self.forces(&self.frozen_at(s, grade_nm, fz), s, u);
+            let out = self.outputs_from(&fc);
             let mut changed = false;
             for i in 0..2 {
                 let (need, cap) = if i == 0 {
@@ -716,9 +719,10 @@ impl<H: Hooks> Powertrain<H> {
                 }
             }
             if !changed {
-                break;
+                return Some(fc);
             }
         }
+        None
     }
 
     /// Advances the state by `dt` seconds with the inputs held: gear events and break-away at the
@@ -740,11 +744,14 @@ impl<H: Hooks> Powertrain<H> {
         // The groups of the links, rebuilt only when an event changes them.
         let mut last = None;
         let grade_nm = self.grade_torque(u);
-        self.check_breakaway(s, u, grade_nm, &mut last, &mut rep);
+        // The forces at the step's start, when the break-away check computed them and nothing
+        // changed the state since: RK4's first stage reuses them (the same numbers).
+        let mut start = self.check_breakaway(s, u, grade_nm, &mut last, &mut rep);
         // A slipping clutch sitting exactly at zero slip may lock at once.
         for i in 0..2 {
             if !s.locked(i) && s.slip(i) == 0.0 && self.try_lock(s, u, i) {
                 rep.locked[i] = true;
+                start = None;
             }
         }
         let max_events = self.p.integrator.max_events_per_step as u32;
@@ -756,7 +763,10 @@ impl<H: Hooks> Powertrain<H> {
             // (the slip rates for event location) is RK4's first stage.
             let fz = self.frozen_at(&s0, grade_nm, &mut last);
             let f = |x: &State| self.derivative_in(&fz, x, u);
-            let d0 = f(&s0);
+            let d0 = match start.take() {
+                Some(fc) => self.derivative_from(&s0, u, &fc),
+                None => f(&s0),
+            };
             let s1 = rk4_step_from(&s0, &d0, h_left, f);
             // Earliest predicted zero crossing of a slipping clutch: from the RK4 end point
             // (sign change) or from the slip rate at the start (the cube-root friction makes

@@ -18,11 +18,13 @@
 //!    slip crossing; the gear shafts unchanged and not synchronising; every clutch either locked
 //!    at both ends with its torque within the static capacity at the end, or without capacity at
 //!    both ends (the actuator moves monotonically towards a constant request, so it is open in
-//!    between too); a finite state.
+//!    between too); the road load not stiff for the step, or the vehicle at rest at both ends;
+//!    a finite state.
 //!
 //! Otherwise the cycle is integrated at the 1 ms step, exactly as with `step = "fixed"`. The
-//! accuracy against the fixed step is tested on the bench's scenarios in `tests/plant.rs`
-//! (lock-up times, peak clutch torques, shift durations).
+//! accuracy against the fixed step is tested on the bench's scenarios in `tests/tcu.rs`: on the
+//! same TCU commands (lock-ups, break-aways and gear engagements within one cycle, peak clutch
+//! torques within 0.5 %) and in closed loop (the same launches, shifts and verdicts).
 
 use super::{finite, Latched, Plant};
 use crate::model::driveline::{load_stiffness, OUT};
@@ -33,6 +35,13 @@ use std::time::Duration;
 /// Largest λ·h of the road load's mode for a step over the cycle: well inside classical RK4's
 /// stability interval (λh ≤ 2.79), where its error per step is below 3·10⁻⁴ of the mode.
 const MAX_LOAD_STIFFNESS_H: f64 = 0.5;
+
+/// Output speed (rad/s) taken as at rest for [`Plant::load_not_stiff`]: a vehicle held by the
+/// brake decays towards exactly zero; at the stiffest load (full brake, RK4's amplification of
+/// about 40 over a 10 ms step) a cycle that starts below this ends below 4·10⁻⁸ rad/s, and the next
+/// cycle that would leave it is taken at 1 ms — ten million times below the speed sensor's
+/// resolution (0.5 rpm).
+const REST_RADPS: f64 = 1e-9;
 
 impl Plant {
     /// Integrates the bus cycle starting now in one step when it is quiet (see the module
@@ -131,14 +140,16 @@ impl Plant {
     /// The road load is not stiff for one step over the cycle: at both ends (on the same side of
     /// standstill, the stiffness falling monotonically with the speed) the load's stiffness over
     /// the output's inertia alone (the least any rigid group has) times the step is at most
-    /// [`MAX_LOAD_STIFFNESS_H`].
+    /// [`MAX_LOAD_STIFFNESS_H`]. Or the output is at rest at both ends (within [`REST_RADPS`]):
+    /// a vehicle held by the brake, whose stiff mode the step does not excite.
     fn load_not_stiff(&self, u: &Inputs, s: &State) -> bool {
         let p = &self.pt.p.driveline;
         let h = self.steps_per_cycle as f64 * self.dt;
         let j = self.pt.inertias()[OUT];
         let ok = |w: f64| load_stiffness(p, w, u.brake) / j * h <= MAX_LOAD_STIFFNESS_H;
         let (w0, w1) = (self.s.w_out, s.w_out);
-        w0 * w1 > 0.0 && ok(w0) && ok(w1)
+        let at_rest = |w: f64| w.abs() <= REST_RADPS;
+        (at_rest(w0) && at_rest(w1)) || (w0 * w1 > 0.0 && ok(w0) && ok(w1))
     }
 }
 
