@@ -773,8 +773,11 @@ impl Plant {
             ),
         };
         // The driver at this instant (the last step used the one of its start).
+        let (cycle, first, last) = self.cycle_span();
         let driver = match (&self.cfg.mode, &self.cfg.scenario) {
-            (Mode::Vehicle, Some(sc)) => sc.sample(t.as_secs_f64()),
+            (Mode::Vehicle, Some(sc)) => {
+                self.sampler.sample(sc, t.as_secs_f64(), cycle, first, last)
+            }
             _ => self.driver,
         };
         let vehicle = BenchVehicle {

@@ -333,6 +333,14 @@ impl CycleSampler {
         };
         held.unwrap_or_else(|| sc.sample(t_s))
     }
+
+    /// Whether the driver holds still over cycle `cycle`, when the sampler has looked at it.
+    pub fn holds(&self, cycle: u64) -> Option<bool> {
+        match self.cycle {
+            Some((c, held)) if c == cycle => Some(held.is_some()),
+            _ => None,
+        }
+    }
 }
 
 /// The rig experiment of the paper's Sect. 3.3: after `start_s`, `count` partial engagements of

@@ -97,7 +97,10 @@ impl Plant {
         let limit = super::CYCLE * self.cfg.inputs.timeout_cycles;
         let l = &self.latch;
         let driver = match &self.cfg.scenario {
-            Some(sc) => sc.constant_over(t0.as_secs_f64(), t_last.as_secs_f64()),
+            Some(sc) => match self.sampler.holds(self.steps / self.steps_per_cycle) {
+                Some(held) => held,
+                None => sc.constant_over(t0.as_secs_f64(), t_last.as_secs_f64()),
+            },
             None => keeps_freshness(&l.pedal, t_last, limit),
         };
         driver
