@@ -426,13 +426,14 @@ impl InputMonitor {
             let c = &self.ch[input.index()];
             let reference = c.last_valid.unwrap_or(self.start);
             let limit = input.cycle() * self.cfg.timeout_cycles;
+            let window = self.senders[input.index()].window(now, input.cycle());
             // A second sender makes the input's values untrustworthy: as good as missing.
-            let second = self.second_sender(input, now);
+            let second = window.evident();
             if second && spoofed.is_none() {
                 spoofed = Some(input);
             }
             // So does a flood of corrupted frames beside the real sender's valid ones.
-            let flooded = self.flooded(input, now);
+            let flooded = window.flooded();
             if flooded && !second && spoofed.is_none() && flood.is_none() {
                 flood = Some(input);
             }

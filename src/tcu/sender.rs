@@ -75,35 +75,57 @@ impl SenderMonitor {
         self.frames.push_back((at, kind));
     }
 
-    /// Frames in the window at `now` that `counted` admits, and how many of them are `marked`.
-    fn count(
-        &self,
-        now: Duration,
-        cycle: Duration,
-        counted: impl Fn(Kind) -> bool,
-        marked: Kind,
-    ) -> (usize, usize) {
-        let window = cycle * WINDOW_CYCLES;
-        self.frames
-            .iter()
-            .filter(|(t, k)| now.saturating_sub(*t) < window && counted(*k))
-            .fold((0, 0), |(n, m), (_, k)| {
-                (n + 1, m + usize::from(*k == marked))
-            })
-    }
-
     /// Whether the id is flooded with corrupted frames at `now`: more frames than a sender's
     /// cycle allows in the window, of which at least [`MIN_COUNTER_ERRORS`] failed the CRC.
     pub fn flooded(&self, now: Duration, cycle: Duration) -> bool {
-        let (n, bad) = self.count(now, cycle, |_| true, Kind::BadCrc);
-        bad >= MIN_COUNTER_ERRORS && n >= MIN_FRAMES_PER_WINDOW
+        self.window(now, cycle).flooded()
     }
 
     /// Whether a second sender is evident at `now`: more CRC-valid frames than one sender's
     /// cycle allows, of which at least [`MIN_COUNTER_ERRORS`] broke the counter sequence.
     pub fn evident(&self, now: Duration, cycle: Duration) -> bool {
-        let (n, errors) = self.count(now, cycle, |k| k != Kind::BadCrc, Kind::CounterError);
-        n >= MIN_FRAMES_PER_WINDOW && errors >= MIN_COUNTER_ERRORS
+        self.window(now, cycle).evident()
+    }
+
+    /// The frames in the window at `now` by how they passed, in one pass (both conditions of a
+    /// cycle's health check read it).
+    pub fn window(&self, now: Duration, cycle: Duration) -> Window {
+        let window = cycle * WINDOW_CYCLES;
+        let mut w = Window::default();
+        for (t, k) in &self.frames {
+            if now.saturating_sub(*t) < window {
+                match k {
+                    Kind::Valid => w.valid += 1,
+                    Kind::CounterError => w.counter_errors += 1,
+                    Kind::BadCrc => w.bad_crc += 1,
+                }
+            }
+        }
+        w
+    }
+}
+
+/// The frames of an id within the window, by how they passed the E2E check.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Window {
+    valid: usize,
+    counter_errors: usize,
+    bad_crc: usize,
+}
+
+impl Window {
+    /// A flood of corrupted frames: at least [`MIN_FRAMES_PER_WINDOW`] frames in all, of which at
+    /// least [`MIN_COUNTER_ERRORS`] failed the CRC.
+    pub fn flooded(&self) -> bool {
+        let n = self.valid + self.counter_errors + self.bad_crc;
+        self.bad_crc >= MIN_COUNTER_ERRORS && n >= MIN_FRAMES_PER_WINDOW
+    }
+
+    /// A second sender: at least [`MIN_FRAMES_PER_WINDOW`] CRC-valid frames, of which at least
+    /// [`MIN_COUNTER_ERRORS`] broke the counter sequence.
+    pub fn evident(&self) -> bool {
+        let n = self.valid + self.counter_errors;
+        n >= MIN_FRAMES_PER_WINDOW && self.counter_errors >= MIN_COUNTER_ERRORS
     }
 }
 

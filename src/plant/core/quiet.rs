@@ -2,9 +2,10 @@
 //! (13)–(20) is unchanged, only its integration).
 //!
 //! The stiff parts of the plant are the stick/slip events of the clutches (13) at lock-up and
-//! break-away, the synchronisers and the actuator lag while an engagement is under way; they need
-//! the 1 ms step. In between — a clutch locked and carrying its torque, or open below its kiss
-//! point, no gear moving, the requests constant over the cycle (the TCU's commands change only at
+//! break-away with the cube-root friction near zero slip, the synchronisers, and the road load's
+//! regularised friction near standstill; they need the 1 ms step. In between — a clutch locked
+//! and carrying its torque, open below its kiss point, or slipping far from lock-up, no gear
+//! moving, the requests constant over the cycle (the TCU's commands change only at
 //! cycle boundaries, the driver's table is flat) — what moves is smooth and slow (the rigid
 //! engine–vehicle body, the engine lag and idle governor, the actuators settling, the thermal
 //! network (16)), and one RK4 step of the whole 10 ms cycle follows it closely.
@@ -18,7 +19,8 @@
 //!    slip crossing; the gear shafts unchanged and not synchronising; every clutch either locked
 //!    at both ends with its torque within the static capacity at the end, or without capacity at
 //!    both ends (the actuator moves monotonically towards a constant request, so it is open in
-//!    between too); the road load not stiff for the step, or the vehicle at rest at both ends;
+//!    between too), or slipping far from lock-up at both ends with the same sign and a friction
+//!    that is not stiff for the step (`slip_not_stiff`); the road load not stiff for the step, or the vehicle at rest at both ends;
 //!    a finite state.
 //!
 //! Otherwise the cycle is integrated at the 1 ms step, exactly as with `step = "fixed"`. The
@@ -27,7 +29,7 @@
 //! torques within 0.5 %) and in closed loop (the same launches, shifts and verdicts).
 
 use super::{finite, Latched, Plant};
-use crate::model::driveline::{load_stiffness, OUT};
+use crate::model::driveline::{load_stiffness, C1, F, OUT};
 use crate::model::powertrain::{Hooks, Inputs, Outputs, State, StepReport};
 use crate::plant::config::{Mode, StepPolicy};
 use std::time::Duration;
@@ -35,6 +37,13 @@ use std::time::Duration;
 /// Largest λ·h of the road load's mode for a step over the cycle: well inside classical RK4's
 /// stability interval (λh ≤ 2.79), where its error per step is below 3·10⁻⁴ of the mode.
 const MAX_LOAD_STIFFNESS_H: f64 = 0.5;
+
+/// Slip (rad/s) below which a slipping clutch always takes the 1 ms step (lock-up and its
+/// cube-root friction near zero slip).
+const MIN_SLIP_RADPS: f64 = 20.0;
+
+/// Largest λ·h of a slipping clutch's slip mode for a step over the cycle (as the road load's).
+const MAX_SLIP_STIFFNESS_H: f64 = 0.5;
 
 /// Output speed (rad/s) taken as at rest for [`Plant::load_not_stiff`]: a vehicle held by the
 /// brake decays towards exactly zero; at the stiffest load (full brake, RK4's amplification of
@@ -133,11 +142,38 @@ impl Plant {
             };
             match (s0.locked(i), s.locked(i)) {
                 (true, true) => need.abs() <= cap1,
-                (false, false) => cap0 == 0.0 && cap1 == 0.0,
+                (false, false) => {
+                    (cap0 == 0.0 && cap1 == 0.0)
+                        || (self.slip_not_stiff(i, s0) && self.slip_not_stiff(i, s))
+                }
                 _ => false,
             }
         };
         no_event && gears && clutch(0) && clutch(1) && finite(s) && self.load_not_stiff(u, s)
+    }
+
+    /// A slipping clutch whose friction is not stiff for one step over the cycle at state `s`:
+    /// far from lock-up (|slip| ≥ [`MIN_SLIP_RADPS`]), where ∂T/∂ω_slip (central difference of
+    /// the clutch torque) over the flywheel's and the disk's inertias alone times the step is at
+    /// most [`MAX_SLIP_STIFFNESS_H`]. With the same slip sign at both ends (the step's event
+    /// locator finds no crossing), the slip stays away from zero in between.
+    fn slip_not_stiff(&self, i: usize, s: &State) -> bool {
+        let ctx = self.pt.clutch_context(s, i);
+        let w = ctx.slip_radps;
+        if w.abs() < MIN_SLIP_RADPS || w * self.s.slip(i) <= 0.0 {
+            return false;
+        }
+        let c = &self.pt.p.clutch;
+        let d = 1e-3 * w.abs();
+        let at = |slip: f64| {
+            let mut x = ctx;
+            x.slip_radps = slip;
+            self.pt.hooks.clutch_torque(c, &x)
+        };
+        let dtdw = ((at(w + d) - at(w - d)) / (2.0 * d)).abs();
+        let j = self.pt.inertias();
+        let h = self.steps_per_cycle as f64 * self.dt;
+        dtdw * (1.0 / j[F] + 1.0 / j[C1 + i]) * h <= MAX_SLIP_STIFFNESS_H
     }
 
     /// The road load is not stiff for one step over the cycle: at both ends (on the same side of
