@@ -618,7 +618,7 @@ fn predict_inner(
     if (0..3).any(|j| want(Channel::Temp(j))) {
         // The temperatures are read at every `stride`-th sample: the replay steps by it.
         let stride = s.temp_stride;
-        let tr = replay::thermal_replay_every(p, &h, m, stride);
+        let tr = super::windows::thermal_replay_fast(p, &h, m, stride);
         for j in 0..3 {
             let c = Channel::Temp(j);
             if !want(c) {

@@ -30,3 +30,4 @@ pub mod stats;
 pub mod synth;
 pub mod terms;
 pub mod where_;
+pub mod windows;
