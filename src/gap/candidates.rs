@@ -450,7 +450,7 @@ impl ReplayKey {
         let t = &model.terms;
         ReplayKey {
             heat: HeatKey {
-                thermal: disk::thermal_params(&model.p.thermal5),
+                thermal: disk::thermal_params(&model.p.thermal5, t.partition.is_some()),
                 set: model.set.only(&effects::HEAT_EFFECTS),
                 terms: Terms {
                     support: t.support,

@@ -27,11 +27,12 @@ pub struct DiskRun {
 }
 
 /// The thermal parameters a disk replay reads: α4…α7 of (16c)/(16d), and α3 through the heat
-/// partition term; α1, α2, α8 and α9 act on the plates and the central disk, which the replay
-/// takes as measured (a test checks the list against the replay under every thermal term).
-pub fn thermal_params(a: &ThermalParams5) -> [f64; 5] {
+/// partition term when there is one (`partition`; 0 in its place when not); α1, α2, α8 and α9
+/// act on the plates and the central disk, which the replay takes as measured (a test checks the
+/// list against the replay under every thermal term, with and without the partition).
+pub fn thermal_params(a: &ThermalParams5, partition: bool) -> [f64; 5] {
     [
-        a.alpha3_k_per_j,
+        if partition { a.alpha3_k_per_j } else { 0.0 },
         a.alpha4_per_s,
         a.alpha5_per_s,
         a.alpha6_per_s,
@@ -223,8 +224,9 @@ mod tests {
         assert_eq!(bits(&resumed), bits(&run(&p, &wear, &m)));
     }
 
-    /// Each thermal parameter moved by 20 %, under the support, convection and partition
-    /// terms: the disk replay moves exactly when the parameter is one of [`thermal_params`].
+    /// Each thermal parameter moved by 20 %, under the support and convection terms with and
+    /// without the partition term: the disk replay moves exactly when the parameter is one of
+    /// [`thermal_params`].
     #[test]
     fn the_replay_reads_exactly_its_thermal_params() {
         use crate::gap::shape::Shape;
@@ -239,41 +241,44 @@ mod tests {
                 v: std::array::from_fn(|j| v * j as f64 / 6.0),
             }
         };
-        let hooks = |a: ThermalParams5| {
-            crate::gap::candidates::SetHooks(
-                EffectSet::nominal(),
-                Some(ThermalTerms {
-                    a,
-                    support: Some(Support {
-                        shape: shape(0.0, 200.0, 0.02),
-                        w_pp: 0.5,
-                        w_cd: 0.5,
+        for partition in [true, false] {
+            let hooks = |a: ThermalParams5| {
+                crate::gap::candidates::SetHooks(
+                    EffectSet::nominal(),
+                    Some(ThermalTerms {
+                        a,
+                        support: Some(Support {
+                            shape: shape(0.0, 200.0, 0.02),
+                            w_pp: 0.5,
+                            w_cd: 0.5,
+                        }),
+                        convection: Some(Convection {
+                            shape: shape(0.0, 400.0, 0.5),
+                        }),
+                        partition: partition.then_some(Partition {
+                            shape: shape(0.0, 20000.0, 0.3),
+                            w_c: 1.5,
+                        }),
                     }),
-                    convection: Some(Convection {
-                        shape: shape(0.0, 400.0, 0.5),
-                    }),
-                    partition: Some(Partition {
-                        shape: shape(0.0, 20000.0, 0.3),
-                        w_c: 1.5,
-                    }),
-                }),
-            )
-        };
-        let base = bits(&run(&p, &hooks(p.thermal5), &m));
-        let table = toml::Table::try_from(p.thermal5).unwrap();
-        for key in table.keys() {
-            let mut t = table.clone();
-            let v = t[key].as_float().unwrap();
-            t[key] = toml::Value::Float(if v == 0.0 { 0.01 } else { v * 1.2 });
-            let a: ThermalParams5 = t.try_into().unwrap();
-            let mut q = p;
-            q.thermal5 = a;
-            let moved = bits(&run(&q, &hooks(a), &m)) != base;
-            let listed = thermal_params(&a) != thermal_params(&p.thermal5);
-            assert_eq!(
-                moved, listed,
-                "{key}: the replay moved {moved}, listed {listed}"
-            );
+                )
+            };
+            let base = bits(&run(&p, &hooks(p.thermal5), &m));
+            let table = toml::Table::try_from(p.thermal5).unwrap();
+            for key in table.keys() {
+                let mut t = table.clone();
+                let v = t[key].as_float().unwrap();
+                t[key] = toml::Value::Float(if v == 0.0 { 0.01 } else { v * 1.2 });
+                let a: ThermalParams5 = t.try_into().unwrap();
+                let mut q = p;
+                q.thermal5 = a;
+                let moved = bits(&run(&q, &hooks(a), &m)) != base;
+                let listed =
+                    thermal_params(&a, partition) != thermal_params(&p.thermal5, partition);
+                assert_eq!(
+                    moved, listed,
+                    "{key} (partition {partition}): the replay moved {moved}, listed {listed}"
+                );
+            }
         }
     }
 }
