@@ -44,6 +44,18 @@ impl SetHooks {
     }
 }
 
+impl SetHooks {
+    /// [`disk::Heat::Zero`] when the hooks' extra heat is zero in every state: no heat effect
+    /// ([`effects::HEAT_EFFECTS`]) and no thermal term.
+    pub fn heat(&self) -> disk::Heat {
+        if self.0.only(&effects::HEAT_EFFECTS).is_nominal() && self.1.is_none() {
+            disk::Heat::Zero
+        } else {
+            disk::Heat::Hooks
+        }
+    }
+}
+
 fn torque_context(c: &ClutchContext) -> TorqueContext {
     TorqueContext {
         x_to_mm: c.x_to_mm,
@@ -504,8 +516,8 @@ fn recall_disk<'a>(
     recall(memo, key, |kept| {
         let h = SetHooks::of(model);
         match kept.iter().find(|(k, _)| k.heat == key.heat) {
-            Some((_, near)) => disk::rerun_engagement(&model.p, &h, m, near),
-            None => disk::run(&model.p, &h, m),
+            Some((_, near)) => disk::rerun_engagement(&model.p, &h, m, near, h.heat()),
+            None => disk::run_with(&model.p, &h, m, h.heat()),
         }
     })
 }

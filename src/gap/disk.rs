@@ -40,6 +40,16 @@ pub fn thermal_params(a: &ThermalParams5, partition: bool) -> [f64; 5] {
     ]
 }
 
+/// Whether a replay asks the hooks for their extra heat of (16) at every step, or the caller
+/// knows it to be exactly zero in every state (no heat effect, no thermal term): the replay then
+/// adds zero without the call — the same numbers, and a step's dependency chain without a call
+/// on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Heat {
+    Hooks,
+    Zero,
+}
+
 /// [`run`]'s temperatures.
 pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec<f64>; 2] {
     Arc::unwrap_or_clone(run(p, h, m).theta)
@@ -47,6 +57,11 @@ pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec
 
 /// The disk replay of the whole record from the measured start.
 pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
+    run_with(p, h, m, Heat::Hooks)
+}
+
+/// [`run`], the extra heat as `heat` says.
+pub fn run_with<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured, heat: Heat) -> DiskRun {
     let s0 = m.thermal_at(0);
     let mut theta = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
     let mut beta = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
@@ -54,7 +69,7 @@ pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
         theta[0].push(s0.c1);
         theta[1].push(s0.c2);
     }
-    extend(p, h, m, &mut theta, &mut beta);
+    extend(p, h, m, heat, &mut theta, &mut beta);
     DiskRun {
         theta: Arc::new(theta),
         beta: Arc::new(beta),
@@ -63,12 +78,14 @@ pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
 
 /// The disk replay of a model that differs from the one of `reference` only in what β reads
 /// (the clutch's engagement parameters, the engagement effects): the reference's samples up to
-/// the first step whose β changes, replayed from there. Equal to [`run`] of the model.
+/// the first step whose β changes, replayed from there (the extra heat as `heat` says). Equal
+/// to [`run`] of the model.
 pub fn rerun_engagement<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
     m: &Measured,
     reference: &DiskRun,
+    heat: Heat,
 ) -> DiskRun {
     let k = first_change(p, h, m, reference);
     if k == reference.beta[0].len() {
@@ -76,7 +93,7 @@ pub fn rerun_engagement<H: Hooks + ?Sized>(
     }
     let mut theta = [0, 1].map(|i| reference.theta[i][..=k].to_vec());
     let mut beta = [0, 1].map(|i| reference.beta[i][..k].to_vec());
-    extend(p, h, m, &mut theta, &mut beta);
+    extend(p, h, m, heat, &mut theta, &mut beta);
     DiskRun {
         theta: Arc::new(theta),
         beta: Arc::new(beta),
@@ -106,9 +123,13 @@ fn extend<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
     m: &Measured,
+    heat: Heat,
     theta: &mut [Vec<f64>; 2],
     beta_out: &mut [Vec<f64>; 2],
 ) {
+    if heat == Heat::Zero {
+        return extend_zero_heat(p, h, m, theta, beta_out);
+    }
     let a = &p.thermal5;
     let n = m.n;
     let Some(k0) = theta[0].len().checked_sub(1) else {
@@ -130,7 +151,12 @@ fn extend<H: Hooks + ?Sized>(
         let pp_m = [mid(pp[0]), mid(pp[1])];
         // Not clamped at zero: sensor noise on an open clutch must average out, not heat.
         let pw_m = [mid(pw[0]), mid(pw[1])];
-        let beta = [0, 1].map(|i| h.clutch_beta(&p.clutch, &span.context(i, k, c[i])));
+        // Written out, not `[0, 1].map(…)`: the array map's closure is not inlined, a call per
+        // step on the step's dependency chain.
+        let beta = [
+            h.clutch_beta(&p.clutch, &span.context(0, k, c[0])),
+            h.clutch_beta(&p.clutch, &span.context(1, k, c[1])),
+        ];
         let state = Thermal5State {
             pp1: pp_m[0],
             pp2: pp_m[1],
@@ -172,6 +198,70 @@ fn extend<H: Hooks + ?Sized>(
     }
 }
 
+/// [`extend`] for hooks without extra heat ([`Heat::Zero`]), the same numbers: a step's rate
+/// λ, its decay and the equilibrium g/λ are worked out for both values of β before the step's β
+/// is known, which takes the division off the chain from one sample's temperature to the next
+/// (a β other than 0 or 1 from other hooks takes the step as [`extend`] writes it).
+fn extend_zero_heat<H: Hooks + ?Sized>(
+    p: &Params,
+    h: &H,
+    m: &Measured,
+    theta: &mut [Vec<f64>; 2],
+    beta_out: &mut [Vec<f64>; 2],
+) {
+    let a = &p.thermal5;
+    let n = m.n;
+    let Some(k0) = theta[0].len().checked_sub(1) else {
+        return;
+    };
+    let mut c = [theta[0][k0], theta[1][k0]];
+    let lam_of = |b: f64| a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
+    // [`extend`]'s g with the extra heat 0.0 (what the hooks' extra heat is).
+    let g_of = |b: f64, pp: f64, cd: f64, th: f64, pw: f64| {
+        a.alpha4_per_s * b * pp
+            + a.alpha5_per_s * b * cd
+            + a.alpha6_per_s * (1.0 - b) * th
+            + a.alpha7_k_per_j * pw
+            + 0.0
+    };
+    let step = |c: f64, b: f64, g: f64| {
+        let lam = lam_of(b);
+        if lam * m.dt > 1e-9 {
+            let inf = g / lam;
+            inf + (c - inf) * (-lam * m.dt).exp()
+        } else {
+            c + (g - lam * c) * m.dt
+        }
+    };
+    let lam = [lam_of(0.0), lam_of(1.0)];
+    let decay = lam.map(|l| (-l * m.dt).exp());
+    let exact = lam.map(|l| l * m.dt > 1e-9);
+    let span = m.span(0, n);
+    let (th, cd) = (&m.th[..n], &m.cd[..n]);
+    let (pp, pw) = (
+        [&m.pp[0][..n], &m.pp[1][..n]],
+        [&m.power[0][..n], &m.power[1][..n]],
+    );
+    for k in k0..n - 1 {
+        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+        let (th_m, cd_m) = (mid(th), mid(cd));
+        for i in 0..2 {
+            let (pp_m, pw_m) = (mid(pp[i]), mid(pw[i]));
+            let g = [0.0, 1.0].map(|b| g_of(b, pp_m, cd_m, th_m, pw_m));
+            let inf = [g[0] / lam[0], g[1] / lam[1]];
+            let b = h.clutch_beta(&p.clutch, &span.context(i, k, c[i]));
+            let j = usize::from(b == 1.0);
+            c[i] = if (b == 0.0 || b == 1.0) && exact[j] {
+                inf[j] + (c[i] - inf[j]) * decay[j]
+            } else {
+                step(c[i], b, g_of(b, pp_m, cd_m, th_m, pw_m))
+            };
+            theta[i].push(c[i]);
+            beta_out[i].push(b);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,7 +291,13 @@ mod tests {
         let tiny = moved(&|q| q.clutch.x_isp0_mm *= 1.0 + 1e-9);
         assert_eq!(first_change(&tiny, &Nominal, &m, &reference), m.n - 1);
         assert_eq!(
-            bits(&rerun_engagement(&tiny, &Nominal, &m, &reference)),
+            bits(&rerun_engagement(
+                &tiny,
+                &Nominal,
+                &m,
+                &reference,
+                Heat::Hooks
+            )),
             bits(&reference)
         );
         for q in [
@@ -211,7 +307,7 @@ mod tests {
         ] {
             let k = first_change(&q, &Nominal, &m, &reference);
             assert!(k < m.n - 1, "β changes somewhere on this record ({q:?})");
-            let resumed = rerun_engagement(&q, &Nominal, &m, &reference);
+            let resumed = rerun_engagement(&q, &Nominal, &m, &reference, Heat::Hooks);
             assert_eq!(bits(&resumed), bits(&run(&q, &Nominal, &m)));
             assert_ne!(bits(&resumed), bits(&reference));
         }
@@ -220,8 +316,71 @@ mod tests {
             EffectSet::single(EffectId::KissPointWear, &[0.02]).unwrap(),
             None,
         );
-        let resumed = rerun_engagement(&p, &wear, &m, &reference);
+        let resumed = rerun_engagement(&p, &wear, &m, &reference, Heat::Hooks);
         assert_eq!(bits(&resumed), bits(&run(&p, &wear, &m)));
+    }
+
+    /// Hooks without extra heat: the replay that adds zero without asking them ([`Heat::Zero`])
+    /// is the one that asks, bit for bit — from the start and resumed, at moved kiss points,
+    /// under an engagement effect, at a rate λ·dt below the exact update's threshold (the Euler
+    /// step) — and [`SetHooks::heat`](crate::gap::candidates::SetHooks::heat) says `Zero` exactly
+    /// when the hooks' extra heat is zero in every state.
+    #[test]
+    fn a_replay_without_extra_heat_is_the_one_that_asks() {
+        use crate::gap::candidates::SetHooks;
+        use crate::gap::terms::{Partition, ThermalTerms};
+        let p = Params::default();
+        let m = test_record(&p);
+        let moved = |f: &dyn Fn(&mut Params)| {
+            let mut q = p;
+            f(&mut q);
+            q
+        };
+        let wear = EffectSet::single(EffectId::KissPointWear, &[0.02]).unwrap();
+        let pressure = EffectSet::single(EffectId::FrictionPressure, &[0.9]).unwrap();
+        let slow = moved(&|q| q.thermal5.alpha6_per_s = 1e-9);
+        // Each model with the nominal one of the same heat flows, to resume from.
+        for (q, h, r) in [
+            (p, SetHooks::default(), p),
+            (
+                moved(&|q| q.clutch.x_isp0_mm += 0.3),
+                SetHooks::default(),
+                p,
+            ),
+            (p, SetHooks(wear, None), p),
+            (p, SetHooks(pressure, None), p),
+            (slow, SetHooks::default(), slow),
+        ] {
+            assert_eq!(h.heat(), Heat::Zero, "{h:?}");
+            let asks = bits(&run(&q, &h, &m));
+            assert!(
+                bits(&run_with(&q, &h, &m, Heat::Zero)) == asks,
+                "{q:?} {h:?}"
+            );
+            let reference = run(&r, &Nominal, &m);
+            let resumed = rerun_engagement(&q, &h, &m, &reference, Heat::Zero);
+            assert!(bits(&resumed) == asks, "resumed: {q:?} {h:?}");
+        }
+        let support = EffectSet::single(EffectId::SupportConduction, &[0.01]).unwrap();
+        let partition = ThermalTerms {
+            a: p.thermal5,
+            support: None,
+            convection: None,
+            partition: Some(Partition {
+                shape: crate::gap::shape::Shape {
+                    z: std::array::from_fn(|j| j as f64 * 3000.0),
+                    v: [0.2; crate::gap::shape::KNOTS],
+                },
+                w_c: 1.5,
+            }),
+        };
+        for h in [SetHooks(support, None), SetHooks(pressure, Some(partition))] {
+            assert_eq!(h.heat(), Heat::Hooks, "{h:?}");
+            assert_ne!(
+                bits(&run(&p, &h, &m)),
+                bits(&run(&p, &SetHooks::default(), &m))
+            );
+        }
     }
 
     /// Each thermal parameter moved by 20 %, under the support and convection terms with and
