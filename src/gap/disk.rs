@@ -198,10 +198,12 @@ fn extend<H: Hooks + ?Sized>(
     }
 }
 
-/// [`extend`] for hooks without extra heat ([`Heat::Zero`]), the same numbers: a step's rate
-/// λ, its decay and the equilibrium g/λ are worked out for both values of β before the step's β
-/// is known, which takes the division off the chain from one sample's temperature to the next
-/// (a β other than 0 or 1 from other hooks takes the step as [`extend`] writes it).
+/// [`extend`] for hooks without extra heat ([`Heat::Zero`]), the same numbers with a shorter
+/// chain from one sample's temperature to the next: λ and its decay are worked out once for
+/// each value of β, and the step's update takes β's value of the step before unless β has
+/// changed — a branch the processor predicts, so the update does not wait for β, which is
+/// computed beside it (a β other than 0 or 1 from other hooks takes the step as [`extend`]
+/// writes it).
 fn extend_zero_heat<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
@@ -209,6 +211,7 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
     theta: &mut [Vec<f64>; 2],
     beta_out: &mut [Vec<f64>; 2],
 ) {
+    const B: [f64; 3] = [0.0, 1.0, f64::NAN];
     let a = &p.thermal5;
     let n = m.n;
     let Some(k0) = theta[0].len().checked_sub(1) else {
@@ -233,9 +236,11 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
             c + (g - lam * c) * m.dt
         }
     };
-    let lam = [lam_of(0.0), lam_of(1.0)];
-    let decay = lam.map(|l| (-l * m.dt).exp());
-    let exact = lam.map(|l| l * m.dt > 1e-9);
+    let lam = [lam_of(B[0]), lam_of(B[1])];
+    let decay = [(-lam[0] * m.dt).exp(), (-lam[1] * m.dt).exp()];
+    let exact = [lam[0] * m.dt > 1e-9, lam[1] * m.dt > 1e-9];
+    // The index in B of each clutch's β at the step before (2: none yet, or another value).
+    let mut j = [2usize; 2];
     let span = m.span(0, n);
     let (th, cd) = (&m.th[..n], &m.cd[..n]);
     let (pp, pw) = (
@@ -247,18 +252,34 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
         let (th_m, cd_m) = (mid(th), mid(cd));
         for i in 0..2 {
             let (pp_m, pw_m) = (mid(pp[i]), mid(pw[i]));
-            let g = [0.0, 1.0].map(|b| g_of(b, pp_m, cd_m, th_m, pw_m));
-            let inf = [g[0] / lam[0], g[1] / lam[1]];
             let b = h.clutch_beta(&p.clutch, &span.context(i, k, c[i]));
-            let j = usize::from(b == 1.0);
-            c[i] = if (b == 0.0 || b == 1.0) && exact[j] {
-                inf[j] + (c[i] - inf[j]) * decay[j]
+            if b.to_bits() != B[j[i]].to_bits() {
+                j[i] = beta_index(b);
+            }
+            let ji = j[i];
+            c[i] = if ji < 2 && exact[ji] {
+                let inf = g_of(B[ji], pp_m, cd_m, th_m, pw_m) / lam[ji];
+                inf + (c[i] - inf) * decay[ji]
             } else {
                 step(c[i], b, g_of(b, pp_m, cd_m, th_m, pw_m))
             };
             theta[i].push(c[i]);
             beta_out[i].push(b);
         }
+    }
+}
+
+/// The index of `b` in [`extend_zero_heat`]'s values of β (0.0, 1.0, the bits alike; 2 for any
+/// other): out of line, the rare step where β changes.
+#[cold]
+#[inline(never)]
+fn beta_index(b: f64) -> usize {
+    if b.to_bits() == 0.0f64.to_bits() {
+        0
+    } else if b.to_bits() == 1.0f64.to_bits() {
+        1
+    } else {
+        2
     }
 }
 
