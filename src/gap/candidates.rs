@@ -44,6 +44,18 @@ impl SetHooks {
     }
 }
 
+impl SetHooks {
+    /// [`disk::Heat::Zero`] when the hooks' extra heat is zero in every state: no heat effect
+    /// ([`effects::HEAT_EFFECTS`]) and no thermal term.
+    pub fn heat(&self) -> disk::Heat {
+        if self.0.only(&effects::HEAT_EFFECTS).is_nominal() && self.1.is_none() {
+            disk::Heat::Zero
+        } else {
+            disk::Heat::Hooks
+        }
+    }
+}
+
 fn torque_context(c: &ClutchContext) -> TorqueContext {
     TorqueContext {
         x_to_mm: c.x_to_mm,
@@ -450,7 +462,7 @@ impl ReplayKey {
         let t = &model.terms;
         ReplayKey {
             heat: HeatKey {
-                thermal: disk::thermal_params(&model.p.thermal5),
+                thermal: disk::thermal_params(&model.p.thermal5, t.partition.is_some()),
                 set: model.set.only(&effects::HEAT_EFFECTS),
                 terms: Terms {
                     support: t.support,
@@ -504,8 +516,8 @@ fn recall_disk<'a>(
     recall(memo, key, |kept| {
         let h = SetHooks::of(model);
         match kept.iter().find(|(k, _)| k.heat == key.heat) {
-            Some((_, near)) => disk::rerun_engagement(&model.p, &h, m, near),
-            None => disk::run(&model.p, &h, m),
+            Some((_, near)) => disk::rerun_engagement(&model.p, &h, m, near, h.heat()),
+            None => disk::run_with(&model.p, &h, m, h.heat()),
         }
     })
 }
@@ -618,7 +630,7 @@ fn predict_inner(
     if (0..3).any(|j| want(Channel::Temp(j))) {
         // The temperatures are read at every `stride`-th sample: the replay steps by it.
         let stride = s.temp_stride;
-        let tr = replay::thermal_replay_every(p, &h, m, stride);
+        let tr = super::windows::thermal_replay_fast(p, &h, m, stride);
         for j in 0..3 {
             let c = Channel::Temp(j);
             if !want(c) {

@@ -27,16 +27,27 @@ pub struct DiskRun {
 }
 
 /// The thermal parameters a disk replay reads: α4…α7 of (16c)/(16d), and α3 through the heat
-/// partition term; α1, α2, α8 and α9 act on the plates and the central disk, which the replay
-/// takes as measured (a test checks the list against the replay under every thermal term).
-pub fn thermal_params(a: &ThermalParams5) -> [f64; 5] {
+/// partition term when there is one (`partition`; 0 in its place when not); α1, α2, α8 and α9
+/// act on the plates and the central disk, which the replay takes as measured (a test checks the
+/// list against the replay under every thermal term, with and without the partition).
+pub fn thermal_params(a: &ThermalParams5, partition: bool) -> [f64; 5] {
     [
-        a.alpha3_k_per_j,
+        if partition { a.alpha3_k_per_j } else { 0.0 },
         a.alpha4_per_s,
         a.alpha5_per_s,
         a.alpha6_per_s,
         a.alpha7_k_per_j,
     ]
+}
+
+/// Whether a replay asks the hooks for their extra heat of (16) at every step, or the caller
+/// knows it to be exactly zero in every state (no heat effect, no thermal term): the replay then
+/// adds zero without the call — the same numbers, and a step's dependency chain without a call
+/// on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Heat {
+    Hooks,
+    Zero,
 }
 
 /// [`run`]'s temperatures.
@@ -46,6 +57,11 @@ pub fn disk_estimate<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> [Vec
 
 /// The disk replay of the whole record from the measured start.
 pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
+    run_with(p, h, m, Heat::Hooks)
+}
+
+/// [`run`], the extra heat as `heat` says.
+pub fn run_with<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured, heat: Heat) -> DiskRun {
     let s0 = m.thermal_at(0);
     let mut theta = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
     let mut beta = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
@@ -53,7 +69,7 @@ pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
         theta[0].push(s0.c1);
         theta[1].push(s0.c2);
     }
-    extend(p, h, m, &mut theta, &mut beta);
+    extend(p, h, m, heat, &mut theta, &mut beta);
     DiskRun {
         theta: Arc::new(theta),
         beta: Arc::new(beta),
@@ -62,12 +78,14 @@ pub fn run<H: Hooks + ?Sized>(p: &Params, h: &H, m: &Measured) -> DiskRun {
 
 /// The disk replay of a model that differs from the one of `reference` only in what β reads
 /// (the clutch's engagement parameters, the engagement effects): the reference's samples up to
-/// the first step whose β changes, replayed from there. Equal to [`run`] of the model.
+/// the first step whose β changes, replayed from there (the extra heat as `heat` says). Equal
+/// to [`run`] of the model.
 pub fn rerun_engagement<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
     m: &Measured,
     reference: &DiskRun,
+    heat: Heat,
 ) -> DiskRun {
     let k = first_change(p, h, m, reference);
     if k == reference.beta[0].len() {
@@ -75,7 +93,7 @@ pub fn rerun_engagement<H: Hooks + ?Sized>(
     }
     let mut theta = [0, 1].map(|i| reference.theta[i][..=k].to_vec());
     let mut beta = [0, 1].map(|i| reference.beta[i][..k].to_vec());
-    extend(p, h, m, &mut theta, &mut beta);
+    extend(p, h, m, heat, &mut theta, &mut beta);
     DiskRun {
         theta: Arc::new(theta),
         beta: Arc::new(beta),
@@ -105,9 +123,13 @@ fn extend<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
     m: &Measured,
+    heat: Heat,
     theta: &mut [Vec<f64>; 2],
     beta_out: &mut [Vec<f64>; 2],
 ) {
+    if heat == Heat::Zero {
+        return extend_zero_heat(p, h, m, theta, beta_out);
+    }
     let a = &p.thermal5;
     let n = m.n;
     let Some(k0) = theta[0].len().checked_sub(1) else {
@@ -129,7 +151,12 @@ fn extend<H: Hooks + ?Sized>(
         let pp_m = [mid(pp[0]), mid(pp[1])];
         // Not clamped at zero: sensor noise on an open clutch must average out, not heat.
         let pw_m = [mid(pw[0]), mid(pw[1])];
-        let beta = [0, 1].map(|i| h.clutch_beta(&p.clutch, &span.context(i, k, c[i])));
+        // Written out, not `[0, 1].map(…)`: the array map's closure is not inlined, a call per
+        // step on the step's dependency chain.
+        let beta = [
+            h.clutch_beta(&p.clutch, &span.context(0, k, c[0])),
+            h.clutch_beta(&p.clutch, &span.context(1, k, c[1])),
+        ];
         let state = Thermal5State {
             pp1: pp_m[0],
             pp2: pp_m[1],
@@ -171,6 +198,91 @@ fn extend<H: Hooks + ?Sized>(
     }
 }
 
+/// [`extend`] for hooks without extra heat ([`Heat::Zero`]), the same numbers with a shorter
+/// chain from one sample's temperature to the next: λ and its decay are worked out once for
+/// each value of β, and the step's update takes β's value of the step before unless β has
+/// changed — a branch the processor predicts, so the update does not wait for β, which is
+/// computed beside it (a β other than 0 or 1 from other hooks takes the step as [`extend`]
+/// writes it).
+fn extend_zero_heat<H: Hooks + ?Sized>(
+    p: &Params,
+    h: &H,
+    m: &Measured,
+    theta: &mut [Vec<f64>; 2],
+    beta_out: &mut [Vec<f64>; 2],
+) {
+    const B: [f64; 3] = [0.0, 1.0, f64::NAN];
+    let a = &p.thermal5;
+    let n = m.n;
+    let Some(k0) = theta[0].len().checked_sub(1) else {
+        return;
+    };
+    let mut c = [theta[0][k0], theta[1][k0]];
+    let lam_of = |b: f64| a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
+    // [`extend`]'s g with the extra heat 0.0 (what the hooks' extra heat is).
+    let g_of = |b: f64, pp: f64, cd: f64, th: f64, pw: f64| {
+        a.alpha4_per_s * b * pp
+            + a.alpha5_per_s * b * cd
+            + a.alpha6_per_s * (1.0 - b) * th
+            + a.alpha7_k_per_j * pw
+            + 0.0
+    };
+    let step = |c: f64, b: f64, g: f64| {
+        let lam = lam_of(b);
+        if lam * m.dt > 1e-9 {
+            let inf = g / lam;
+            inf + (c - inf) * (-lam * m.dt).exp()
+        } else {
+            c + (g - lam * c) * m.dt
+        }
+    };
+    let lam = [lam_of(B[0]), lam_of(B[1])];
+    let decay = [(-lam[0] * m.dt).exp(), (-lam[1] * m.dt).exp()];
+    let exact = [lam[0] * m.dt > 1e-9, lam[1] * m.dt > 1e-9];
+    // The index in B of each clutch's β at the step before (2: none yet, or another value).
+    let mut j = [2usize; 2];
+    let span = m.span(0, n);
+    let (th, cd) = (&m.th[..n], &m.cd[..n]);
+    let (pp, pw) = (
+        [&m.pp[0][..n], &m.pp[1][..n]],
+        [&m.power[0][..n], &m.power[1][..n]],
+    );
+    for k in k0..n - 1 {
+        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+        let (th_m, cd_m) = (mid(th), mid(cd));
+        for i in 0..2 {
+            let (pp_m, pw_m) = (mid(pp[i]), mid(pw[i]));
+            let b = h.clutch_beta(&p.clutch, &span.context(i, k, c[i]));
+            if b.to_bits() != B[j[i]].to_bits() {
+                j[i] = beta_index(b);
+            }
+            let ji = j[i];
+            c[i] = if ji < 2 && exact[ji] {
+                let inf = g_of(B[ji], pp_m, cd_m, th_m, pw_m) / lam[ji];
+                inf + (c[i] - inf) * decay[ji]
+            } else {
+                step(c[i], b, g_of(b, pp_m, cd_m, th_m, pw_m))
+            };
+            theta[i].push(c[i]);
+            beta_out[i].push(b);
+        }
+    }
+}
+
+/// The index of `b` in [`extend_zero_heat`]'s values of β (0.0, 1.0, the bits alike; 2 for any
+/// other): out of line, the rare step where β changes.
+#[cold]
+#[inline(never)]
+fn beta_index(b: f64) -> usize {
+    if b.to_bits() == 0.0f64.to_bits() {
+        0
+    } else if b.to_bits() == 1.0f64.to_bits() {
+        1
+    } else {
+        2
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -200,7 +312,13 @@ mod tests {
         let tiny = moved(&|q| q.clutch.x_isp0_mm *= 1.0 + 1e-9);
         assert_eq!(first_change(&tiny, &Nominal, &m, &reference), m.n - 1);
         assert_eq!(
-            bits(&rerun_engagement(&tiny, &Nominal, &m, &reference)),
+            bits(&rerun_engagement(
+                &tiny,
+                &Nominal,
+                &m,
+                &reference,
+                Heat::Hooks
+            )),
             bits(&reference)
         );
         for q in [
@@ -210,7 +328,7 @@ mod tests {
         ] {
             let k = first_change(&q, &Nominal, &m, &reference);
             assert!(k < m.n - 1, "β changes somewhere on this record ({q:?})");
-            let resumed = rerun_engagement(&q, &Nominal, &m, &reference);
+            let resumed = rerun_engagement(&q, &Nominal, &m, &reference, Heat::Hooks);
             assert_eq!(bits(&resumed), bits(&run(&q, &Nominal, &m)));
             assert_ne!(bits(&resumed), bits(&reference));
         }
@@ -219,12 +337,76 @@ mod tests {
             EffectSet::single(EffectId::KissPointWear, &[0.02]).unwrap(),
             None,
         );
-        let resumed = rerun_engagement(&p, &wear, &m, &reference);
+        let resumed = rerun_engagement(&p, &wear, &m, &reference, Heat::Hooks);
         assert_eq!(bits(&resumed), bits(&run(&p, &wear, &m)));
     }
 
-    /// Each thermal parameter moved by 20 %, under the support, convection and partition
-    /// terms: the disk replay moves exactly when the parameter is one of [`thermal_params`].
+    /// Hooks without extra heat: the replay that adds zero without asking them ([`Heat::Zero`])
+    /// is the one that asks, bit for bit — from the start and resumed, at moved kiss points,
+    /// under an engagement effect, at a rate λ·dt below the exact update's threshold (the Euler
+    /// step) — and [`SetHooks::heat`](crate::gap::candidates::SetHooks::heat) says `Zero` exactly
+    /// when the hooks' extra heat is zero in every state.
+    #[test]
+    fn a_replay_without_extra_heat_is_the_one_that_asks() {
+        use crate::gap::candidates::SetHooks;
+        use crate::gap::terms::{Partition, ThermalTerms};
+        let p = Params::default();
+        let m = test_record(&p);
+        let moved = |f: &dyn Fn(&mut Params)| {
+            let mut q = p;
+            f(&mut q);
+            q
+        };
+        let wear = EffectSet::single(EffectId::KissPointWear, &[0.02]).unwrap();
+        let pressure = EffectSet::single(EffectId::FrictionPressure, &[0.9]).unwrap();
+        let slow = moved(&|q| q.thermal5.alpha6_per_s = 1e-9);
+        // Each model with the nominal one of the same heat flows, to resume from.
+        for (q, h, r) in [
+            (p, SetHooks::default(), p),
+            (
+                moved(&|q| q.clutch.x_isp0_mm += 0.3),
+                SetHooks::default(),
+                p,
+            ),
+            (p, SetHooks(wear, None), p),
+            (p, SetHooks(pressure, None), p),
+            (slow, SetHooks::default(), slow),
+        ] {
+            assert_eq!(h.heat(), Heat::Zero, "{h:?}");
+            let asks = bits(&run(&q, &h, &m));
+            assert!(
+                bits(&run_with(&q, &h, &m, Heat::Zero)) == asks,
+                "{q:?} {h:?}"
+            );
+            let reference = run(&r, &Nominal, &m);
+            let resumed = rerun_engagement(&q, &h, &m, &reference, Heat::Zero);
+            assert!(bits(&resumed) == asks, "resumed: {q:?} {h:?}");
+        }
+        let support = EffectSet::single(EffectId::SupportConduction, &[0.01]).unwrap();
+        let partition = ThermalTerms {
+            a: p.thermal5,
+            support: None,
+            convection: None,
+            partition: Some(Partition {
+                shape: crate::gap::shape::Shape {
+                    z: std::array::from_fn(|j| j as f64 * 3000.0),
+                    v: [0.2; crate::gap::shape::KNOTS],
+                },
+                w_c: 1.5,
+            }),
+        };
+        for h in [SetHooks(support, None), SetHooks(pressure, Some(partition))] {
+            assert_eq!(h.heat(), Heat::Hooks, "{h:?}");
+            assert_ne!(
+                bits(&run(&p, &h, &m)),
+                bits(&run(&p, &SetHooks::default(), &m))
+            );
+        }
+    }
+
+    /// Each thermal parameter moved by 20 %, under the support and convection terms with and
+    /// without the partition term: the disk replay moves exactly when the parameter is one of
+    /// [`thermal_params`].
     #[test]
     fn the_replay_reads_exactly_its_thermal_params() {
         use crate::gap::shape::Shape;
@@ -239,41 +421,44 @@ mod tests {
                 v: std::array::from_fn(|j| v * j as f64 / 6.0),
             }
         };
-        let hooks = |a: ThermalParams5| {
-            crate::gap::candidates::SetHooks(
-                EffectSet::nominal(),
-                Some(ThermalTerms {
-                    a,
-                    support: Some(Support {
-                        shape: shape(0.0, 200.0, 0.02),
-                        w_pp: 0.5,
-                        w_cd: 0.5,
+        for partition in [true, false] {
+            let hooks = |a: ThermalParams5| {
+                crate::gap::candidates::SetHooks(
+                    EffectSet::nominal(),
+                    Some(ThermalTerms {
+                        a,
+                        support: Some(Support {
+                            shape: shape(0.0, 200.0, 0.02),
+                            w_pp: 0.5,
+                            w_cd: 0.5,
+                        }),
+                        convection: Some(Convection {
+                            shape: shape(0.0, 400.0, 0.5),
+                        }),
+                        partition: partition.then_some(Partition {
+                            shape: shape(0.0, 20000.0, 0.3),
+                            w_c: 1.5,
+                        }),
                     }),
-                    convection: Some(Convection {
-                        shape: shape(0.0, 400.0, 0.5),
-                    }),
-                    partition: Some(Partition {
-                        shape: shape(0.0, 20000.0, 0.3),
-                        w_c: 1.5,
-                    }),
-                }),
-            )
-        };
-        let base = bits(&run(&p, &hooks(p.thermal5), &m));
-        let table = toml::Table::try_from(p.thermal5).unwrap();
-        for key in table.keys() {
-            let mut t = table.clone();
-            let v = t[key].as_float().unwrap();
-            t[key] = toml::Value::Float(if v == 0.0 { 0.01 } else { v * 1.2 });
-            let a: ThermalParams5 = t.try_into().unwrap();
-            let mut q = p;
-            q.thermal5 = a;
-            let moved = bits(&run(&q, &hooks(a), &m)) != base;
-            let listed = thermal_params(&a) != thermal_params(&p.thermal5);
-            assert_eq!(
-                moved, listed,
-                "{key}: the replay moved {moved}, listed {listed}"
-            );
+                )
+            };
+            let base = bits(&run(&p, &hooks(p.thermal5), &m));
+            let table = toml::Table::try_from(p.thermal5).unwrap();
+            for key in table.keys() {
+                let mut t = table.clone();
+                let v = t[key].as_float().unwrap();
+                t[key] = toml::Value::Float(if v == 0.0 { 0.01 } else { v * 1.2 });
+                let a: ThermalParams5 = t.try_into().unwrap();
+                let mut q = p;
+                q.thermal5 = a;
+                let moved = bits(&run(&q, &hooks(a), &m)) != base;
+                let listed =
+                    thermal_params(&a, partition) != thermal_params(&p.thermal5, partition);
+                assert_eq!(
+                    moved, listed,
+                    "{key} (partition {partition}): the replay moved {moved}, listed {listed}"
+                );
+            }
         }
     }
 }

@@ -1,10 +1,11 @@
 //! Sim-to-real gap diagnosis (DESIGN.md §6, issue 7): bench datasets ([`dataset`]), event
-//! segmentation ([`events`]), the model replayed on measured data per subsystem ([`replay`]),
-//! the paper's identification procedure ([`identify`]), the effect library as fit candidates
-//! ([`candidates`]), where the gap lies ([`where_`]), the black-box discrepancy ([`blackbox`]),
-//! the diagnosis itself ([`diagnose`]), in-process bench experiments on the plant core
-//! ([`experiment`]), least squares ([`lsq`]) and statistics ([`stats`]), synthetic rig data with
-//! known parameters ([`synth`]).
+//! segmentation ([`events`]), the model replayed on measured data per subsystem ([`replay`];
+//! the disk temperature estimate in [`disk`], the thermal replay's per-record windows in
+//! [`windows`]), the paper's identification procedure ([`identify`]), the effect library as fit
+//! candidates ([`candidates`]), where the gap lies ([`where_`]), the black-box discrepancy
+//! ([`blackbox`]), the diagnosis itself ([`diagnose`]), in-process bench experiments on the plant
+//! core ([`experiment`]), least squares ([`lsq`]) and statistics ([`stats`]), synthetic rig data
+//! with known parameters ([`synth`]).
 //!
 //! Pure: nothing here reads a clock, touches a socket or uses tokio.
 
@@ -30,3 +31,4 @@ pub mod stats;
 pub mod synth;
 pub mod terms;
 pub mod where_;
+pub mod windows;

@@ -70,6 +70,9 @@ pub struct Measured {
     /// disks, the central disk: time constants of minutes) lasts the whole record. The lag term
     /// is applied to the replay from this reading on (the sensor settled at the start).
     pub start: Thermal5State,
+    /// The model-free part of the thermal replay's steps, per stride
+    /// ([`super::windows::thermal_replay_fast`]), made on first use.
+    pub windows: super::windows::WindowCache,
 }
 
 impl Measured {
@@ -138,6 +141,7 @@ impl Measured {
             seg: segment(d, seg),
             torque_idx: torque_idx.map(Arc::from),
             start: Thermal5State::default(),
+            windows: Default::default(),
         };
         m.start = m.thermal_at(0);
         m
@@ -319,7 +323,7 @@ pub fn torque_eq<H: Hooks + ?Sized>(
 }
 
 /// Thermal inputs at an interval midpoint (β filled in at the step's start by [`with_beta`]).
-fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
+pub(crate) fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
     ThermalInputs {
         p_fric1_w: pw[0],
         p_fric2_w: pw[1],
@@ -332,7 +336,7 @@ fn inputs(pw: [f64; 2], th: f64, w_f: f64) -> ThermalInputs {
 /// `u` with β of both clutches at the state `s` of the step's start, held over the step like
 /// the other inputs (as [`disk_estimate`] does): β is a step function of x_to and θ_c, and the
 /// few mK an RK4 stage moves θ_c would only move where within a 10 ms step it switches.
-fn with_beta<H: Hooks + ?Sized>(
+pub(crate) fn with_beta<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
     s: &Thermal5State,
@@ -385,6 +389,43 @@ pub fn thermal_replay_every<H: Hooks + ?Sized>(
     m: &Measured,
     stride: usize,
 ) -> Vec<Thermal5State> {
+    replay_windows(p, h, m, stride, |k0, k1, s| {
+        let len = (k1 - k0) as f64;
+        let mean = |v: &[f64]| window_mean(v, k0, k1);
+        let pw = [mean(&m.power[0]), mean(&m.power[1])];
+        let mut u = inputs(pw, mean(&m.th), mean(&m.w_f));
+        let (mut b1, mut b2) = (0.0, 0.0);
+        let span = m.span(k0, k1);
+        for j in 0..span.len() {
+            let ctx = [span.context(0, j, s.c1), span.context(1, j, s.c2)];
+            let b = with_beta(p, h, s, ctx, u);
+            b1 += b.beta1;
+            b2 += b.beta2;
+        }
+        u.beta1 = b1 / len;
+        u.beta2 = b2 / len;
+        u
+    })
+}
+
+/// The mean of `v` over the step from sample `k0` to `k1` by the energy it delivers: the mean of
+/// the per-sample midpoints (trapezoid rule), as [`thermal_replay_every`] averages its inputs.
+#[inline]
+pub fn window_mean(v: &[f64], k0: usize, k1: usize) -> f64 {
+    let len = (k1 - k0) as f64;
+    (v[k0] + 2.0 * v[k0 + 1..k1].iter().sum::<f64>() + v[k1]) / (2.0 * len)
+}
+
+/// The stepping of [`thermal_replay_every`]: one RK4 step per `stride` samples from the measured
+/// start, the inputs of the step from `k0` to `k1` at the state `s` of its start given by
+/// `inputs(k0, k1, s)` (β included). Element `j` is the state at sample `j·stride`.
+pub fn replay_windows<H: Hooks + ?Sized>(
+    p: &Params,
+    h: &H,
+    m: &Measured,
+    stride: usize,
+    mut inputs: impl FnMut(usize, usize, &Thermal5State) -> ThermalInputs,
+) -> Vec<Thermal5State> {
     let stride = stride.max(1);
     let t5 = Thermal5::new(p.thermal5);
     let mut s = m.start;
@@ -396,23 +437,9 @@ pub fn thermal_replay_every<H: Hooks + ?Sized>(
             break;
         }
         let k1 = k0 + stride;
-        let len = (k1 - k0) as f64;
-        let mean =
-            |v: &[f64]| (v[k0] + 2.0 * v[k0 + 1..k1].iter().sum::<f64>() + v[k1]) / (2.0 * len);
-        let pw = [mean(&m.power[0]), mean(&m.power[1])];
-        let mut u = inputs(pw, mean(&m.th), mean(&m.w_f));
-        let (mut b1, mut b2) = (0.0, 0.0);
-        let span = m.span(k0, k1);
-        for j in 0..span.len() {
-            let ctx = [span.context(0, j, s.c1), span.context(1, j, s.c2)];
-            let b = with_beta(p, h, &s, ctx, u);
-            b1 += b.beta1;
-            b2 += b.beta2;
-        }
-        u.beta1 = b1 / len;
-        u.beta2 = b2 / len;
+        let u = inputs(k0, k1, &s);
         let f = |s: &Thermal5State| thermal_derivative(&t5, h, s, &u);
-        s = rk4_step_with(&s, len * m.dt, f);
+        s = rk4_step_with(&s, (k1 - k0) as f64 * m.dt, f);
         k0 = k1;
     }
     out
