@@ -140,11 +140,8 @@ fn extend<H: Hooks + ?Sized>(
     // opening), so the exponential is taken a few times per engagement, not per sample.
     let mut decay = [(f64::NAN, 0.0); 2];
     let span = m.span(0, n);
-    let (th, cd, wf) = (&m.th[..n], &m.cd[..n], &m.w_f[..n]);
-    let (pp, pw) = (
-        [&m.pp[0][..n], &m.pp[1][..n]],
-        [&m.power[0][..n], &m.power[1][..n]],
-    );
+    let wf = &m.w_f[..n];
+    let Series { th, cd, pp, pw } = Series::of(m, n);
     for k in k0..n - 1 {
         let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
         let (th_m, cd_m) = (mid(th), mid(cd));
@@ -242,11 +239,7 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
     // The index in B of each clutch's β at the step before (2: none yet, or another value).
     let mut j = [2usize; 2];
     let span = m.span(0, n);
-    let (th, cd) = (&m.th[..n], &m.cd[..n]);
-    let (pp, pw) = (
-        [&m.pp[0][..n], &m.pp[1][..n]],
-        [&m.power[0][..n], &m.power[1][..n]],
-    );
+    let Series { th, cd, pp, pw } = Series::of(m, n);
     for k in k0..n - 1 {
         let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
         let (th_m, cd_m) = (mid(th), mid(cd));
@@ -265,6 +258,26 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
             };
             theta[i].push(c[i]);
             beta_out[i].push(b);
+        }
+    }
+}
+
+/// The measured series both replay loops read, cut at `n` samples: housing air, central disk,
+/// pressure plates and friction powers.
+struct Series<'a> {
+    th: &'a [f64],
+    cd: &'a [f64],
+    pp: [&'a [f64]; 2],
+    pw: [&'a [f64]; 2],
+}
+
+impl<'a> Series<'a> {
+    fn of(m: &'a Measured, n: usize) -> Self {
+        Series {
+            th: &m.th[..n],
+            cd: &m.cd[..n],
+            pp: [&m.pp[0][..n], &m.pp[1][..n]],
+            pw: [&m.power[0][..n], &m.power[1][..n]],
         }
     }
 }
