@@ -1011,13 +1011,7 @@ pub fn diagnose(
     let nunits_v = context::units(&va);
     let mut notes = Vec::new();
     let checkable = checkability(&[train, validate].concat());
-    let chans: Vec<Channel> = Channel::ALL
-        .into_iter()
-        .filter(|c| {
-            tr.iter().any(|f| !f.fit.get(*c).is_empty())
-                && va.iter().any(|f| !f.all.get(*c).is_empty())
-        })
-        .collect();
+    let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
     }
@@ -1040,28 +1034,11 @@ pub fn diagnose(
     context::cache_disk(&recal, &mut tr);
     let kn = knots(&recal, &tr);
     phase("recalibration");
-    let recalibration: Vec<(String, f64, f64)> = select::RECAL
-        .iter()
-        .filter_map(|(k, _)| {
-            Some((
-                k.to_string(),
-                keys::get(nominal, k)?,
-                keys::get(&recal.p, k)?,
-            ))
-        })
-        .collect();
+    let recalibration = recalibration_table(nominal, &recal.p);
 
     // Classes this record set can check.
     let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
-    let has = needs(&all_files, &chans);
-    let mut classes = Vec::new();
-    let mut not_checkable = Vec::new();
-    for c in ClassId::ALL {
-        match classfit::not_checkable(*c, &kn, &has) {
-            None => classes.push(*c),
-            Some(why) => not_checkable.push(NotCheckable { class: *c, why }),
-        }
-    }
+    let (classes, not_checkable) = checkable_classes(&kn, &needs(&all_files, &chans));
 
     // Phase 3: forward selection.
     let setup = Setup {
@@ -1135,22 +1112,8 @@ pub fn diagnose(
     let subsystem = first
         .subsystem()
         .map_or("none".to_string(), |s| s.as_str().to_string());
-    let effect = match &first {
-        Finding::Class(c) | Finding::Sensor(c) => c.class.as_str().to_string(),
-        Finding::Recalibration(_) => "recalibration".to_string(),
-        Finding::OutsideLibrary(_) => "outside_library".to_string(),
-        Finding::Nothing => "none".to_string(),
-    };
-    let mut subsystems: Vec<String> = findings
-        .iter()
-        .filter_map(|f| f.subsystem().map(|s| s.as_str().to_string()))
-        .collect();
-    for s in &where_.residual_subsystems {
-        if s.significant && !subsystems.contains(&s.subsystem) {
-            subsystems.push(s.subsystem.clone());
-        }
-    }
-    subsystems.dedup();
+    let effect = effect_name(&first);
+    let subsystems = flagged_subsystems(&findings, &where_);
     let explanation = explain(&findings, unexplained_pct);
 
     // Phase 7: how far.
@@ -1165,58 +1128,9 @@ pub fn diagnose(
     let eq = output_gaps(
         &va, &chans, &sc_nom_v, &sc_rec_v, &sc_after, &sigma, o, &mut rng,
     );
-    let main_sub = first
-        .subsystem()
-        .map(|s| s.as_str().to_string())
-        .unwrap_or_else(|| {
-            where_
-                .residual_subsystems
-                .first()
-                .map(|s| s.subsystem.clone())
-                .unwrap_or_else(|| "torque_characteristic".into())
-        });
-    let main_sub = if effect == ClassId::ActuatorBacklash.as_str()
-        || effect == ClassId::ActuatorTransfer.as_str()
-    {
-        Subsystem::TorqueCharacteristic.as_str().to_string()
-    } else {
-        main_sub
-    };
-    let main = eq
-        .iter()
-        .filter(|g| g.subsystem == main_sub)
-        .max_by(|a, b| {
-            let ga = a.rmse_nominal.powi(2) - a.noise.powi(2);
-            let gb = b.rmse_nominal.powi(2) - b.noise.powi(2);
-            ga.total_cmp(&gb)
-        })
-        .or_else(|| eq.first())
-        .cloned();
+    let main = main_gap(&first, &effect, &where_, &eq);
     let replay_error = replay_gaps(&nominal_model, &model_after, &va);
-    let how_far = match &main {
-        Some(g) => HowFar {
-            output: g.output.clone(),
-            rmse_before: g.rmse_nominal,
-            rmse_recalibrated: g.rmse_recalibrated,
-            rmse_after: g.rmse_after,
-            reduction_pct: g.reduction_pct,
-            reduction_ci95: g.reduction_ci95,
-            gap_reduction_pct: g.gap_reduction_pct,
-            equation_error: eq.clone(),
-            replay_error,
-        },
-        None => HowFar {
-            output: String::new(),
-            rmse_before: f64::NAN,
-            rmse_recalibrated: f64::NAN,
-            rmse_after: f64::NAN,
-            reduction_pct: f64::NAN,
-            reduction_ci95: (f64::NAN, f64::NAN),
-            gap_reduction_pct: f64::NAN,
-            equation_error: eq.clone(),
-            replay_error,
-        },
-    };
+    let how_far = how_far(main.as_ref(), &eq, replay_error);
     let traces = traces(&nominal_model, &model_after, &va, main.as_ref());
     let calibrated = Some(calibration(&setup, &model_after, &findings));
     let outside_library_depends_on = outside
@@ -1262,6 +1176,114 @@ pub fn diagnose(
         calibrated,
         traces,
     })
+}
+
+/// The channels the fit can use and the validation can check.
+fn checked_channels(tr: &[File], va: &[File]) -> Vec<Channel> {
+    Channel::ALL
+        .into_iter()
+        .filter(|c| {
+            tr.iter().any(|f| !f.fit.get(*c).is_empty())
+                && va.iter().any(|f| !f.all.get(*c).is_empty())
+        })
+        .collect()
+}
+
+/// Each recalibrated key with its nominal and its recalibrated value.
+fn recalibration_table(nominal: &Params, recal: &Params) -> Vec<(String, f64, f64)> {
+    select::RECAL
+        .iter()
+        .filter_map(|(k, _)| Some((k.to_string(), keys::get(nominal, k)?, keys::get(recal, k)?)))
+        .collect()
+}
+
+/// The classes the record set can check, and the others with why not.
+fn checkable_classes(
+    kn: &Knots,
+    has: &impl Fn(Needs) -> bool,
+) -> (Vec<ClassId>, Vec<NotCheckable>) {
+    let mut classes = Vec::new();
+    let mut not_checkable = Vec::new();
+    for c in ClassId::ALL {
+        match classfit::not_checkable(*c, kn, has) {
+            None => classes.push(*c),
+            Some(why) => not_checkable.push(NotCheckable { class: *c, why }),
+        }
+    }
+    (classes, not_checkable)
+}
+
+/// The verdict's effect: the first finding's class, or what kind of finding it is.
+fn effect_name(first: &Finding) -> String {
+    match first {
+        Finding::Class(c) | Finding::Sensor(c) => c.class.as_str().to_string(),
+        Finding::Recalibration(_) => "recalibration".to_string(),
+        Finding::OutsideLibrary(_) => "outside_library".to_string(),
+        Finding::Nothing => "none".to_string(),
+    }
+}
+
+/// The subsystems of the findings, then those the "where" table finds significant.
+fn flagged_subsystems(findings: &[Finding], where_: &Where) -> Vec<String> {
+    let mut subsystems: Vec<String> = findings
+        .iter()
+        .filter_map(|f| f.subsystem().map(|s| s.as_str().to_string()))
+        .collect();
+    for s in &where_.residual_subsystems {
+        if s.significant && !subsystems.contains(&s.subsystem) {
+            subsystems.push(s.subsystem.clone());
+        }
+    }
+    subsystems.dedup();
+    subsystems
+}
+
+/// The output gap "how far" reports: the largest gap above the noise in the first finding's
+/// subsystem (the torque characteristic for the actuator's backlash and transfer, seen through
+/// the torque), else the first.
+fn main_gap(first: &Finding, effect: &str, where_: &Where, eq: &[OutputGap]) -> Option<OutputGap> {
+    let main_sub = first
+        .subsystem()
+        .map(|s| s.as_str().to_string())
+        .unwrap_or_else(|| {
+            where_
+                .residual_subsystems
+                .first()
+                .map(|s| s.subsystem.clone())
+                .unwrap_or_else(|| "torque_characteristic".into())
+        });
+    let main_sub = if effect == ClassId::ActuatorBacklash.as_str()
+        || effect == ClassId::ActuatorTransfer.as_str()
+    {
+        Subsystem::TorqueCharacteristic.as_str().to_string()
+    } else {
+        main_sub
+    };
+    eq.iter()
+        .filter(|g| g.subsystem == main_sub)
+        .max_by(|a, b| {
+            let ga = a.rmse_nominal.powi(2) - a.noise.powi(2);
+            let gb = b.rmse_nominal.powi(2) - b.noise.powi(2);
+            ga.total_cmp(&gb)
+        })
+        .or_else(|| eq.first())
+        .cloned()
+}
+
+/// "How far" from the main output gap (NaN figures without one).
+fn how_far(main: Option<&OutputGap>, eq: &[OutputGap], replay_error: Vec<ReplayGap>) -> HowFar {
+    let nan = f64::NAN;
+    HowFar {
+        output: main.map_or_else(String::new, |g| g.output.clone()),
+        rmse_before: main.map_or(nan, |g| g.rmse_nominal),
+        rmse_recalibrated: main.map_or(nan, |g| g.rmse_recalibrated),
+        rmse_after: main.map_or(nan, |g| g.rmse_after),
+        reduction_pct: main.map_or(nan, |g| g.reduction_pct),
+        reduction_ci95: main.map_or((nan, nan), |g| g.reduction_ci95),
+        gap_reduction_pct: main.map_or(nan, |g| g.gap_reduction_pct),
+        equation_error: eq.to_vec(),
+        replay_error,
+    }
 }
 
 /// Share of the recalibrated validation gap left (%): per subsystem the mean standardized
