@@ -79,6 +79,45 @@ pub struct CycleMessages {
     pub drv_pedal: Option<DrvPedal>,
 }
 
+impl CycleMessages {
+    /// The payload of message `id` (`None`: not one of the cycle's, or no driver played).
+    fn encode(&self, id: u16) -> Option<Result<[u8; 8], crate::can::codec::CodecError>> {
+        match id {
+            ids::DRV_PEDAL => self.drv_pedal.map(|m| m.encode()),
+            ids::ENG_STATUS => Some(self.eng_status.encode()),
+            ids::DCT_SENSORS => Some(self.dct_sensors.encode()),
+            ids::DCT_ACTUATORS => Some(self.dct_actuators.encode()),
+            ids::BENCH_TORQUE => Some(self.bench_torque.encode()),
+            ids::BENCH_TEMPS => Some(self.bench_temps.encode()),
+            ids::BENCH_VEHICLE => Some(self.bench_vehicle.encode()),
+            ids::SIM_TRUTH => Some(self.sim_truth.encode()),
+            _ => None,
+        }
+    }
+
+    /// Records the alive counter and CRC that message `id` went out with (the E2E-protected
+    /// messages).
+    fn stamp(&mut self, id: u16, counter: u8, crc: u8) {
+        match id {
+            ids::DRV_PEDAL => {
+                if let Some(m) = self.drv_pedal.as_mut() {
+                    (m.alive_counter, m.crc) = (counter, crc);
+                }
+            }
+            ids::ENG_STATUS => {
+                (self.eng_status.alive_counter, self.eng_status.crc) = (counter, crc)
+            }
+            ids::DCT_SENSORS => {
+                (self.dct_sensors.alive_counter, self.dct_sensors.crc) = (counter, crc)
+            }
+            ids::DCT_ACTUATORS => {
+                (self.dct_actuators.alive_counter, self.dct_actuators.crc) = (counter, crc)
+            }
+            _ => {}
+        }
+    }
+}
+
 /// The simulation truth at the end of a [`Plant::step`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Truth {
@@ -710,10 +749,63 @@ impl Plant {
 
     /// Samples the sensors at cycle time `t`, encodes, protects, applies faults, queues.
     fn emit_cycle(&mut self, t: Duration) -> CycleMessages {
-        let k = self.next_cycle;
         self.stats.cycles += 1;
+        let mut msgs = self.sample_cycle(t);
+        self.send_cycle(t, &mut msgs);
+        msgs
+    }
+
+    /// The cycle's messages as the sensors read them at `t` (noise, then the contract's
+    /// saturation), before the alive counter and CRC.
+    fn sample_cycle(&mut self, t: Duration) -> CycleMessages {
+        let k = self.next_cycle;
+        let (eng_status, dct_sensors, dct_actuators) = self.drive_messages(k);
+        let (bench_torque, bench_temps) = self.bench_messages(k);
         let s = self.s;
         let o = self.last_out;
+        let n = self.cfg.sensors;
+        // The driver at this instant (the last step used the one of its start).
+        let (cycle, first, last) = self.cycle_span();
+        let driver = match (&self.cfg.mode, &self.cfg.scenario) {
+            (Mode::Vehicle, Some(sc)) => {
+                self.sampler.sample(sc, t.as_secs_f64(), cycle, first, last)
+            }
+            _ => self.driver,
+        };
+        let bench_vehicle = BenchVehicle {
+            vehicle_speed: BenchVehicle::saturate_vehicle_speed(o.vehicle_speed_mps * 3.6),
+            vehicle_accel: BenchVehicle::saturate_vehicle_accel(
+                o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
+            ),
+            road_grade: BenchVehicle::saturate_road_grade(driver.grade * 100.0),
+        };
+        let sim_truth = SimTruth {
+            clutch1_temp_true: SimTruth::saturate_clutch1_temp_true(s.thermal.c1),
+            clutch2_temp_true: SimTruth::saturate_clutch2_temp_true(s.thermal.c2),
+        };
+        let drv_pedal =
+            (self.cfg.mode == Mode::Vehicle && self.cfg.scenario.is_some()).then(|| DrvPedal {
+                accel_pedal: DrvPedal::saturate_accel_pedal(driver.pedal * 100.0),
+                brake_switch: driver.brake > 0.0,
+                gear_lever: driver.lever,
+                ..Default::default()
+            });
+        CycleMessages {
+            t,
+            eng_status,
+            dct_sensors,
+            dct_actuators,
+            bench_torque,
+            bench_temps,
+            bench_vehicle,
+            sim_truth,
+            drv_pedal,
+        }
+    }
+
+    /// ENG_Status, DCT_Sensors and DCT_Actuators of cycle `k`: what the TCU reads.
+    fn drive_messages(&self, k: u64) -> (EngStatus, DctSensors, DctActuators) {
+        let s = self.s;
         let n = self.cfg.sensors;
         let rpm = |w: f64| w / RPM;
         let eng = EngStatus {
@@ -753,6 +845,14 @@ impl Plant {
             gear_even_act: GearEvenAct::try_from(s.gear_even.engaged).unwrap_or_default(),
             ..Default::default()
         };
+        (eng, sensors, actuators)
+    }
+
+    /// BENCH_Torque and BENCH_Temps of cycle `k`: the rig's torque and temperature sensors.
+    fn bench_messages(&self, k: u64) -> (BenchTorque, BenchTemps) {
+        let s = self.s;
+        let o = self.last_out;
+        let n = self.cfg.sensors;
         let torque = BenchTorque {
             clutch1_torque: BenchTorque::saturate_clutch1_torque(
                 o.t_fc1_nm + self.noise(k, ch::TORQUE1, n.torque_nm),
@@ -772,57 +872,15 @@ impl Plant {
                 s.thermal.cd + self.noise(k, ch::CD, n.temperature_c),
             ),
         };
-        // The driver at this instant (the last step used the one of its start).
-        let (cycle, first, last) = self.cycle_span();
-        let driver = match (&self.cfg.mode, &self.cfg.scenario) {
-            (Mode::Vehicle, Some(sc)) => {
-                self.sampler.sample(sc, t.as_secs_f64(), cycle, first, last)
-            }
-            _ => self.driver,
-        };
-        let vehicle = BenchVehicle {
-            vehicle_speed: BenchVehicle::saturate_vehicle_speed(o.vehicle_speed_mps * 3.6),
-            vehicle_accel: BenchVehicle::saturate_vehicle_accel(
-                o.vehicle_accel_mps2 + self.noise(k, ch::ACCEL, n.vehicle_accel_mps2),
-            ),
-            road_grade: BenchVehicle::saturate_road_grade(driver.grade * 100.0),
-        };
-        let truth = SimTruth {
-            clutch1_temp_true: SimTruth::saturate_clutch1_temp_true(s.thermal.c1),
-            clutch2_temp_true: SimTruth::saturate_clutch2_temp_true(s.thermal.c2),
-        };
-        let pedal =
-            (self.cfg.mode == Mode::Vehicle && self.cfg.scenario.is_some()).then(|| DrvPedal {
-                accel_pedal: DrvPedal::saturate_accel_pedal(driver.pedal * 100.0),
-                brake_switch: driver.brake > 0.0,
-                gear_lever: driver.lever,
-                ..Default::default()
-            });
-        let mut msgs = CycleMessages {
-            t,
-            eng_status: eng,
-            dct_sensors: sensors,
-            dct_actuators: actuators,
-            bench_torque: torque,
-            bench_temps: temps,
-            bench_vehicle: vehicle,
-            sim_truth: truth,
-            drv_pedal: pedal,
-        };
+        (torque, temps)
+    }
+
+    /// Encodes and queues every message the plant sends, each with its alive counter and CRC
+    /// (written back into `msgs`, as the clean frame carries them).
+    fn send_cycle(&mut self, t: Duration, msgs: &mut CycleMessages) {
         for slot in 0..self.sent.len() {
             let id = self.sent[slot];
-            let encoded = match id {
-                ids::DRV_PEDAL => msgs.drv_pedal.map(|m| m.encode()),
-                ids::ENG_STATUS => Some(msgs.eng_status.encode()),
-                ids::DCT_SENSORS => Some(msgs.dct_sensors.encode()),
-                ids::DCT_ACTUATORS => Some(msgs.dct_actuators.encode()),
-                ids::BENCH_TORQUE => Some(msgs.bench_torque.encode()),
-                ids::BENCH_TEMPS => Some(msgs.bench_temps.encode()),
-                ids::BENCH_VEHICLE => Some(msgs.bench_vehicle.encode()),
-                ids::SIM_TRUTH => Some(msgs.sim_truth.encode()),
-                _ => None,
-            };
-            let data = match encoded {
+            let data = match msgs.encode(id) {
                 Some(Ok(d)) => d,
                 Some(Err(_)) => {
                     self.stats.encode_errors += 1;
@@ -831,27 +889,9 @@ impl Plant {
                 None => continue,
             };
             if let Some((counter, crc)) = self.send(slot, t, data) {
-                match id {
-                    ids::DRV_PEDAL => {
-                        if let Some(m) = msgs.drv_pedal.as_mut() {
-                            m.alive_counter = counter;
-                            m.crc = crc;
-                        }
-                    }
-                    ids::ENG_STATUS => {
-                        (msgs.eng_status.alive_counter, msgs.eng_status.crc) = (counter, crc)
-                    }
-                    ids::DCT_SENSORS => {
-                        (msgs.dct_sensors.alive_counter, msgs.dct_sensors.crc) = (counter, crc)
-                    }
-                    ids::DCT_ACTUATORS => {
-                        (msgs.dct_actuators.alive_counter, msgs.dct_actuators.crc) = (counter, crc)
-                    }
-                    _ => {}
-                }
+                msgs.stamp(id, counter, crc);
             }
         }
-        msgs
     }
 
     /// Protects, faults and queues one message; returns the clean frame's (counter, CRC) for
