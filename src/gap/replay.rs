@@ -508,14 +508,7 @@ pub fn actuator_replay(a: &ActuatorParams, x_req: &[f64], x0: f64, dt: f64) -> V
         // At rest on its (clamped) request the lag's rate is exactly zero, and so is every
         // RK4 stage: the substeps would leave the position as it is.
         if actuator::clamp_request(a, r, x) != x {
-            let f = |x: f64| actuator::derivative(a, x, r);
-            for _ in 0..SUB {
-                let k1 = f(x);
-                let k2 = f(x + 0.5 * h * k1);
-                let k3 = f(x + 0.5 * h * k2);
-                let k4 = f(x + h * k3);
-                x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-            }
+            x = lag_substeps(a, x, r, h, SUB);
         }
         // Settled: snap to the request (the exponential approach would otherwise run into
         // subnormal numbers, which are two orders of magnitude slower).
@@ -524,6 +517,19 @@ pub fn actuator_replay(a: &ActuatorParams, x_req: &[f64], x0: f64, dt: f64) -> V
         }
     }
     out
+}
+
+/// `n` RK4 steps of length `h` of the actuator's lag from `x` towards the held request `r`.
+fn lag_substeps(a: &ActuatorParams, mut x: f64, r: f64, h: f64, n: usize) -> f64 {
+    let f = |x: f64| actuator::derivative(a, x, r);
+    for _ in 0..n {
+        let k1 = f(x);
+        let k2 = f(x + 0.5 * h * k1);
+        let k3 = f(x + 0.5 * h * k2);
+        let k4 = f(x + h * k3);
+        x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+    }
+    x
 }
 
 /// Smoothed derivative by a centred difference over ±`half` samples.
@@ -660,14 +666,7 @@ mod tests {
                 if k + 1 == req.len() {
                     break;
                 }
-                let f = |x: f64| actuator::derivative(&a, x, r);
-                for _ in 0..10 {
-                    let k1 = f(x);
-                    let k2 = f(x + 0.5 * h * k1);
-                    let k3 = f(x + 0.5 * h * k2);
-                    let k4 = f(x + h * k3);
-                    x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-                }
+                x = lag_substeps(&a, x, r, h, 10);
                 if (x - r).abs() < 1e-9 {
                     x = r;
                 }

@@ -63,16 +63,22 @@ pub fn load_torque(p: &DrivelineParams, w_out_radps: f64, grade: f64, brake: f64
 pub fn load_torque_graded(p: &DrivelineParams, w_out_radps: f64, grade_nm: f64, brake: f64) -> f64 {
     let v = p.wheel_radius_m * w_out_radps;
     let s = (v / p.load_smoothing_m_per_s).tanh();
-    let brake = if brake.is_finite() {
-        brake.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let brake = brake_fraction(brake);
     p.f0_nm * s
         + p.f1_nm_s_per_m * v
         + p.f2_nm_s2_per_m2 * v * v.abs()
         + grade_nm
         + p.brake_max_nm * brake * s
+}
+
+/// The brake input as the load reads it: a fraction 0..1, a non-finite value as released.
+#[inline]
+fn brake_fraction(brake: f64) -> f64 {
+    if brake.is_finite() {
+        brake.clamp(0.0, 1.0)
+    } else {
+        0.0
+    }
 }
 
 /// ∂T_load/∂ω_out of [`load_torque_graded`] (N·m·s/rad, ≥ 0): the stiffness of the road load,
@@ -82,11 +88,7 @@ pub fn load_stiffness(p: &DrivelineParams, w_out_radps: f64, brake: f64) -> f64 
     let r = p.wheel_radius_m;
     let v = r * w_out_radps;
     let eps = p.load_smoothing_m_per_s;
-    let brake = if brake.is_finite() {
-        brake.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let brake = brake_fraction(brake);
     let sech2 = 1.0 - (v / eps).tanh().powi(2);
     r * ((p.f0_nm + p.brake_max_nm * brake) * sech2 / eps
         + p.f1_nm_s_per_m

@@ -224,8 +224,8 @@ pub struct Plant {
     steps_per_cycle: u64,
     next_cycle: u64,
     theta_h: f64,
-    /// exp(−dt/τ) of the housing air over one step.
-    housing_decay: f64,
+    /// exp(−h/τ) of the housing air over one step and over one cycle in one step.
+    housing_decay: [f64; 2],
     delay: [DelayLine; 2],
     delay_steps: usize,
     x_ref: [f64; 2],
@@ -321,7 +321,8 @@ impl Plant {
         let nf = cfg.faults.len();
         Plant {
             theta_h: i.housing_c,
-            housing_decay: (-dt / cfg.housing.tau_s).exp(),
+            housing_decay: [1.0, steps_per_cycle as f64]
+                .map(|steps| (-steps * dt / cfg.housing.tau_s).exp()),
             rig_speed_radps: rig_rpm * RPM,
             pt,
             s,
@@ -711,10 +712,15 @@ impl Plant {
             self.last_out = prev_out;
             self.out_fresh = prev_fresh;
         }
-        let h = &self.cfg.housing;
-        self.theta_h = h.target_c + (self.theta_h - h.target_c) * self.housing_decay;
+        self.relax_housing(self.housing_decay[0]);
         self.steps += 1;
         self.stats.steps += 1;
+    }
+
+    /// The housing air relaxed towards its target by the factor `decay` (one of `housing_decay`).
+    fn relax_housing(&mut self, decay: f64) {
+        let h = &self.cfg.housing;
+        self.theta_h = h.target_c + (self.theta_h - h.target_c) * decay;
     }
 
     /// Computes the outputs of the current state once after a step (see `out_fresh`). False

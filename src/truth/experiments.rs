@@ -493,22 +493,11 @@ mod tests {
     /// requests held over a cycle are the requests.
     #[test]
     fn the_dyno_speed_by_bisection_is_the_scanned_one() {
+        // The segment's knot found by a scan, the interpolation the record's own.
         let scanned = |rec: &RecordDef, t: f64| -> f64 {
             let k = &rec.speed;
-            let rpm = if t <= k[0].0 {
-                k[0].1
-            } else if t >= k[k.len() - 1].0 {
-                k[k.len() - 1].1
-            } else {
-                let j = k.iter().position(|p| p.0 > t).unwrap_or(k.len() - 1);
-                let (a, b) = (k[j - 1], k[j]);
-                if b.0 > a.0 {
-                    a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
-                } else {
-                    b.1
-                }
-            };
-            rpm * std::f64::consts::PI / 30.0
+            let j = k.iter().position(|p| p.0 > t).unwrap_or(k.len() - 1);
+            rec.speed_in(t, j)
         };
         let recs = all();
         assert!(recs.iter().any(|r| r.speed.len() > 3));

@@ -84,8 +84,7 @@ impl Plant {
         self.last_out = end;
         self.out_fresh = true;
         self.pt.hooks.advance(&self.s, None, h);
-        let hs = &self.cfg.housing;
-        self.theta_h = hs.target_c + (self.theta_h - hs.target_c) * (-h / hs.tau_s).exp();
+        self.relax_housing(self.housing_decay[1]);
         self.steps += n;
         self.stats.steps += n;
         self.stats.quiet_cycles += 1;
