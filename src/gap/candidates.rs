@@ -16,10 +16,11 @@
 use super::disk::{self, DiskRun};
 use super::replay::{self, Measured, Shared};
 use super::shape::Shape;
+use super::slip_shapes::SlipShapes;
 use super::terms::{self, Extra, Terms, X_REF_MM};
 use crate::model::clutch;
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
-use crate::model::params::{ClutchParams, Params};
+use crate::model::params::{ActuatorParams, ClutchParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5State, ThermalInputs};
 
@@ -66,6 +67,7 @@ fn torque_context(c: &ClutchContext) -> TorqueContext {
         e_fric_j: c.e_fric_j,
         theta_surface_c: c.theta_c,
         slip_accel_radps2: 0.0,
+        slip_shape: None,
     }
 }
 
@@ -348,6 +350,7 @@ fn torque_at(
     bearing: Option<&[Vec<f64>; 2]>,
     surface: Option<&[Vec<f64>; 2]>,
     slide: Option<&[Vec<f64>; 2]>,
+    shapes: &SlipShapes,
     i: usize,
     k: usize,
 ) -> f64 {
@@ -357,6 +360,7 @@ fn torque_at(
     }
     ctx.x_to_mm = model.terms.bearing(ctx.x_to_mm);
     let mut tc = torque_context(&ctx);
+    tc.slip_shape = Some(shapes.at(i, k));
     if let Some(s) = surface {
         tc.theta_surface_c = s[i][k];
     }
@@ -372,7 +376,7 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
     let mm = corrected.as_ref().unwrap_or(m);
     let disk =
         want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks::of(model), mm));
-    let mut pr = predict_inner(model, mm, s, chans, disk.as_ref());
+    let mut pr = predict_inner(model, mm, s, chans, disk.as_ref(), None);
     pr.disk = disk;
     pr
 }
@@ -429,6 +433,48 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
 pub struct ReplayMemo {
     inputs: Vec<(Terms, Option<Measured>)>,
     disks: Vec<(ReplayKey, DiskRun)>,
+    actuator: ActuatorMemo,
+}
+
+/// The bearing positions a fit's last models replayed from the requests
+/// ([`replay::actuator_replay`]), per clutch. They read only the actuator's parameters, the dead
+/// time and the start position, which most columns of a Jacobian leave as they were (only an
+/// actuator column moves them).
+#[derive(Debug, Clone, Default)]
+pub struct ActuatorMemo([Vec<(ActuatorKey, Vec<f64>)>; 2]);
+
+/// Everything of a model and a record's start the position replay of one clutch reads (the
+/// record's requests are the memo's own: one memo per record).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ActuatorKey {
+    actuator: ActuatorParams,
+    /// The dead time's and the start position's bits (a NaN key is one key too).
+    dead_time: u64,
+    x0: u64,
+}
+
+impl ActuatorMemo {
+    /// The positions of clutch `i` replayed from the requests `xr` (from the memo when the key is
+    /// one it holds).
+    fn positions(
+        &mut self,
+        i: usize,
+        p: &ActuatorParams,
+        set: &EffectSet,
+        xr: &[f64],
+        x0: f64,
+        dt: f64,
+    ) -> &[f64] {
+        let key = ActuatorKey {
+            actuator: *p,
+            dead_time: effects::dead_time_s(set).to_bits(),
+            x0: x0.to_bits(),
+        };
+        recall(&mut self.0[i], key, |_| {
+            replay::actuator_replay(p, &delayed_requests(set, xr, dt), x0, dt)
+        })
+        .as_slice()
+    }
 }
 
 /// Everything of a model the disk replay ([`disk::run`] under [`SetHooks::of`], on the inputs
@@ -538,23 +584,38 @@ pub fn predict_reusing(
     let mm = corrected.as_ref().unwrap_or(m);
     if !want_torque(s, chans) {
         // No disk replay (and none in the result).
-        return predict_inner(model, mm, s, chans, None);
+        return predict_inner(model, mm, s, chans, None, Some(&mut memo.actuator));
     }
     let disk = recall_disk(&mut memo.disks, model, mm);
-    predict_inner(model, mm, s, chans, Some(&*disk.theta))
+    predict_inner(
+        model,
+        mm,
+        s,
+        chans,
+        Some(&*disk.theta),
+        Some(&mut memo.actuator),
+    )
 }
 
 /// [`predict`] with the disk temperature estimate given (it depends only on the thermal
-/// parameters and β, so fits of the torque characteristic reuse it); `disk` of the result is
-/// `None`.
+/// parameters and β, so fits of the torque characteristic reuse it), the position replays from
+/// `memo` when given; `disk` of the result is `None`.
 pub fn predict_with_disk_ref(
     model: &Model,
     m: &Measured,
     s: &Samples,
     chans: &[Channel],
     disk: &[Vec<f64>; 2],
+    memo: Option<&mut ReplayMemo>,
 ) -> Predictions {
-    predict_inner(model, m, s, chans, Some(disk))
+    predict_inner(
+        model,
+        m,
+        s,
+        chans,
+        Some(disk),
+        memo.map(|memo| &mut memo.actuator),
+    )
 }
 
 /// Whether the sensor terms change the measured inputs of the replays (a thermocouple lag or
@@ -575,6 +636,7 @@ fn predict_inner(
     s: &Samples,
     chans: &[Channel],
     disk: Option<&[Vec<f64>; 2]>,
+    mut act: Option<&mut ActuatorMemo>,
 ) -> Predictions {
     let p = &model.p;
     let h = SetHooks::of(model);
@@ -590,6 +652,7 @@ fn predict_inner(
                 .any(|(v, _)| *v == super::class::Variable::SlidingAcceleration)
                 .then(|| [0, 1].map(|i| slide_acceleration(&m.slip[i], m.dt)));
         let skew = t.torque_skew_s / m.dt;
+        let shapes = m.slip_shapes.get(&p.clutch, m);
         for i in 0..2 {
             let c = Channel::Torque(i);
             if !want(c) {
@@ -603,6 +666,7 @@ fn predict_inner(
                     bearing.as_ref(),
                     surface.as_ref(),
                     slide.as_ref(),
+                    &shapes,
                     i,
                     k,
                 )
@@ -664,11 +728,18 @@ fn predict_inner(
             if !want(c) {
                 continue;
             }
-            let req = delayed_requests(&model.set, xr, m.dt);
             let x0 = t
                 .pos_sensor
                 .map_or(m.x[i][0], |g| g.invert(m.x[i][0], X_REF_MM));
-            let xs = replay::actuator_replay(&p.actuator, &req, x0, m.dt);
+            let fresh;
+            let xs: &[f64] = match act.as_deref_mut() {
+                Some(memo) => memo.positions(i, &p.actuator, &model.set, xr, x0, m.dt),
+                None => {
+                    let req = delayed_requests(&model.set, xr, m.dt);
+                    fresh = replay::actuator_replay(&p.actuator, &req, x0, m.dt);
+                    &fresh
+                }
+            };
             let mut v = vec![f64::NAN; m.n];
             for &k in s.get(c) {
                 v[k] = match &t.pos_sensor {
@@ -780,5 +851,53 @@ mod tests {
         let a = predict(&base, &m, &s, &chans).disk.unwrap();
         let b = predict(&thermal, &m, &s, &chans).disk.unwrap();
         assert!(a[0].iter().zip(&b[0]).any(|(x, y)| (x - y).abs() > 1e-3));
+    }
+
+    /// The position replays a memo keeps: a lag, a dead time and a position reading error moved
+    /// in turn, each model's positions bit for bit a fresh prediction's, from the memo (two
+    /// entries per clutch) when only the torque moved, and each move does move them.
+    #[test]
+    fn kept_position_replays_are_a_fresh_replays() {
+        let p = Params::default();
+        let m = record(&p);
+        let s = Samples::new(&m, 1, 10);
+        let pos = Channel::Pos(0);
+        assert!(m.x_req[0].is_some() && !s.get(pos).is_empty());
+        let chans = [Channel::Torque(0), pos];
+        let base = Model::nominal(p);
+        let mut lag = base;
+        lag.p.actuator.tau_s *= 1.3;
+        let mut dead = base;
+        dead.set.set(EffectId::ActuatorDeadTime, &[0.03]).unwrap();
+        let mut sensor = base;
+        sensor.terms.pos_sensor = Some(terms::GainOffset {
+            gain: 1.02,
+            offset: 0.1,
+        });
+        let mut torque = base;
+        torque.terms.torque_skew_s = 0.02;
+        let mut memo = ReplayMemo::default();
+        let at = |pr: &Predictions| {
+            s.get(pos)
+                .iter()
+                .map(|&k| pr.y[pos.index()][k])
+                .collect::<Vec<_>>()
+        };
+        let first = at(&predict(&base, &m, &s, &chans));
+        for model in [base, lag, torque, dead, sensor, base, lag] {
+            let fresh = predict(&model, &m, &s, &chans);
+            same(&predict_reusing(&model, &m, &s, &chans, &mut memo), &fresh);
+            assert!(memo.actuator.0.iter().all(|v| v.len() <= 2));
+            let moved = at(&fresh)
+                .iter()
+                .zip(&first)
+                .any(|(a, b)| (a - b).abs() > 1e-4);
+            assert_eq!(
+                moved,
+                model != base && model != torque,
+                "{:?}",
+                model.terms.pos_sensor
+            );
+        }
     }
 }

@@ -176,7 +176,7 @@ fn predict_file(
 ) -> Predictions {
     let cached = cached_disk && !candidates::corrects_inputs(&model.terms);
     match (&f.disk, cached, memo) {
-        (Some(d), true, _) => candidates::predict_with_disk_ref(model, &f.m, s, chans, d),
+        (Some(d), true, memo) => candidates::predict_with_disk_ref(model, &f.m, s, chans, d, memo),
         (_, _, Some(memo)) => candidates::predict_reusing(model, &f.m, s, chans, memo),
         (_, _, None) => candidates::predict(model, &f.m, s, chans),
     }

@@ -27,6 +27,7 @@ pub mod replay;
 pub mod report;
 pub mod select;
 pub mod shape;
+pub mod slip_shapes;
 pub mod stats;
 pub mod synth;
 pub mod terms;

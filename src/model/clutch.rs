@@ -69,7 +69,7 @@ pub fn mu(p: &ClutchParams, v_mps: f64, theta_fp: f64) -> f64 {
 /// closed form over the tabulated universal integral of [`slip_integral`], or for a very narrow
 /// facing the 8-node rule.
 #[inline]
-fn slip_shape(p: &ClutchParams, slip_radps: f64) -> f64 {
+pub fn slip_shape(p: &ClutchParams, slip_radps: f64) -> f64 {
     let w = slip_radps.abs();
     if w == 0.0 {
         return 0.0;
@@ -102,7 +102,14 @@ fn slip_shape_quadrature(p: &ClutchParams, w: f64) -> f64 {
 /// Equivalent friction radius (6) R_μ(ω, θ) (m). Even in the slip.
 #[inline]
 pub fn r_mu(p: &ClutchParams, slip_radps: f64, theta_fp: f64) -> f64 {
-    p.mu_s * 0.5 * (p.r1_m + p.r2_m) + (mu_d(p, theta_fp) - p.mu_s) * slip_shape(p, slip_radps)
+    r_mu_shaped(p, slip_shape(p, slip_radps), theta_fp)
+}
+
+/// [`r_mu`] with the slip's [`slip_shape`] Q(ω) given: the two facings of a clutch slip alike, so
+/// Q is taken once for both.
+#[inline]
+pub fn r_mu_shaped(p: &ClutchParams, q: f64, theta_fp: f64) -> f64 {
+    p.mu_s * 0.5 * (p.r1_m + p.r2_m) + (mu_d(p, theta_fp) - p.mu_s) * q
 }
 
 /// R_μ by composite Gauss–Legendre with `panels` panels of 8 nodes: an independent,
@@ -173,11 +180,24 @@ pub fn normal_force(p: &ClutchParams, x_to_mm: f64, theta_fs: f64) -> f64 {
 /// Single-clutch torque (13) (N·m), with the sign of the slip ω_fc = ω_f − ω_c.
 #[inline]
 pub fn torque(p: &ClutchParams, x_to_mm: f64, slip_radps: f64, theta_c: f64) -> f64 {
+    torque_shaped(p, x_to_mm, slip_radps, theta_c, None)
+}
+
+/// [`torque`] with the slip's Q(ω) ([`slip_shape`]) given when `q` is.
+#[inline]
+pub fn torque_shaped(
+    p: &ClutchParams,
+    x_to_mm: f64,
+    slip_radps: f64,
+    theta_c: f64,
+    q: Option<f64>,
+) -> f64 {
     let f = normal_force(p, x_to_mm, theta_c);
     if f == 0.0 || slip_radps == 0.0 {
         return 0.0;
     }
-    slip_radps.signum() * 2.0 * r_mu(p, slip_radps, theta_c) * f
+    let q = q.unwrap_or_else(|| slip_shape(p, slip_radps));
+    slip_radps.signum() * 2.0 * r_mu_shaped(p, q, theta_c) * f
 }
 
 /// Two-facing torque (11) (N·m): facing temperatures θ_fp1, θ_fp2 and flat-spring temperature

@@ -808,6 +808,10 @@ pub struct TorqueContext {
     pub theta_surface_c: f64,
     /// Slip acceleration dω_fc/dt (rad/s²) (`sliding_acceleration_friction`); 0 when unknown.
     pub slip_accel_radps2: f64,
+    /// Q(ω) of (6) at this slip for the clutch's γ, R1 and R2 ([`clutch::slip_shape`]) when the
+    /// caller has it (a replay evaluating one record's samples under many models); `None`:
+    /// computed here.
+    pub slip_shape: Option<f64>,
 }
 
 impl TorqueContext {
@@ -822,6 +826,7 @@ impl TorqueContext {
             e_fric_j: 0.0,
             theta_surface_c: theta_c,
             slip_accel_radps2: 0.0,
+            slip_shape: None,
         }
     }
 }
@@ -896,28 +901,57 @@ pub fn facing_temperatures(set: &EffectSet, c: &TorqueContext) -> (f64, f64) {
     (t1, t2)
 }
 
-/// Equivalent friction radius (6) of one facing at its temperature, with `mu_static_temp`.
+/// Equivalent friction radius (6) of one facing at its temperature, with `mu_static_temp`, the
+/// slip's Q(ω) ([`clutch::slip_shape`]) given: μ_s(θ) moves only the static part, so Q does not
+/// depend on the set.
 #[inline]
-pub fn r_mu(p: &ClutchParams, set: &EffectSet, slip_radps: f64, theta_fp: f64) -> f64 {
+fn r_mu_shaped(p: &ClutchParams, set: &EffectSet, q: f64, theta_fp: f64) -> f64 {
     match set.p0(EffectId::MuStaticTemp) {
         Some(k) => {
-            let mut q = *p;
-            q.mu_s = (p.mu_s * (1.0 + k * (theta_fp - p.theta_a_c))).max(0.01 * p.mu_s);
-            clutch::r_mu(&q, slip_radps, theta_fp)
+            let mut c = *p;
+            c.mu_s = (p.mu_s * (1.0 + k * (theta_fp - p.theta_a_c))).max(0.01 * p.mu_s);
+            clutch::r_mu_shaped(&c, q, theta_fp)
         }
-        None => clutch::r_mu(p, slip_radps, theta_fp),
+        None => clutch::r_mu_shaped(p, q, theta_fp),
     }
 }
 
-/// Torque magnitude at the context's position and slip (N·m, ≥ 0).
+/// R_μ of both facings: Q(ω) once (`q` when given), and one facing doubled when both are at one
+/// temperature.
 #[inline]
-fn magnitude(p: &ClutchParams, set: &EffectSet, c: &TorqueContext, slip: f64) -> f64 {
+fn r_mu_both(
+    p: &ClutchParams,
+    set: &EffectSet,
+    slip_radps: f64,
+    q: Option<f64>,
+    t1: f64,
+    t2: f64,
+) -> f64 {
+    let q = q.unwrap_or_else(|| clutch::slip_shape(p, slip_radps));
+    let a = r_mu_shaped(p, set, q, t1);
+    if t1 == t2 {
+        a + a
+    } else {
+        a + r_mu_shaped(p, set, q, t2)
+    }
+}
+
+/// Torque magnitude at the context's position and `slip` (N·m, ≥ 0); `q`: Q(ω) of that slip
+/// when known.
+#[inline]
+fn magnitude(
+    p: &ClutchParams,
+    set: &EffectSet,
+    c: &TorqueContext,
+    slip: f64,
+    q: Option<f64>,
+) -> f64 {
     let f = normal_force(p, set, c);
     if f <= 0.0 {
         return 0.0;
     }
     let (t1, t2) = facing_temperatures(set, c);
-    let r = r_mu(p, set, slip, t1) + r_mu(p, set, slip, t2);
+    let r = r_mu_both(p, set, slip, q, t1, t2);
     let accel = if slip == 0.0 {
         1.0
     } else {
@@ -931,12 +965,12 @@ fn magnitude(p: &ClutchParams, set: &EffectSet, c: &TorqueContext, slip: f64) ->
 #[inline]
 pub fn torque(p: &ClutchParams, set: &EffectSet, c: &TorqueContext) -> f64 {
     if set.is_nominal() {
-        return clutch::torque(p, c.x_to_mm, c.slip_radps, c.theta_c);
+        return clutch::torque_shaped(p, c.x_to_mm, c.slip_radps, c.theta_c, c.slip_shape);
     }
     if c.slip_radps == 0.0 {
         return 0.0;
     }
-    c.slip_radps.signum() * magnitude(p, set, c, c.slip_radps)
+    c.slip_radps.signum() * magnitude(p, set, c, c.slip_radps, c.slip_shape)
 }
 
 /// Static capacity 2·R_μ(0, θ)·F with effects (N·m).
@@ -945,7 +979,7 @@ pub fn capacity(p: &ClutchParams, set: &EffectSet, c: &TorqueContext) -> f64 {
     if set.is_nominal() {
         return clutch::capacity(p, c.x_to_mm, c.theta_c);
     }
-    magnitude(p, set, c, 0.0)
+    magnitude(p, set, c, 0.0, None)
 }
 
 /// The effects [`beta`] reads (whether a clutch is engaged).
@@ -1003,7 +1037,7 @@ pub fn invert(
     let g = |x: f64| {
         let mut cc = *c;
         cc.x_to_mm = x;
-        magnitude(p, set, &cc, slip) - target
+        magnitude(p, set, &cc, slip, c.slip_shape) - target
     };
     let (mut a, mut b) = (lo0, hi0);
     let (mut fa, mut fb) = (g(a), g(b));

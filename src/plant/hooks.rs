@@ -58,6 +58,7 @@ impl EffectHooks {
                 c.theta_c
             },
             slip_accel_radps2: self.slip_accel_radps2[i],
+            slip_shape: None,
         }
     }
 
