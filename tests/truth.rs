@@ -151,6 +151,22 @@ fn tmp(tag: &str) -> PathBuf {
 
 /// `ddct gap truth` writes the records of a hand-chosen case (CSV in the documented columns,
 /// loadable by the diagnosis) and the truth; `--trial` regenerates a blind trial's truth.
+/// The blind's trial (truth and records in one go, the noise-free records simulated once for
+/// the effect's size and the noise) is the truth and the records drawn separately, byte for
+/// byte.
+#[test]
+fn a_trial_drawn_with_its_records_is_the_truth_and_records_drawn_apart() {
+    let p = Params::default();
+    let i = (0..10)
+        .find(|&i| truth::kind_of(3, i).0 == truth::TruthKind::Class)
+        .unwrap();
+    let (t, recs) = truth::draw_and_records(3, i, &p);
+    let apart = truth::draw(3, i, &p);
+    assert_eq!(t, apart);
+    assert!(!t.effects.is_empty());
+    assert_eq!(recs, truth::records(&apart, 3));
+}
+
 #[test]
 fn cli_truth_writes_a_case() {
     let bin = env!("CARGO_BIN_EXE_ddct");

@@ -179,11 +179,11 @@ pub fn score(
     r
 }
 
-/// Runs trial `index`: draws the truth, generates and parses its records, diagnoses, scores.
-pub fn run_trial(seed: u64, index: usize, nominal: &Params) -> TrialResult {
+/// Runs trial `index`: draws the truth, generates and parses its records, diagnoses on
+/// `threads` threads (0: the available cores), scores.
+pub fn run_trial(seed: u64, index: usize, nominal: &Params, threads: usize) -> TrialResult {
     let t0 = Instant::now();
-    let truth = truth::draw(seed, index, nominal);
-    let recs = truth::records(&truth, seed);
+    let (truth, recs) = truth::draw_and_records(seed, index, nominal);
     let parse = |v: &[(String, String)]| -> Result<Vec<Dataset>, String> {
         v.iter()
             .map(|(name, csv)| Dataset::from_csv(name, csv).map_err(|e| e.to_string()))
@@ -191,6 +191,7 @@ pub fn run_trial(seed: u64, index: usize, nominal: &Params) -> TrialResult {
     };
     let opts = DiagnoseOptions {
         carry_energy: truth.variants.worn_validation,
+        threads,
         ..DiagnoseOptions::default()
     };
     let outcome = parse(&recs.train).and_then(|tr| {
@@ -235,8 +236,12 @@ pub fn run(
     nominal: &Params,
     on_done: &(dyn Fn(&TrialResult) + Sync),
 ) -> Vec<TrialResult> {
+    // The trials share the cores: each diagnosis takes its share (a diagnosis's fits on one
+    // thread keep every replay in one memo; its result does not depend on the threads).
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let inner = (cores / threads.clamp(1, indices.len().max(1))).max(1);
     let mut v = crate::par::map(threads, indices, |_, &i| {
-        let r = run_trial(seed, i, nominal);
+        let r = run_trial(seed, i, nominal, inner);
         on_done(&r);
         r
     });

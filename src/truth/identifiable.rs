@@ -7,8 +7,9 @@
 //! evidence of any effect. The **identifiable** size is the distance of the effect's records
 //! from the closest baseline the box contains: the generator refits its own baseline (its own
 //! simulator, [`super::sim`], not the diagnosis) to the records with the effect — a Gauss–Newton
-//! step on the nine detuned parameters with their bounds, by finite differences, verified by
-//! simulation; the smaller of the raw and the refitted distances is the size. Both sizes are
+//! step on the nine detuned parameters with their bounds, by finite differences (of the same
+//! simulator at a 2 ms step: [`SENSITIVITY_SUB`]), verified by the full simulation; the smaller of
+//! the raw and the refitted distances is the size. Both sizes are
 //! reported; the bands use the identifiable one.
 //!
 //! Distances are per channel group (torque, temperatures, positions): the RMS of the difference
@@ -185,21 +186,30 @@ pub struct Baseline {
 /// Relative step of the finite differences.
 const STEP: f64 = 0.01;
 
+/// Integration steps per sample of the sensitivity simulations ([`super::sim::simulate_with`]):
+/// Heun at 2 ms instead of 1 ms. The sensitivities only steer the Gauss–Newton steps; every
+/// step is verified, and every distance measured, by the full simulation.
+pub const SENSITIVITY_SUB: usize = 5;
+
 impl Baseline {
-    /// Simulates the baseline and its nine sensitivities (ten simulations).
+    /// Simulates the baseline (`simulate`) and its nine sensitivities by finite differences of
+    /// `sensitivity`, a cheaper simulation of the same records (one full and ten cheaper
+    /// simulations).
     pub fn new(
         plant: &Params,
         detune: &BTreeMap<String, f64>,
         simulate: &Simulate<'_>,
+        sensitivity: &Simulate<'_>,
     ) -> Baseline {
         let noise = Noise::default();
         let base = stack(&simulate(plant), &noise);
+        let from = stack(&sensitivity(plant), &noise);
         let mut jac = DMatrix::zeros(base.len(), DETUNED.len());
         for (c, name) in DETUNED.iter().enumerate() {
             let mut p = *plant;
             scale(&mut p, name, 1.0 + STEP);
-            let b = stack(&simulate(&p), &noise);
-            for (r, (x, y)) in b.iter().zip(&base).enumerate() {
+            let b = stack(&sensitivity(&p), &noise);
+            for (r, (x, y)) in b.iter().zip(&from).enumerate() {
                 jac[(r, c)] = (x - y) / STEP;
             }
         }
@@ -315,7 +325,7 @@ mod tests {
                 .map(|(_, s)| s)
                 .collect()
         };
-        let base = Baseline::new(&plant, &BTreeMap::new(), &run);
+        let base = Baseline::new(&plant, &BTreeMap::new(), &run, &run);
         let moved = |k: f64| {
             let mut p = plant;
             scale(&mut p, "clutch.x_isp0_mm", k);

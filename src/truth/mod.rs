@@ -286,15 +286,7 @@ pub fn build(spec: &CaseSpec, nominal: &Params) -> Result<Truth, String> {
         [Target::Class(_)] => TruthKind::Class,
         _ => TruthKind::Pair,
     };
-    Ok(finish(
-        spec.seed,
-        0,
-        kind,
-        effects,
-        plant,
-        factors,
-        spec.variants,
-    ))
+    Ok(finish(spec.seed, 0, kind, effects, plant, factors, spec.variants).0)
 }
 
 /// Kinds in each block of ten trials (shuffled per block).
@@ -325,6 +317,23 @@ pub fn kind_of(seed: u64, index: usize) -> (TruthKind, usize) {
 
 /// Draws the truth of trial `index` (deterministic in seed and index).
 pub fn draw(seed: u64, index: usize, nominal: &Params) -> Truth {
+    draw_with(seed, index, nominal).0
+}
+
+/// The truth of trial `index` and its noisy records ([`records`]): the noise-free records the
+/// effect's size was measured on are the ones the noise is added to, simulated once.
+pub fn draw_and_records(seed: u64, index: usize, nominal: &Params) -> (Truth, TruthRecords) {
+    let (t, sims) = draw_with(seed, index, nominal);
+    let recs = match sims {
+        Some(sims) => records_from(&t, seed, &Noise::default(), &sims),
+        None => records(&t, seed),
+    };
+    (t, recs)
+}
+
+/// [`draw`] and the noise-free records of all its effects together when sizing them simulated
+/// them.
+fn draw_with(seed: u64, index: usize, nominal: &Params) -> (Truth, Option<Records>) {
     let (kind, j) = kind_of(seed, index);
     let mut rng = Xoshiro::new(derive(seed, &[0x7407, index as u64]));
     let pick = |list: &[ClassId], salt: u64, j: usize| -> ClassId {
@@ -377,6 +386,11 @@ pub fn draw(seed: u64, index: usize, nominal: &Params) -> Truth {
     finish(seed, index, kind, effects, plant, factors, variants)
 }
 
+/// Every record's definition and its noise-free simulation, training then validation.
+type Records = Vec<(RecordDef, sim::SimOut)>;
+
+/// The truth of the effects on the plant, its effect sizes measured, and the noise-free records
+/// of all the effects together where measuring them simulated those.
 fn finish(
     seed: u64,
     index: usize,
@@ -385,7 +399,7 @@ fn finish(
     plant: Params,
     detune: BTreeMap<String, f64>,
     variants: Variants,
-) -> Truth {
+) -> (Truth, Option<Records>) {
     let classes: Vec<ClassId> = effects
         .iter()
         .filter_map(|e| match e.target {
@@ -398,7 +412,7 @@ fn finish(
         _ => None,
     });
     let fx_seed = derive(seed, &[0xEFF, index as u64]);
-    let sizes = effect_sizes(&plant, &detune, &effects, variants, fx_seed);
+    let (sizes, with) = effect_sizes(&plant, &detune, &effects, variants, fx_seed);
     let (all, each) = (sizes[0].clone(), sizes[1..].to_vec());
     let size = all.identifiable.size;
     let effect_sizes = if effects.len() > 1 {
@@ -420,7 +434,7 @@ fn finish(
     if variants.worn_validation {
         description.push_str(" | validation starts on the worn pack");
     }
-    Truth {
+    let truth = Truth {
         seed,
         index,
         kind,
@@ -440,7 +454,8 @@ fn finish(
         variants,
         description,
         plant,
-    }
+    };
+    (truth, with)
 }
 
 /// Every record in order (training then validation) with the friction energy each starts with.
@@ -450,17 +465,18 @@ fn simulate_all(
     variants: Variants,
     fx_seed: u64,
 ) -> Vec<(RecordDef, sim::SimOut)> {
-    simulate_from(plant, effects, variants, fx_seed, None)
+    simulate_from(plant, effects, variants, fx_seed, None, sim::SUB)
 }
 
 /// [`simulate_all`], each record's pack soaked at `starts[k]` instead of its own start
-/// temperature when given.
+/// temperature when given, with `sub` integration steps per sample ([`sim::simulate_with`]).
 fn simulate_from(
     plant: &Params,
     effects: &[Effect],
     variants: Variants,
     fx_seed: u64,
     starts: Option<&[f64]>,
+    sub: usize,
 ) -> Vec<(RecordDef, sim::SimOut)> {
     let ph = Physics::new(plant);
     let mut e = [0.0; 2];
@@ -474,7 +490,7 @@ fn simulate_from(
         } else {
             [0.0; 2]
         };
-        let s = sim::simulate(&ph, effects, &rec, e0, derive(fx_seed, &[k as u64]));
+        let s = sim::simulate_with(&ph, effects, &rec, e0, derive(fx_seed, &[k as u64]), sub);
         e = s.e_end;
         out.push((rec, s));
     }
@@ -493,14 +509,14 @@ fn effect_sizes(
     effects: &[Effect],
     variants: Variants,
     fx_seed: u64,
-) -> Vec<identifiable::Sizes> {
+) -> (Vec<identifiable::Sizes>, Option<Records>) {
     let zero = identifiable::Sizes {
         raw: identifiable::Size::ZERO,
         identifiable: identifiable::Size::ZERO,
         refit: BTreeMap::new(),
     };
     if effects.is_empty() {
-        return vec![zero];
+        return (vec![zero], None);
     }
     let run = |p: &Params, fx: &[Effect]| -> Vec<sim::SimOut> {
         simulate_all(p, fx, variants, fx_seed)
@@ -509,37 +525,54 @@ fn effect_sizes(
             .collect()
     };
     let base_sim = |p: &Params| run(p, &[]);
-    let baseline = identifiable::Baseline::new(plant, detune, &base_sim);
+    let coarse = |p: &Params, starts: Option<&[f64]>| -> Vec<sim::SimOut> {
+        simulate_from(
+            p,
+            &[],
+            variants,
+            fx_seed,
+            starts,
+            identifiable::SENSITIVITY_SUB,
+        )
+        .into_iter()
+        .map(|(_, s)| s)
+        .collect()
+    };
+    let base_coarse = |p: &Params| coarse(p, None);
+    let baseline = identifiable::Baseline::new(plant, detune, &base_sim, &base_coarse);
     let own_starts: Vec<f64> = experiments::all().iter().map(|r| r.theta0_c).collect();
-    let size = |fx: &[Effect]| {
-        let with = run(plant, fx);
+    let size = |with: &[sim::SimOut]| {
         let starts: Vec<f64> = with.iter().map(read_start).collect();
         let same = starts
             .iter()
             .zip(&own_starts)
             .all(|(a, b)| (a - b).abs() < 1e-6);
         if same {
-            return baseline.sizes(&with, &base_sim);
+            return baseline.sizes(with, &base_sim);
         }
         let sim_from = |p: &Params| -> Vec<sim::SimOut> {
-            simulate_from(p, &[], variants, fx_seed, Some(&starts))
+            simulate_from(p, &[], variants, fx_seed, Some(&starts), sim::SUB)
                 .into_iter()
                 .map(|(_, s)| s)
                 .collect()
         };
-        let read = identifiable::Baseline::new(plant, detune, &sim_from);
-        let mut s = read.sizes(&with, &sim_from);
+        let coarse_from = |p: &Params| coarse(p, Some(&starts));
+        let read = identifiable::Baseline::new(plant, detune, &sim_from, &coarse_from);
+        let mut s = read.sizes(with, &sim_from);
         // The raw size stays against the truth's own baseline.
-        s.raw = baseline.raw(&with);
+        s.raw = baseline.raw(with);
         s
     };
-    let mut out = vec![size(effects)];
+    let all = simulate_all(plant, effects, variants, fx_seed);
+    let with: Vec<sim::SimOut> = all.iter().map(|(_, s)| s.clone()).collect();
+    let mut out = vec![size(&with)];
     if effects.len() > 1 {
         for e in effects {
-            out.push(size(std::slice::from_ref(e)));
+            let one = std::slice::from_ref(e);
+            out.push(size(&run(plant, one)));
         }
     }
-    out
+    (out, Some(all))
 }
 
 /// The pack temperature a record's thermocouples read at its first sample (noise-free): the
@@ -559,12 +592,23 @@ pub fn records(t: &Truth, seed: u64) -> TruthRecords {
 pub fn records_with(t: &Truth, seed: u64, noise: &Noise) -> TruthRecords {
     let fx_seed = derive(t.seed, &[0xEFF, t.index as u64]);
     let all = simulate_all(&t.plant, &t.effects, t.variants, fx_seed);
+    records_from(t, seed, noise, &all)
+}
+
+/// [`records_with`] from the truth's noise-free records `all` ([`simulate_all`] of its plant and
+/// effects).
+fn records_from(
+    t: &Truth,
+    seed: u64,
+    noise: &Noise,
+    all: &[(RecordDef, sim::SimOut)],
+) -> TruthRecords {
     let mut out = TruthRecords {
         train: Vec::new(),
         validate: Vec::new(),
     };
     let n_train = experiments::training().len();
-    for (k, (rec, s)) in all.into_iter().enumerate() {
+    for (k, (rec, s)) in all.iter().enumerate() {
         let mut rng = Xoshiro::new(derive(seed, &[0x4015E, t.index as u64, k as u64]));
         let m = sim::measure(&s.signals, noise, &mut rng);
         let csv = sim::to_csv(&m, t.variants.only_req1, noise.q_torque_nm == 0.0);

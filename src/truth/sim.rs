@@ -12,7 +12,7 @@ use crate::gap::class::ClassId;
 /// Integration step (s).
 pub const STEP_S: f64 = 0.001;
 /// Integration steps per sample.
-const SUB: usize = 10;
+pub const SUB: usize = 10;
 
 /// Sampled channels of a record (the documented CSV columns).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -150,6 +150,8 @@ struct Discrete {
 struct Out {
     torque: [f64; 2],
     beta: [bool; 2],
+    /// The dyno speed at the derivative's time (rad/s).
+    w: f64,
 }
 
 /// The active effects, resolved once.
@@ -255,18 +257,21 @@ impl<'a> Fx<'a> {
     }
 }
 
+/// The multiplier (1 + term) of an active effect at its variable's z (taken only when the effect
+/// is active: z may cost a logarithm), 1 without it.
 #[inline]
-fn mult(e: Option<&Effect>, z: f64) -> f64 {
+fn mult(e: Option<&Effect>, z: impl FnOnce() -> f64) -> f64 {
     match e {
-        Some(e) => (1.0 + e.term(z)).max(0.0),
+        Some(e) => (1.0 + e.term(z())).max(0.0),
         None => 1.0,
     }
 }
 
+/// The shift (term) of an active effect at its variable's z, 0 without it.
 #[inline]
-fn shift(e: Option<&Effect>, z: f64) -> f64 {
+fn shift(e: Option<&Effect>, z: impl FnOnce() -> f64) -> f64 {
     match e {
-        Some(e) => e.term(z),
+        Some(e) => e.term(z()),
         None => 0.0,
     }
 }
@@ -313,12 +318,12 @@ impl Rig<'_> {
         for i in 0..2 {
             let tc = s.th[2 + i];
             let xb = self.bearing(i, s.xa[i], d);
-            let ke = shift(fx.kiss_energy, inject::z_energy(s.e[i]));
-            let kiss = ph.kiss(tc) + shift(fx.kiss_temp, inject::z_temp(tc)) + ke;
+            let ke = shift(fx.kiss_energy, || inject::z_energy(s.e[i]));
+            let kiss = ph.kiss(tc) + shift(fx.kiss_temp, || inject::z_temp(tc)) + ke;
             let u = ph.compression(xb, kiss, ph.x_max + ke);
             beta[i] = u > 0.0;
             // The spring loses load with temperature: 1 − a·f(z) (or 1 + a·(1 − f(z))).
-            force[i] = ph.spring(u) * (1.0 - shift(fx.spring_temp, inject::z_temp(tc))).max(0.0);
+            force[i] = ph.spring(u) * (1.0 - shift(fx.spring_temp, || inject::z_temp(tc))).max(0.0);
         }
         let mut torque = [0.0; 2];
         let mut ds = State::default();
@@ -327,7 +332,7 @@ impl Rig<'_> {
             let f = force[i];
             if f > 0.0 && w != 0.0 {
                 let fx = &self.fx;
-                let mu_s = ph.mu_s * mult(fx.mu_s_temp, inject::z_temp(tc));
+                let mu_s = ph.mu_s * mult(fx.mu_s_temp, || inject::z_temp(tc));
                 let (pp, cd) = (s.th[i], s.th[4]);
                 let (th1, th2) = if fx.facing > 0.0 {
                     (tc + fx.facing * (pp - tc), tc + fx.facing * (cd - tc))
@@ -335,11 +340,11 @@ impl Rig<'_> {
                     (tc, tc)
                 };
                 let fl = s.flash[i];
-                let m = mult(fx.mu_temp, inject::z_temp(tc))
-                    * mult(fx.mu_slip, inject::z_slip(w))
-                    * mult(fx.mu_clamp, inject::z_clamp(f))
-                    * mult(fx.mu_energy, inject::z_energy(s.e[i]))
-                    * mult(fx.cross, inject::z_clamp(force[1 - i]))
+                let m = mult(fx.mu_temp, || inject::z_temp(tc))
+                    * mult(fx.mu_slip, || inject::z_slip(w))
+                    * mult(fx.mu_clamp, || inject::z_clamp(f))
+                    * mult(fx.mu_energy, || inject::z_energy(s.e[i]))
+                    * mult(fx.cross, || inject::z_clamp(force[1 - i]))
                     * match fx.eng_time {
                         Some(e) => {
                             (1.0 + e.magnitude * (-d.t_eng[i] / e.aux("tau_s")).exp()).max(0.0)
@@ -358,8 +363,12 @@ impl Rig<'_> {
                     None => 1.0,
                 };
                 let q = self.q(i, w);
-                let r_mu = ph.r_mu_q(q, mu_s, ph.mu_dyn(th1 + fl))
-                    + ph.r_mu_q(q, mu_s, ph.mu_dyn(th2 + fl));
+                let r1 = ph.r_mu_q(q, mu_s, ph.mu_dyn(th1 + fl));
+                let r_mu = if th1 == th2 {
+                    r1 + r1
+                } else {
+                    r1 + ph.r_mu_q(q, mu_s, ph.mu_dyn(th2 + fl))
+                };
                 torque[i] = w.signum() * r_mu * f * m * jud;
             } else if let (Some(e), true) = (self.fx.drag, w != 0.0) {
                 // Drag of the open clutch: air and residual contact, growing with speed and
@@ -380,7 +389,7 @@ impl Rig<'_> {
         }
         // Thermal model in its physical form.
         let fx = &self.fx;
-        let conv = mult(fx.conv, inject::z_speed(w));
+        let conv = mult(fx.conv, || inject::z_speed(w));
         let support = |theta: f64, c: f64, weight: f64| -> f64 {
             match fx.support {
                 Some(e) if weight > 0.0 => {
@@ -428,7 +437,7 @@ impl Rig<'_> {
         ds.th[4] = (q_cd + conv_cd - sup_cd) / ph.c_cd;
         loss += -conv_cd + sup_cd;
         ds.loss = loss;
-        (ds, Out { torque, beta })
+        (ds, Out { torque, beta, w })
     }
 }
 
@@ -441,6 +450,20 @@ pub fn simulate(
     e0: [f64; 2],
     seed: u64,
 ) -> SimOut {
+    simulate_with(ph, effects, rec, e0, seed, SUB)
+}
+
+/// [`simulate`] with `sub` integration steps per sample (a step of [`STEP_S`]·[`SUB`]/`sub`):
+/// a coarser step for the sensitivities of [`super::identifiable`].
+pub fn simulate_with(
+    ph: &Physics,
+    effects: &[Effect],
+    rec: &RecordDef,
+    e0: [f64; 2],
+    seed: u64,
+    sub: usize,
+) -> SimOut {
+    let sub = sub.max(1);
     let mut rig = Rig {
         ph,
         rec,
@@ -449,7 +472,7 @@ pub fn simulate(
         speed_hint: 0,
     };
     let n = rec.samples();
-    let steps = (n - 1) * SUB;
+    let steps = (n - 1) * sub;
     let mut s = State {
         th: [rec.theta0_c; 5],
         e: e0,
@@ -471,7 +494,8 @@ pub fn simulate(
     let mut true_temps = Vec::with_capacity(n);
     let mut work = 0.0;
     let mut p_prev = 0.0;
-    let h = STEP_S;
+    // Exactly STEP_S at the default `sub`.
+    let h = STEP_S * (SUB as f64 / sub as f64);
     let tc_lags = rig.fx.tc_lag.map(|tau| Lag::new(h, tau));
     // The true temperatures the thermocouples see, `tc_delay` late (the pack at rest before t = 0).
     let delay_steps = (rig.fx.tc_delay / h).round() as usize;
@@ -487,14 +511,14 @@ pub fn simulate(
         let (k1, out) = rig.deriv(&s, t, r, &d);
         t_ms[0].push(out.torque[0]);
         t_ms[1].push(out.torque[1]);
-        let w = rec.speed_radps_from(t, &mut rig.speed_hint);
+        let w = out.w;
         let p = (out.torque[0] + out.torque[1]) * w;
         if j > 0 {
             work += 0.5 * (p + p_prev) * h;
         }
         p_prev = p;
-        if j % SUB == 0 {
-            let tk = (j / SUB) as f64 * SAMPLE_S;
+        if j % sub == 0 {
+            let tk = (j / sub) as f64 * SAMPLE_S;
             sig.time.push(tk);
             for i in 0..2 {
                 sig.x[i].push(rig.fx.s_pos.read(s.xa[i]));
@@ -529,7 +553,7 @@ pub fn simulate(
             d.tc[k][1] = tc_lags[1].step(d.tc[k][1], d.tc[k][0]);
         }
         if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
-            if (j + 1) % SUB == 0 {
+            if (j + 1) % sub == 0 {
                 let a = (-SAMPLE_S / e.aux("tau_s")).exp();
                 d.drift = d.drift * a + e.magnitude * (1.0 - a * a).sqrt() * r.normal();
             }
@@ -551,7 +575,7 @@ pub fn simulate(
     for (i, v) in t_ms.iter().enumerate() {
         sig.torque[i] = (0..n)
             .map(|k| {
-                let pos = ((k * SUB) as f64 - skew_steps).clamp(0.0, steps as f64);
+                let pos = ((k * sub) as f64 - skew_steps).clamp(0.0, steps as f64);
                 let a = pos.floor() as usize;
                 let f = pos - a as f64;
                 let tq = if a < steps {
