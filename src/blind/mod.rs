@@ -237,10 +237,14 @@ pub fn run(
     on_done: &(dyn Fn(&TrialResult) + Sync),
 ) -> Vec<TrialResult> {
     // The trials share the cores: each diagnosis takes its share (a diagnosis's fits on one
-    // thread keep every replay in one memo; its result does not depend on the threads).
+    // thread keep every replay in one memo; its result does not depend on the threads). The last
+    // trials to start take every core: the others finish while they run.
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let inner = (cores / threads.clamp(1, indices.len().max(1))).max(1);
-    let mut v = crate::par::map(threads, indices, |_, &i| {
+    let threads = threads.clamp(1, indices.len().max(1));
+    let share = (cores / threads).max(1);
+    let tail = indices.len().saturating_sub(threads - 1);
+    let mut v = crate::par::map(threads, indices, |q, &i| {
+        let inner = if q >= tail { cores } else { share };
         let r = run_trial(seed, i, nominal, inner);
         on_done(&r);
         r
