@@ -13,11 +13,13 @@
 
 #![allow(clippy::needless_range_loop)]
 
+use std::sync::Arc;
+
 use super::disk::{self, DiskRun};
 use super::replay::{self, Measured, Shared};
 use super::shape::Shape;
 use super::slip_shapes::SlipShapes;
-use super::terms::{self, Extra, Terms, X_REF_MM};
+use super::terms::{self, Extra, Surface, Terms, X_REF_MM};
 use crate::model::clutch;
 use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext};
 use crate::model::params::{ActuatorParams, ClutchParams, Params};
@@ -306,29 +308,9 @@ fn window_mean(v: &[f64], k: usize) -> f64 {
 /// friction power and the disk temperature estimate: the flexible term when the model has one
 /// ([`Surface`](super::terms::Surface)), else the library's `surface_temperature_friction`
 /// member (θ̇_s = h·P − (θ_s − θ_c)/τ_s).
-fn surface_temperatures(
-    model: &Model,
-    m: &Measured,
-    disk: &[Vec<f64>; 2],
-) -> Option<[Vec<f64>; 2]> {
-    let surface = match model.terms.surface {
-        Some(s) => s,
-        None => {
-            let v = model.set.get(EffectId::SurfaceTemperatureFriction)?;
-            let tau = v[1].max(1e-3);
-            // The member's rise h·P·τ as a straight curve.
-            let z = std::array::from_fn(|j| j as f64 * 1e4);
-            super::terms::Surface {
-                rise: Shape {
-                    z,
-                    v: z.map(|p| v[0] * p * tau),
-                },
-                tau_s: tau,
-            }
-        }
-    };
+fn surface_temperatures(surface: &Surface, m: &Measured, disk: &[Vec<f64>; 2]) -> [Vec<f64>; 2] {
     let a = (-m.dt / surface.tau_s.max(1e-3)).exp();
-    Some([0, 1].map(|i| {
+    [0, 1].map(|i| {
         let mut th = disk[i][0];
         (0..m.n)
             .map(|k| {
@@ -337,7 +319,26 @@ fn surface_temperatures(
                 out
             })
             .collect()
-    }))
+    })
+}
+
+/// The surface-temperature model of `model`: the flexible term when it has one, else the
+/// library's `surface_temperature_friction` member as a term; `None` without either.
+fn surface_of(model: &Model) -> Option<Surface> {
+    if let Some(s) = model.terms.surface {
+        return Some(s);
+    }
+    let v = model.set.get(EffectId::SurfaceTemperatureFriction)?;
+    let tau = v[1].max(1e-3);
+    // The member's rise h·P·τ as a straight curve.
+    let z = std::array::from_fn(|j| j as f64 * 1e4);
+    Some(Surface {
+        rise: Shape {
+            z,
+            v: z.map(|p| v[0] * p * tau),
+        },
+        tau_s: tau,
+    })
 }
 
 /// Model torque of clutch `i` at sample `k` (before the torque sensor).
@@ -376,7 +377,7 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
     let mm = corrected.as_ref().unwrap_or(m);
     let disk =
         want_torque(s, chans).then(|| replay::disk_estimate(&model.p, &SetHooks::of(model), mm));
-    let mut pr = predict_inner(model, mm, s, chans, disk.as_ref(), None);
+    let mut pr = predict_inner(model, mm, s, chans, disk.as_ref(), Reuse::default());
     pr.disk = disk;
     pr
 }
@@ -434,6 +435,83 @@ pub struct ReplayMemo {
     inputs: Vec<(Terms, Option<Measured>)>,
     disks: Vec<(ReplayKey, DiskRun)>,
     actuator: ActuatorMemo,
+    /// Surface temperatures over the record's cached disk estimate ([`predict_with_disk_ref`]),
+    /// keyed by the surface model: a fit's columns of the torque recalibration leave it as it
+    /// was.
+    surface: SurfaceMemo,
+    spare: Spare,
+}
+
+/// Surface temperatures of both clutches kept by surface model.
+type SurfaceMemo = Vec<(Surface, Arc<[Vec<f64>; 2]>)>;
+
+/// Per channel, a prediction vector whose residuals a fit has taken ([`ReplayMemo::recycle`]):
+/// NaN but at the channel's samples, which the next prediction on the same samples writes again
+/// (so it is NaN wherever that prediction does not evaluate, as a fresh one), without filling a
+/// record-long vector with NaN per channel and evaluation. Not cloned: a thread's copy of the
+/// memo starts without.
+#[derive(Debug, Default)]
+struct Spare(Vec<Option<SpareVec>>);
+
+/// A spare vector and the samples (the slice's address and length) it holds values at.
+#[derive(Debug)]
+struct SpareVec {
+    at: (usize, usize),
+    v: Vec<f64>,
+}
+
+impl Clone for Spare {
+    fn clone(&self) -> Self {
+        Spare::default()
+    }
+}
+
+impl Spare {
+    /// A vector of `n` for channel `c` at the samples `at`: NaN but where the previous one of
+    /// the same samples had values (which the caller overwrites).
+    fn take(&mut self, c: Channel, at: &[usize], n: usize) -> Vec<f64> {
+        let key = (at.as_ptr() as usize, at.len());
+        match self.0.get_mut(c.index()).and_then(Option::take) {
+            Some(s) if s.at == key && s.v.len() == n => s.v,
+            _ => vec![f64::NAN; n],
+        }
+    }
+}
+
+impl ReplayMemo {
+    /// Keeps the prediction vectors of `p`, made on the samples `s`, for the next prediction
+    /// ([`Spare`]).
+    pub fn recycle(&mut self, p: Predictions, s: &Samples) {
+        let spare = &mut self.spare.0;
+        spare.resize_with(Channel::ALL.len(), || None);
+        for (c, v) in Channel::ALL.iter().zip(p.y) {
+            if !v.is_empty() {
+                let at = s.get(*c);
+                spare[c.index()] = Some(SpareVec {
+                    at: (at.as_ptr() as usize, at.len()),
+                    v,
+                });
+            }
+        }
+    }
+}
+
+/// What a prediction may take from a fit's [`ReplayMemo`] of the record and leave there.
+#[derive(Default)]
+struct Reuse<'a> {
+    actuator: Option<&'a mut ActuatorMemo>,
+    /// Only with the record's cached disk estimate ([`predict_with_disk_ref`]).
+    surface: Option<&'a mut SurfaceMemo>,
+    spare: Option<&'a mut Spare>,
+}
+
+/// The prediction vector of channel `c` (NaN but at `c`'s samples, which the caller writes),
+/// from `spare` when given.
+fn vector(spare: &mut Option<&mut Spare>, c: Channel, s: &Samples, n: usize) -> Vec<f64> {
+    match spare.as_deref_mut() {
+        Some(spare) => spare.take(c, s.get(c), n),
+        None => vec![f64::NAN; n],
+    }
 }
 
 /// The bearing positions a fit's last models replayed from the requests
@@ -584,17 +662,20 @@ pub fn predict_reusing(
     let mm = corrected.as_ref().unwrap_or(m);
     if !want_torque(s, chans) {
         // No disk replay (and none in the result).
-        return predict_inner(model, mm, s, chans, None, Some(&mut memo.actuator));
+        let reuse = Reuse {
+            actuator: Some(&mut memo.actuator),
+            surface: None,
+            spare: Some(&mut memo.spare),
+        };
+        return predict_inner(model, mm, s, chans, None, reuse);
     }
     let disk = recall_disk(&mut memo.disks, model, mm);
-    predict_inner(
-        model,
-        mm,
-        s,
-        chans,
-        Some(&*disk.theta),
-        Some(&mut memo.actuator),
-    )
+    let reuse = Reuse {
+        actuator: Some(&mut memo.actuator),
+        surface: None,
+        spare: Some(&mut memo.spare),
+    };
+    predict_inner(model, mm, s, chans, Some(&*disk.theta), reuse)
 }
 
 /// [`predict`] with the disk temperature estimate given (it depends only on the thermal
@@ -608,14 +689,15 @@ pub fn predict_with_disk_ref(
     disk: &[Vec<f64>; 2],
     memo: Option<&mut ReplayMemo>,
 ) -> Predictions {
-    predict_inner(
-        model,
-        m,
-        s,
-        chans,
-        Some(disk),
-        memo.map(|memo| &mut memo.actuator),
-    )
+    let reuse = match memo {
+        Some(memo) => Reuse {
+            actuator: Some(&mut memo.actuator),
+            surface: Some(&mut memo.surface),
+            spare: Some(&mut memo.spare),
+        },
+        None => Reuse::default(),
+    };
+    predict_inner(model, m, s, chans, Some(disk), reuse)
 }
 
 /// Whether the sensor terms change the measured inputs of the replays (a thermocouple lag or
@@ -636,7 +718,7 @@ fn predict_inner(
     s: &Samples,
     chans: &[Channel],
     disk: Option<&[Vec<f64>; 2]>,
-    mut act: Option<&mut ActuatorMemo>,
+    mut reuse: Reuse<'_>,
 ) -> Predictions {
     let p = &model.p;
     let h = SetHooks::of(model);
@@ -645,7 +727,13 @@ fn predict_inner(
     let want = |c: Channel| chans.contains(&c) && !s.get(c).is_empty();
     if let Some(dk) = disk {
         let bearing = bearing_sequence(&model.set, m);
-        let surface = surface_temperatures(model, m, dk);
+        let surface = surface_of(model).map(|sf| {
+            let make = || Arc::new(surface_temperatures(&sf, m, dk));
+            match reuse.surface.as_deref_mut() {
+                Some(kept) => recall(kept, sf, |_| make()).clone(),
+                None => make(),
+            }
+        });
         let slide =
             t.mu.iter()
                 .flatten()
@@ -664,14 +752,14 @@ fn predict_inner(
                     m,
                     dk,
                     bearing.as_ref(),
-                    surface.as_ref(),
+                    surface.as_deref(),
                     slide.as_ref(),
                     &shapes,
                     i,
                     k,
                 )
             };
-            let mut v = vec![f64::NAN; m.n];
+            let mut v = vector(&mut reuse.spare, c, s, m.n);
             for &k in s.get(c) {
                 let tq = if skew == 0.0 {
                     at(k)
@@ -709,7 +797,7 @@ fn predict_inner(
                     stride as f64 * m.dt,
                 );
             }
-            let mut v = vec![f64::NAN; m.n];
+            let mut v = vector(&mut reuse.spare, c, s, m.n);
             for &k in s.get(c) {
                 debug_assert_eq!(k % stride, 0, "a temperature sample off the replay's grid");
                 let x = series[k / stride];
@@ -732,7 +820,7 @@ fn predict_inner(
                 .pos_sensor
                 .map_or(m.x[i][0], |g| g.invert(m.x[i][0], X_REF_MM));
             let fresh;
-            let xs: &[f64] = match act.as_deref_mut() {
+            let xs: &[f64] = match reuse.actuator.as_deref_mut() {
                 Some(memo) => memo.positions(i, &p.actuator, &model.set, xr, x0, m.dt),
                 None => {
                     let req = delayed_requests(&model.set, xr, m.dt);
@@ -740,7 +828,7 @@ fn predict_inner(
                     &fresh
                 }
             };
-            let mut v = vec![f64::NAN; m.n];
+            let mut v = vector(&mut reuse.spare, c, s, m.n);
             for &k in s.get(c) {
                 v[k] = match &t.pos_sensor {
                     Some(g) => g.apply(xs[k], X_REF_MM),
@@ -753,7 +841,7 @@ fn predict_inner(
     if want(Channel::Engine) {
         let c = Channel::Engine;
         let w = ENGINE_WINDOW;
-        let mut v = vec![f64::NAN; m.n];
+        let mut v = vector(&mut reuse.spare, c, s, m.n);
         for &k in s.get(c) {
             // Mean real engine torque over the window: J_eq·Δω_f/Δt + mean clutch torques.
             let dw = m.w_f[k + w] - m.w_f[k];
@@ -835,13 +923,18 @@ mod tests {
         tiny.p.clutch.x_isp0_mm *= 1.0 + 1e-9;
         for model in [base, kiss, tiny, base] {
             let fresh = predict(&model, &m, &s, &chans);
-            same(&predict_reusing(&model, &m, &s, &chans, &mut memo), &fresh);
+            let kept = predict_reusing(&model, &m, &s, &chans, &mut memo);
+            same(&kept, &fresh);
+            // The next prediction writes into these vectors: NaN where it does not evaluate.
+            memo.recycle(kept, &s);
         }
         let mut memo = ReplayMemo::default();
         for model in [base, torque, thermal, sensor, base, torque] {
             let fresh = predict(&model, &m, &s, &chans);
             let before = memo.disks.first().map(|e| e.0);
-            same(&predict_reusing(&model, &m, &s, &chans, &mut memo), &fresh);
+            let kept = predict_reusing(&model, &m, &s, &chans, &mut memo);
+            same(&kept, &fresh);
+            memo.recycle(kept, &s);
             replays += usize::from(before != memo.disks.first().map(|e| e.0) || before.is_none());
             assert!(memo.disks.len() <= 2 && memo.inputs.len() <= 2);
         }
@@ -851,6 +944,62 @@ mod tests {
         let a = predict(&base, &m, &s, &chans).disk.unwrap();
         let b = predict(&thermal, &m, &s, &chans).disk.unwrap();
         assert!(a[0].iter().zip(&b[0]).any(|(x, y)| (x - y).abs() > 1e-3));
+    }
+
+    /// On the record's cached disk estimate, a fit's models — a surface term, the term moved, a
+    /// torque parameter moved (the kept surface temperatures reused), back — predict bit for bit
+    /// what they predict without a memo; vectors kept from other samples are not taken.
+    #[test]
+    fn kept_surface_temperatures_and_vectors_predict_what_fresh_ones_do() {
+        let p = Params::default();
+        let m = record(&p);
+        let (s, other) = (Samples::new(&m, 1, 10), Samples::new(&m, 3, 10));
+        assert_ne!(s.get(Channel::Torque(0)), other.get(Channel::Torque(0)));
+        let chans = Channel::ALL;
+        let base = Model::nominal(p);
+        let disk = predict(&base, &m, &s, &chans).disk.unwrap();
+        let z = std::array::from_fn(|j| j as f64 * 5e3);
+        let mut hot = base;
+        hot.terms.surface = Some(Surface {
+            rise: Shape {
+                z,
+                v: z.map(|w| 0.02 * w),
+            },
+            tau_s: 0.2,
+        });
+        // The member switches the facing temperatures over to the surface's (as the class does).
+        hot.set.set_clamped(
+            EffectId::SurfaceTemperatureFriction,
+            &hot.terms.surface.unwrap().member(),
+        );
+        let mut hotter = hot;
+        if let Some(sf) = hotter.terms.surface.as_mut() {
+            sf.rise.v = sf.rise.v.map(|v| 2.0 * v);
+        }
+        let mut friction = hot;
+        friction.p.clutch.c4 *= 1.1;
+        let mut memo = ReplayMemo::default();
+        for (model, on) in [
+            (hot, &s),
+            (hotter, &s),
+            (friction, &s),
+            (hot, &other),
+            (hot, &s),
+        ] {
+            let fresh = predict_with_disk_ref(&model, &m, on, &chans, &disk, None);
+            let kept = predict_with_disk_ref(&model, &m, on, &chans, &disk, Some(&mut memo));
+            same(&kept, &fresh);
+            assert!(memo.surface.len() <= 2);
+            memo.recycle(kept, on);
+        }
+        // The surface term moves the torque (the memo is not returning stale temperatures).
+        let a = predict_with_disk_ref(&hot, &m, &s, &chans, &disk, None);
+        let b = predict_with_disk_ref(&hotter, &m, &s, &chans, &disk, None);
+        let t = Channel::Torque(0).index();
+        assert!(a.y[t]
+            .iter()
+            .zip(&b.y[t])
+            .any(|(x, y)| (x - y).abs() > 1e-3));
     }
 
     /// The position replays a memo keeps: a lag, a dead time and a position reading error moved

@@ -138,6 +138,9 @@ impl Problem<'_> {
         for (ri, b) in r.iter_mut().zip(buf.iter()) {
             *ri = if b.is_finite() { *b } else { 1e3 };
         }
+        for ((memo, pr), file) in memo.iter_mut().zip(preds).zip(self.files) {
+            memo.recycle(pr, &file.fit);
+        }
     }
 }
 
