@@ -426,28 +426,90 @@ fn decimate(pts: &[(f64, f64)]) -> Vec<(f64, f64)> {
     out
 }
 
+/// A panel's plot area on the page and the data ranges it shows.
+struct Frame {
+    px: f64,
+    py: f64,
+    pw: f64,
+    ph: f64,
+    xl: f64,
+    xh: f64,
+    yl: f64,
+    yh: f64,
+}
+
+impl Frame {
+    fn of(p: &Panel, x0: f64, y0: f64, w: f64, h: f64) -> Frame {
+        let (ml, mr, mt, mb) = (70.0, 20.0, 34.0, 52.0);
+        let (xl, xh) = p.x_range.unwrap_or_else(|| data_range(p, true));
+        let (yl, yh) = p.y_range.unwrap_or_else(|| data_range(p, false));
+        Frame {
+            px: x0 + ml,
+            py: y0 + mt,
+            pw: w - ml - mr,
+            ph: h - mt - mb,
+            xl,
+            xh,
+            yl,
+            yh,
+        }
+    }
+
+    /// Page x of the data value `v`.
+    fn sx(&self, v: f64) -> f64 {
+        self.px + (v - self.xl) / (self.xh - self.xl) * self.pw
+    }
+
+    /// Page y of the data value `v`.
+    fn sy(&self, v: f64) -> f64 {
+        self.py + self.ph - (v - self.yl) / (self.yh - self.yl) * self.ph
+    }
+}
+
+/// The colour of series `k` (its own, else the palette's).
+fn series_color(k: usize, ser: &Series) -> String {
+    ser.color
+        .clone()
+        .unwrap_or_else(|| PALETTE[k % PALETTE.len()].to_string())
+}
+
+/// The SVG dash attribute of a line style.
+fn dash(style: Style) -> &'static str {
+    match style {
+        Style::Dashed => r#" stroke-dasharray="7,4""#,
+        Style::Dotted => r#" stroke-dasharray="2,3""#,
+        _ => "",
+    }
+}
+
 fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
-    let (ml, mr, mt, mb) = (70.0, 20.0, 34.0, 52.0);
-    let (px, py, pw, ph) = (x0 + ml, y0 + mt, w - ml - mr, h - mt - mb);
-    let (xl, xh) = p.x_range.unwrap_or_else(|| data_range(p, true));
-    let (yl, yh) = p.y_range.unwrap_or_else(|| data_range(p, false));
-    let sx = |v: f64| px + (v - xl) / (xh - xl) * pw;
-    let sy = |v: f64| py + ph - (v - yl) / (yh - yl) * ph;
+    let f = Frame::of(p, x0, y0, w, h);
     let _ = writeln!(
         s,
         r#"<text x="{}" y="{}" font-size="{:.1}" text-anchor="middle">{}</text>"#,
-        px + pw / 2.0,
+        f.px + f.pw / 2.0,
         y0 + 22.0,
         fitted_font_size(&p.title, 14.0, w - 10.0),
         esc(&p.title)
     );
-    // Grid and ticks.
-    let xt = ticks(xl, xh, 6);
-    let yt = ticks(yl, yh, 6);
-    let xstep = nice_step(xh - xl, 6);
-    let ystep = nice_step(yh - yl, 6);
+    render_grid(s, p, &f);
+    render_markers(s, p, &f);
+    render_axes(s, p, &f, x0, y0, h);
+    render_series(s, p, &f, x0, y0);
+    if p.legend && !p.series.is_empty() {
+        render_legend(s, p, &f);
+    }
+}
+
+/// The grid lines and tick labels (the panel's own y labels where it has them).
+fn render_grid(s: &mut String, p: &Panel, f: &Frame) {
+    let (px, py, pw, ph) = (f.px, f.py, f.pw, f.ph);
+    let xt = ticks(f.xl, f.xh, 6);
+    let yt = ticks(f.yl, f.yh, 6);
+    let xstep = nice_step(f.xh - f.xl, 6);
+    let ystep = nice_step(f.yh - f.yl, 6);
     for &t in &xt {
-        let x = sx(t);
+        let x = f.sx(t);
         let _ = writeln!(
             s,
             r##"<line x1="{x:.2}" y1="{py:.2}" x2="{x:.2}" y2="{:.2}" stroke="#e4e4e4"/><text x="{x:.2}" y="{:.2}" font-size="11" text-anchor="middle">{}</text>"##,
@@ -462,7 +524,7 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
         p.y_labels.clone()
     };
     for (t, label) in &y_ticks {
-        let y = sy(*t);
+        let y = f.sy(*t);
         let _ = writeln!(
             s,
             r##"<line x1="{px:.2}" y1="{y:.2}" x2="{:.2}" y2="{y:.2}" stroke="#e4e4e4"/><text x="{:.2}" y="{:.2}" font-size="11" text-anchor="end">{}</text>"##,
@@ -472,8 +534,13 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             esc(label)
         );
     }
+}
+
+/// The event markers: red vertical lines with their labels, those inside the x range.
+fn render_markers(s: &mut String, p: &Panel, f: &Frame) {
+    let (px, py, pw, ph) = (f.px, f.py, f.pw, f.ph);
     for (t, label) in &p.markers {
-        let x = sx(*t);
+        let x = f.sx(*t);
         if x < px || x > px + pw {
             continue;
         }
@@ -488,6 +555,11 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             esc(label)
         );
     }
+}
+
+/// The plot area's frame and the axis labels.
+fn render_axes(s: &mut String, p: &Panel, f: &Frame, x0: f64, y0: f64, h: f64) {
+    let (px, py, pw, ph) = (f.px, f.py, f.pw, f.ph);
     let _ = writeln!(
         s,
         r##"<rect x="{px:.2}" y="{py:.2}" width="{pw:.2}" height="{ph:.2}" fill="none" stroke="#333"/>"##
@@ -508,17 +580,19 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
         py + ph / 2.0,
         esc(&p.y_label)
     );
-    // Series, clipped to the plot area.
+}
+
+/// The series, clipped to the plot area: markers as circles, lines split at their gaps (as
+/// stairs for states), decimated and simplified to 0.3 px.
+fn render_series(s: &mut String, p: &Panel, f: &Frame, x0: f64, y0: f64) {
+    let (px, py, pw, ph) = (f.px, f.py, f.pw, f.ph);
     let clip = format!("clip{}_{}", x0 as i64, y0 as i64);
     let _ = writeln!(
         s,
         r#"<clipPath id="{clip}"><rect x="{px:.2}" y="{py:.2}" width="{pw:.2}" height="{ph:.2}"/></clipPath>"#
     );
     for (k, ser) in p.series.iter().enumerate() {
-        let color = ser
-            .color
-            .clone()
-            .unwrap_or_else(|| PALETTE[k % PALETTE.len()].to_string());
+        let color = series_color(k, ser);
         let raw: Vec<(f64, f64)> = ser
             .points
             .iter()
@@ -526,7 +600,7 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             .filter(|(a, b)| a.is_finite() && b.is_finite())
             .collect();
         if ser.style == Style::Markers {
-            let pts: Vec<(f64, f64)> = raw.iter().map(|&(a, b)| (sx(a), sy(b))).collect();
+            let pts: Vec<(f64, f64)> = raw.iter().map(|&(a, b)| (f.sx(a), f.sy(b))).collect();
             for (a, b) in &pts {
                 let _ = writeln!(
                     s,
@@ -542,80 +616,72 @@ fn render_panel(s: &mut String, p: &Panel, x0: f64, y0: f64, w: f64, h: f64) {
             } else {
                 run.to_vec()
             };
-            let screen: Vec<(f64, f64)> = run.iter().map(|&(a, b)| (sx(a), sy(b))).collect();
+            let screen: Vec<(f64, f64)> = run.iter().map(|&(a, b)| (f.sx(a), f.sy(b))).collect();
             for (i, (a, b)) in simplify(&decimate(&screen), 0.3).iter().enumerate() {
                 let _ = write!(d, "{}{a:.1},{b:.1} ", if i == 0 { "M" } else { "L" });
             }
         }
-        let dash = match ser.style {
-            Style::Dashed => r#" stroke-dasharray="7,4""#,
-            Style::Dotted => r#" stroke-dasharray="2,3""#,
-            _ => "",
-        };
         let _ = writeln!(
             s,
-            r#"<path d="{}" fill="none" stroke="{color}" stroke-width="{}"{dash} clip-path="url(#{clip})"/>"#,
+            r#"<path d="{}" fill="none" stroke="{color}" stroke-width="{}"{} clip-path="url(#{clip})"/>"#,
             d.trim_end(),
-            ser.width
+            ser.width,
+            dash(ser.style)
         );
     }
-    // Legend (top-left inside the axes).
-    if p.legend && !p.series.is_empty() {
-        let rows = p.series.len() + usize::from(!p.legend_title.is_empty());
-        let lw = 12.0
-            + 30.0
-            + 7.0
-                * p.series
-                    .iter()
-                    .map(|x| x.name.chars().count())
-                    .chain(std::iter::once(p.legend_title.chars().count()))
-                    .max()
-                    .unwrap_or(4) as f64;
-        let lh = 8.0 + 16.0 * rows as f64;
-        let (lx, ly) = match p.legend_pos {
-            LegendPos::TopLeft => (px + 8.0, py + 8.0),
-            LegendPos::TopRight => (px + pw - 8.0 - lw, py + 8.0),
-            LegendPos::BottomLeft => (px + 8.0, py + ph - 8.0 - lh),
-            LegendPos::BottomRight => (px + pw - 8.0 - lw, py + ph - 8.0 - lh),
-        };
+}
+
+/// The legend box at the panel's legend corner inside the axes: its title, then a line sample
+/// and the name of each series.
+fn render_legend(s: &mut String, p: &Panel, f: &Frame) {
+    let (px, py, pw, ph) = (f.px, f.py, f.pw, f.ph);
+    let rows = p.series.len() + usize::from(!p.legend_title.is_empty());
+    let lw = 12.0
+        + 30.0
+        + 7.0
+            * p.series
+                .iter()
+                .map(|x| x.name.chars().count())
+                .chain(std::iter::once(p.legend_title.chars().count()))
+                .max()
+                .unwrap_or(4) as f64;
+    let lh = 8.0 + 16.0 * rows as f64;
+    let (lx, ly) = match p.legend_pos {
+        LegendPos::TopLeft => (px + 8.0, py + 8.0),
+        LegendPos::TopRight => (px + pw - 8.0 - lw, py + 8.0),
+        LegendPos::BottomLeft => (px + 8.0, py + ph - 8.0 - lh),
+        LegendPos::BottomRight => (px + pw - 8.0 - lw, py + ph - 8.0 - lh),
+    };
+    let _ = writeln!(
+        s,
+        r##"<rect x="{lx:.2}" y="{ly:.2}" width="{lw:.2}" height="{:.2}" fill="white" fill-opacity="0.85" stroke="#999"/>"##,
+        lh
+    );
+    let mut y = ly + 16.0;
+    if !p.legend_title.is_empty() {
         let _ = writeln!(
             s,
-            r##"<rect x="{lx:.2}" y="{ly:.2}" width="{lw:.2}" height="{:.2}" fill="white" fill-opacity="0.85" stroke="#999"/>"##,
-            lh
+            r#"<text x="{:.2}" y="{y:.2}" font-size="11" font-weight="bold">{}</text>"#,
+            lx + 6.0,
+            esc(&p.legend_title)
         );
-        let mut y = ly + 16.0;
-        if !p.legend_title.is_empty() {
-            let _ = writeln!(
-                s,
-                r#"<text x="{:.2}" y="{y:.2}" font-size="11" font-weight="bold">{}</text>"#,
-                lx + 6.0,
-                esc(&p.legend_title)
-            );
-            y += 16.0;
-        }
-        for (k, ser) in p.series.iter().enumerate() {
-            let color = ser
-                .color
-                .clone()
-                .unwrap_or_else(|| PALETTE[k % PALETTE.len()].to_string());
-            let dash = match ser.style {
-                Style::Dashed => r#" stroke-dasharray="7,4""#,
-                Style::Dotted => r#" stroke-dasharray="2,3""#,
-                _ => "",
-            };
-            let _ = writeln!(
-                s,
-                r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{color}" stroke-width="2.2"{dash}/><text x="{:.2}" y="{:.2}" font-size="11">{}</text>"#,
-                lx + 6.0,
-                y - 4.0,
-                lx + 30.0,
-                y - 4.0,
-                lx + 36.0,
-                y,
-                esc(&ser.name)
-            );
-            y += 16.0;
-        }
+        y += 16.0;
+    }
+    for (k, ser) in p.series.iter().enumerate() {
+        let color = series_color(k, ser);
+        let _ = writeln!(
+            s,
+            r#"<line x1="{:.2}" y1="{:.2}" x2="{:.2}" y2="{:.2}" stroke="{color}" stroke-width="2.2"{}/><text x="{:.2}" y="{:.2}" font-size="11">{}</text>"#,
+            lx + 6.0,
+            y - 4.0,
+            lx + 30.0,
+            y - 4.0,
+            dash(ser.style),
+            lx + 36.0,
+            y,
+            esc(&ser.name)
+        );
+        y += 16.0;
     }
 }
 
@@ -685,5 +751,25 @@ mod tests {
         assert!(svg.contains(">one<") && svg.contains(">two<"));
         assert!(svg.contains("x (mm)") && svg.contains("T (°C)"));
         assert!(svg.trim_end().ends_with("</svg>"));
+    }
+
+    /// An event marker inside the x range is a red line at its place with its label, one outside
+    /// is left out; markers-only series are circles, one per finite point.
+    #[test]
+    fn markers_inside_the_range_are_drawn() {
+        let mut p = Panel::new("P", "t (s)", "v")
+            .x_range(0.0, 10.0)
+            .y_range(0.0, 1.0);
+        p.add(
+            Series::line("pts", vec![(1.0, 0.5), (2.0, f64::NAN), (3.0, 0.2)])
+                .style(Style::Markers),
+        );
+        p.marker(5.0, "F<12>");
+        p.marker(12.0, "late");
+        let svg = Figure::new("", 1).panel(p).to_svg();
+        // The plot area spans x 70…500 of a 520 px panel: t = 5 s is at 285.
+        assert!(svg.contains(r#"<line x1="285.0""#), "{svg}");
+        assert!(svg.contains("F&lt;12&gt;") && !svg.contains("late"));
+        assert_eq!(svg.matches("<circle").count(), 2);
     }
 }
