@@ -576,6 +576,22 @@ fn f1(v: f64) -> String {
 /// The report as text: one line per trial, the tables, the confusion matrix, the criteria.
 pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
     let mut o = String::new();
+    trial_lines(&mut o, results);
+    rate_tables(&mut o, s);
+    detectability_lines(&mut o, s);
+    confusion_matrix(&mut o, s);
+    pair_and_outside_lines(&mut o, s);
+    acceptance_lines(&mut o, s);
+    let _ = writeln!(
+        o,
+        "\n{} trial(s), {} error(s), {:.1} s per trial (one thread)",
+        s.trials, s.errors, s.mean_seconds_per_trial
+    );
+    o
+}
+
+/// One line per trial: its truth, sizes and band, the first finding and whether it was right.
+fn trial_lines(o: &mut String, results: &[TrialResult]) {
     let _ = writeln!(
         o,
         "{:>4}  {:<8} {:<44} {:<16} {:>7} {:>7} {:<4} {:<28} {:>4} {:>7}",
@@ -624,44 +640,50 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
             let _ = writeln!(o, "      error: {e}");
         }
     }
-    let table = |o: &mut String, title: &str, m: &BTreeMap<String, Rate>| {
-        let _ = writeln!(o, "\n{title}");
+}
+
+/// Accuracy per group of one summary table.
+fn rate_table(o: &mut String, title: &str, m: &BTreeMap<String, Rate>) {
+    let _ = writeln!(o, "\n{title}");
+    let _ = writeln!(
+        o,
+        "  {:<34} {:>4} {:>10} {:>12} {:>16}",
+        "", "n", "accuracy %", "ambiguous %", "median gap red. %"
+    );
+    for (k, r) in m {
         let _ = writeln!(
             o,
             "  {:<34} {:>4} {:>10} {:>12} {:>16}",
-            "", "n", "accuracy %", "ambiguous %", "median gap red. %"
+            k,
+            r.n,
+            f1(r.accuracy_pct),
+            f1(r.ambiguity_pct),
+            f1(r.median_gap_reduction_pct)
         );
-        for (k, r) in m {
-            let _ = writeln!(
-                o,
-                "  {:<34} {:>4} {:>10} {:>12} {:>16}",
-                k,
-                r.n,
-                f1(r.accuracy_pct),
-                f1(r.ambiguity_pct),
-                f1(r.median_gap_reduction_pct)
-            );
-        }
-    };
-    table(&mut o, "per kind", &s.by_kind);
-    table(&mut o, "class and sensor trials per class", &s.by_class);
-    table(
-        &mut o,
+    }
+}
+
+/// The accuracy tables: per kind, class, magnitude band (identifiable and raw) and form family.
+fn rate_tables(o: &mut String, s: &Summary) {
+    rate_table(o, "per kind", &s.by_kind);
+    rate_table(o, "class and sensor trials per class", &s.by_class);
+    rate_table(
+        o,
         "class and sensor trials per magnitude band (identifiable effect size over the noise: \
          what no baseline within ±20 % reproduces)",
         &s.by_band,
     );
-    table(
-        &mut o,
+    rate_table(
+        o,
         "class and sensor trials per band of the raw effect size (against the truth's own \
          baseline)",
         &s.by_raw_band,
     );
-    table(
-        &mut o,
-        "class and sensor trials per form family",
-        &s.by_family,
-    );
+    rate_table(o, "class and sensor trials per form family", &s.by_family);
+}
+
+/// The detectability curve's bins.
+fn detectability_lines(o: &mut String, s: &Summary) {
     let _ = writeln!(
         o,
         "\ndetectability (class and sensor trials, effect size over the noise):"
@@ -681,6 +703,10 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
             f1(b.direct_pct)
         );
     }
+}
+
+/// The confusion matrix of hidden truths against first named classes.
+fn confusion_matrix(o: &mut String, s: &Summary) {
     let _ = writeln!(
         o,
         "\nconfusion matrix (rows: hidden truth; columns: first named class, else the first finding):"
@@ -713,6 +739,10 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
         let _ = writeln!(o);
     }
     let _ = writeln!(o, "  columns: {}", cols.join(", "));
+}
+
+/// The nominal, outside and pair trials' summary lines.
+fn pair_and_outside_lines(o: &mut String, s: &Summary) {
     let _ = writeln!(
         o,
         "\nnominal trials with a recalibration finding: {}; with an outside-library finding: {}",
@@ -737,6 +767,10 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
         s.pairs_detectable,
         f1(s.pairs_detectable_both_pct)
     );
+}
+
+/// The acceptance criteria with their values and goals.
+fn acceptance_lines(o: &mut String, s: &Summary) {
     let _ = writeln!(o, "\nacceptance (issue 17):");
     for c in &s.acceptance {
         let _ = writeln!(
@@ -754,12 +788,6 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
             }
         );
     }
-    let _ = writeln!(
-        o,
-        "\n{} trial(s), {} error(s), {:.1} s per trial (one thread)",
-        s.trials, s.errors, s.mean_seconds_per_trial
-    );
-    o
 }
 
 /// The detectability curve as SVG: accuracy of the class and sensor trials against the effect
