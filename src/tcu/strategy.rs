@@ -171,6 +171,58 @@ const MIN_LEAD_DT_S: f64 = 0.005;
 /// Smallest on-coming clutch torque in an upshift's inertia phase (N·m).
 const MIN_ONCOMING_NM: f64 = 10.0;
 
+/// What one shift phase commands this cycle: clutch torque references and positions, the engine
+/// request and speed reference, and the phase's name.
+struct PhaseOut {
+    t: [f64; 2],
+    x: [f64; 2],
+    engine_req: Option<f64>,
+    w_e_ref: f64,
+    phase: &'static str,
+}
+
+impl PhaseOut {
+    /// Both clutches at standby without torque, no engine request, the engine speed as measured.
+    fn standby(ctx: &Ctx, phase: &'static str) -> PhaseOut {
+        PhaseOut {
+            t: [0.0; 2],
+            x: [ctx.standby(0), ctx.standby(1)],
+            engine_req: None,
+            w_e_ref: ctx.m.w_e,
+            phase,
+        }
+    }
+}
+
+/// A shift's command: its phase's references, the gears of both shafts, the active gear (the
+/// new one from the upshift's inertia phase or the downshift's torque phase on) and the state.
+fn shift_command(ctx: &Ctx, s: &Shift, out: &PhaseOut) -> Command {
+    let mut gear_req = [Gear::N; 2];
+    gear_req[s.a] = s.from;
+    gear_req[s.o] = s.to;
+    Command {
+        x_ref: out.x,
+        t_ref: out.t,
+        engine_req: out.engine_req,
+        gear_req,
+        gear_active: if s.phase == ShiftPhase::Inertia && s.up
+            || !s.up && s.phase == ShiftPhase::Torque
+        {
+            s.to
+        } else {
+            s.from
+        },
+        state: if s.up {
+            TcuState::Upshift
+        } else {
+            TcuState::Downshift
+        },
+        w_e_ref: out.w_e_ref,
+        w_c_ref: ctx.m.w_c[s.o],
+        phase: out.phase,
+    }
+}
+
 /// Largest rise of the creep torque (N·m/s).
 const CREEP_TORQUE_RATE_NM_PER_S: f64 = 80.0;
 
@@ -879,16 +931,12 @@ impl Strategy {
     }
 
     fn shift(&mut self, ctx: &Ctx, mut s: Shift) -> Command {
-        let cfg = ctx.cfg;
-        let k = &cfg.control;
-        let (a, o) = (s.a, s.o);
-        let r = ctx.reduced();
         s.tau += ctx.dt;
         s.total_s += ctx.dt;
         // The vehicle is slowing too fast for the shift (hard braking toward a stop): open both
         // clutches and let creep/hold take over in the start gear.
-        let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
         if ctx.m.w_c[s.o] < 0.9 * ctx.idle() || ctx.m.w_e < 0.8 * ctx.idle() {
+            let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
             self.since_shift_s = 0.0;
             self.mode = Mode::Creep(Creep {
                 a: shaft(start),
@@ -898,135 +946,144 @@ impl Strategy {
             });
             return self.creep_now(ctx);
         }
-        let demand = ctx.demand();
-        s.t_tr = demand.max(0.0);
-        let slip_o = ctx.m.slip(o);
-        let w_co = ctx.m.w_c[o];
-        let alpha_co = r.k[o] * ctx.w_out_dot;
-        let delta = k.lock_undershoot_radps;
-        let mut t = [0.0; 2];
-        let mut x = [ctx.standby(0), ctx.standby(1)];
-        let mut engine_req = None;
-        let mut w_e_ref = ctx.m.w_e;
-        let phase;
-        match (s.up, s.phase) {
-            (true, ShiftPhase::Torque) => {
-                // On-coming ramps up to the transmitted torque, off-going capacity to zero.
-                let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
-                t[o] = u * s.t_tr;
-                let cap_a = (1.0 - u) * ((1.0 + k.clamp_margin) * s.t_tr + k.clamp_offset_nm);
-                t[a] = cap_a;
-                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
-                x[a] = ctx.x_clamp(a, cap_a);
-                phase = "upshift-torque";
-                if u >= 1.0 {
-                    Self::begin_inertia(ctx, &mut s);
-                }
-            }
-            (true, ShiftPhase::Inertia) => {
-                // Off-going open; on-coming carries the demand; PI_e pulls the engine down along
-                // a smoothstep to a small positive slip, holds it until the engine torque is back
-                // near the on-coming clutch's torque (so lock-up does not drop the acceleration),
-                // then lets the slip cross zero.
-                // (At least a little torque: with the pedal off the on-coming clutch still has to
-                // pull the engine down to its shaft.)
-                t[o] = s.t_tr.max(MIN_ONCOMING_NM).min(ctx.t_max(o));
-                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
-                let hold = k.lock_hold_slip_radps;
-                let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
-                if s.tau >= s.duration {
-                    let recovered = ctx.m.t_e >= t[o] - (0.1 * t[o]).max(8.0);
-                    if s.release.is_none() && (recovered || s.tau >= s.duration + 0.3) {
-                        s.release = Some(s.tau);
-                    }
-                    if let Some(t_rel) = s.release {
-                        let u = ((s.tau - t_rel) / 0.08).min(1.0);
-                        s_ref = hold - (hold + delta) * u;
-                        ds = if u < 1.0 { -(hold + delta) / 0.08 } else { 0.0 };
-                    }
-                }
-                w_e_ref = w_co + s_ref;
-                let w_e_dot_ref = alpha_co + ds;
-                let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t[o]);
-                s.t_e_req = t_e;
-                engine_req = Some(t_e);
-                phase = "upshift-inertia";
-            }
-            (false, ShiftPhase::Inertia) => {
-                // Off-going keeps part of the demand while the engine rises to the new shaft.
-                t[a] = s.t_a0.min(ctx.t_max(a));
-                x[a] = if t[a] > 0.0 {
-                    ctx.x_slip(a, t[a])
-                } else {
-                    ctx.standby(a)
-                };
-                let (s_ref, ds) = smoothstep(s.s0, delta, s.tau, s.duration);
-                w_e_ref = w_co + s_ref;
-                let w_e_dot_ref = alpha_co + ds;
-                let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t[a]);
-                s.t_e_req = t_e;
-                engine_req = Some(t_e);
-                phase = "downshift-inertia";
-                if s.tau >= s.duration && (slip_o - delta).abs() < 3.0 || s.tau >= s.duration + 0.5
-                {
-                    s.phase = ShiftPhase::Torque;
-                    s.tau = 0.0;
-                }
-            }
-            (false, ShiftPhase::Torque) => {
-                // Hand over to the on-coming clutch near synchronism; engine held just above it.
-                let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
-                t[o] = u * (s.t_tr + k.clamp_offset_nm);
-                t[a] = (1.0 - u) * s.t_a0;
-                x[o] = self.lead(ctx, o, ctx.x_slip(o, t[o]));
-                x[a] = if t[a] > 0.0 {
-                    ctx.x_slip(a, t[a])
-                } else {
-                    ctx.standby(a)
-                };
-                w_e_ref = w_co + delta * (1.0 - 2.0 * u);
-                let t_e = self.engine_law(ctx, &r, w_e_ref, alpha_co, t[o] + t[a]);
-                s.t_e_req = t_e;
-                engine_req = Some(t_e);
-                phase = "downshift-torque";
-            }
-        }
+        s.t_tr = ctx.demand().max(0.0);
+        let out = match (s.up, s.phase) {
+            (true, ShiftPhase::Torque) => self.upshift_torque(ctx, &mut s),
+            (true, ShiftPhase::Inertia) => self.upshift_inertia(ctx, &mut s),
+            (false, ShiftPhase::Inertia) => self.downshift_inertia(ctx, &mut s),
+            (false, ShiftPhase::Torque) => self.downshift_torque(ctx, &mut s),
+        };
+        let slip_o = ctx.m.slip(s.o);
+        let k = &ctx.cfg.control;
         let locking = !(s.up && s.phase == ShiftPhase::Torque);
         if locking && slip_o.abs() < k.lock_slip_radps && (s.phase == ShiftPhase::Torque || s.up) {
             s.lock_count += 1;
         } else {
             s.lock_count = 0;
         }
-        let mut gear_req = [Gear::N; 2];
-        gear_req[a] = s.from;
-        gear_req[o] = s.to;
-        let cmd = Command {
-            x_ref: x,
-            t_ref: t,
-            engine_req,
-            gear_req,
-            gear_active: if s.phase == ShiftPhase::Inertia && s.up
-                || !s.up && s.phase == ShiftPhase::Torque
-            {
-                s.to
-            } else {
-                s.from
-            },
-            state: if s.up {
-                TcuState::Upshift
-            } else {
-                TcuState::Downshift
-            },
-            w_e_ref,
-            w_c_ref: w_co,
-            phase,
+        let cmd = shift_command(ctx, &s, &out);
+        self.after_shift_cycle(ctx, s, out.t[s.o]);
+        cmd
+    }
+
+    /// Upshift, torque phase: the on-coming clutch ramps up to the transmitted torque, the
+    /// off-going capacity to zero.
+    fn upshift_torque(&mut self, ctx: &Ctx, s: &mut Shift) -> PhaseOut {
+        let (cfg, k) = (ctx.cfg, &ctx.cfg.control);
+        let (a, o) = (s.a, s.o);
+        let mut out = PhaseOut::standby(ctx, "upshift-torque");
+        let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
+        out.t[o] = u * s.t_tr;
+        let cap_a = (1.0 - u) * ((1.0 + k.clamp_margin) * s.t_tr + k.clamp_offset_nm);
+        out.t[a] = cap_a;
+        out.x[o] = self.lead(ctx, o, ctx.x_slip(o, out.t[o]));
+        out.x[a] = ctx.x_clamp(a, cap_a);
+        if u >= 1.0 {
+            Self::begin_inertia(ctx, s);
+        }
+        out
+    }
+
+    /// Upshift, inertia phase: the off-going clutch open, the on-coming one carries the demand;
+    /// PI_e pulls the engine down along a smoothstep to a small positive slip, holds it until the
+    /// engine torque is back near the on-coming clutch's torque (so lock-up does not drop the
+    /// acceleration), then lets the slip cross zero. (At least a little torque: with the pedal
+    /// off the on-coming clutch still has to pull the engine down to its shaft.)
+    fn upshift_inertia(&mut self, ctx: &Ctx, s: &mut Shift) -> PhaseOut {
+        let k = &ctx.cfg.control;
+        let o = s.o;
+        let r = ctx.reduced();
+        let (w_co, alpha_co) = (ctx.m.w_c[o], r.k[o] * ctx.w_out_dot);
+        let delta = k.lock_undershoot_radps;
+        let mut out = PhaseOut::standby(ctx, "upshift-inertia");
+        out.t[o] = s.t_tr.max(MIN_ONCOMING_NM).min(ctx.t_max(o));
+        out.x[o] = self.lead(ctx, o, ctx.x_slip(o, out.t[o]));
+        let hold = k.lock_hold_slip_radps;
+        let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
+        if s.tau >= s.duration {
+            let recovered = ctx.m.t_e >= out.t[o] - (0.1 * out.t[o]).max(8.0);
+            if s.release.is_none() && (recovered || s.tau >= s.duration + 0.3) {
+                s.release = Some(s.tau);
+            }
+            if let Some(t_rel) = s.release {
+                let u = ((s.tau - t_rel) / 0.08).min(1.0);
+                s_ref = hold - (hold + delta) * u;
+                ds = if u < 1.0 { -(hold + delta) / 0.08 } else { 0.0 };
+            }
+        }
+        out.w_e_ref = w_co + s_ref;
+        let w_e_dot_ref = alpha_co + ds;
+        let t_e = self.engine_law(ctx, &r, out.w_e_ref, w_e_dot_ref, out.t[o]);
+        s.t_e_req = t_e;
+        out.engine_req = Some(t_e);
+        out
+    }
+
+    /// Downshift, inertia phase: the off-going clutch keeps part of the demand while the engine
+    /// rises to the new shaft; the torque phase follows near synchronism.
+    fn downshift_inertia(&mut self, ctx: &Ctx, s: &mut Shift) -> PhaseOut {
+        let (a, o) = (s.a, s.o);
+        let r = ctx.reduced();
+        let (w_co, alpha_co) = (ctx.m.w_c[o], r.k[o] * ctx.w_out_dot);
+        let delta = ctx.cfg.control.lock_undershoot_radps;
+        let slip_o = ctx.m.slip(o);
+        let mut out = PhaseOut::standby(ctx, "downshift-inertia");
+        out.t[a] = s.t_a0.min(ctx.t_max(a));
+        out.x[a] = if out.t[a] > 0.0 {
+            ctx.x_slip(a, out.t[a])
+        } else {
+            ctx.standby(a)
         };
-        if s.lock_count >= k.lock_cycles || (s.total_s > 3.0 && slip_o.abs() < 2.0) {
+        let (s_ref, ds) = smoothstep(s.s0, delta, s.tau, s.duration);
+        out.w_e_ref = w_co + s_ref;
+        let w_e_dot_ref = alpha_co + ds;
+        let t_e = self.engine_law(ctx, &r, out.w_e_ref, w_e_dot_ref, out.t[a]);
+        s.t_e_req = t_e;
+        out.engine_req = Some(t_e);
+        if s.tau >= s.duration && (slip_o - delta).abs() < 3.0 || s.tau >= s.duration + 0.5 {
+            s.phase = ShiftPhase::Torque;
+            s.tau = 0.0;
+        }
+        out
+    }
+
+    /// Downshift, torque phase: the on-coming clutch takes over near synchronism, the engine
+    /// held just above it.
+    fn downshift_torque(&mut self, ctx: &Ctx, s: &mut Shift) -> PhaseOut {
+        let (cfg, k) = (ctx.cfg, &ctx.cfg.control);
+        let (a, o) = (s.a, s.o);
+        let r = ctx.reduced();
+        let (w_co, alpha_co) = (ctx.m.w_c[o], r.k[o] * ctx.w_out_dot);
+        let delta = k.lock_undershoot_radps;
+        let mut out = PhaseOut::standby(ctx, "downshift-torque");
+        let u = (s.tau / cfg.shift.torque_phase_s).min(1.0);
+        out.t[o] = u * (s.t_tr + k.clamp_offset_nm);
+        out.t[a] = (1.0 - u) * s.t_a0;
+        out.x[o] = self.lead(ctx, o, ctx.x_slip(o, out.t[o]));
+        out.x[a] = if out.t[a] > 0.0 {
+            ctx.x_slip(a, out.t[a])
+        } else {
+            ctx.standby(a)
+        };
+        out.w_e_ref = w_co + delta * (1.0 - 2.0 * u);
+        let t_e = self.engine_law(ctx, &r, out.w_e_ref, alpha_co, out.t[o] + out.t[a]);
+        s.t_e_req = t_e;
+        out.engine_req = Some(t_e);
+        out
+    }
+
+    /// The mode after a shift's cycle: drive in the new gear once the on-coming clutch has been
+    /// locked for `lock_cycles` cycles (or nearly so after 3 s), a fresh start from the
+    /// measurements when the shift has not completed in 4 s, else the shift goes on. `t_o`: the
+    /// on-coming clutch's torque reference this cycle.
+    fn after_shift_cycle(&mut self, ctx: &Ctx, s: Shift, t_o: f64) {
+        let slip_o = ctx.m.slip(s.o);
+        if s.lock_count >= ctx.cfg.control.lock_cycles || (s.total_s > 3.0 && slip_o.abs() < 2.0) {
             self.since_shift_s = 0.0;
             self.mode = Mode::Drive(Drive {
-                a: o,
+                a: s.o,
                 gear: s.to,
-                cap: t[o].max(s.t_tr),
+                cap: t_o.max(s.t_tr),
                 blend: Some(s.t_e_req),
                 since_s: 0.0,
                 slip_count: 0,
@@ -1041,7 +1098,6 @@ impl Strategy {
         } else {
             self.mode = Mode::Shift(s);
         }
-        cmd
     }
 
     /// PI_e and (24): T_e,ref = J_eq (ω̇_e,ref + kp e + ki ∫e) + ΣT_fc,ref, within the engine's
