@@ -233,73 +233,18 @@ impl Tcu {
 
     /// One TCU cycle at `now`.
     pub fn step(&mut self, now: Duration, inputs: &TcuInputs) -> TcuOutputs {
-        self.steps += 1;
-        if inputs.frames.iter().any(|f| is_sync_frame(&f.frame)) {
-            self.last_sync = Some(now);
-        }
-        self.receive(inputs.frames);
-        let dt = match self.last_now {
-            Some(prev) => now.saturating_sub(prev).as_secs_f64().min(0.1),
-            None => 0.0,
-        };
-        self.last_now = Some(now);
-        let health = self.inputs.health(now);
+        let dt = self.advance(now, inputs);
         let m = *self.inputs.measurements();
-        // Output-shaft acceleration, filtered (time constant `control.accel_filter_s`).
-        if self.inputs.all_seen() && dt > 0.0 {
-            if let Some(prev) = self.w_out_prev {
-                let raw = (m.w_out - prev) / dt;
-                let a = dt / (self.cfg.control.accel_filter_s + dt);
-                if raw.is_finite() {
-                    self.w_out_dot += a * (raw - self.w_out_dot);
-                }
-            }
-            self.w_out_prev = Some(m.w_out);
-        }
-        // Estimator (needs the sensor values).
-        if self.inputs.all_seen() && health.all_fresh {
-            let u = EstimatorInputs {
-                x_mm: m.x_mm,
-                slip_radps: [m.slip(0), m.slip(1)],
-                theta_h_c: m.theta_h,
-            };
-            self.est.update(&self.model, &u, dt);
-        }
-        // A failed estimator update is a fault like a missing input: the temperature estimate
-        // the torque inversion needs is gone.
-        let health = if self.est.failed() {
-            health.with_internal_fault(FaultCode::InternalNonFinite)
-        } else {
-            health
-        };
+        self.filter_output_accel(&m, dt);
+        let health = self.estimate(&m, self.inputs.health(now), dt);
         let theta = self.est.clutch_temps(if m.theta_h.is_finite() {
             m.theta_h
         } else {
             self.cfg.compensation.calibration_temp_c
         });
-        // Over-temperature with hysteresis.
-        let tmax = theta[0].max(theta[1]);
-        let s = self.cfg.safety;
-        let hys = s.over_temp_hysteresis_c;
-        self.warn = tmax > s.over_temp_warn_c || (self.warn && tmax > s.over_temp_warn_c - hys);
-        self.limit = tmax > s.over_temp_limit_c || (self.limit && tmax > s.over_temp_limit_c - hys);
-        // Top-level state.
+        self.update_over_temperature(theta);
         let grace = now.saturating_sub(self.start) >= CYCLE * self.cfg.inputs.timeout_cycles;
-        let restart = match self.top {
-            Top::Init => self.inputs.all_seen() && health.all_fresh,
-            Top::Run => {
-                if !health.all_fresh {
-                    self.enter_safe(health.fault.unwrap_or(FaultCode::InternalNonFinite));
-                }
-                false
-            }
-            Top::Safe => {
-                if let Some(f) = health.fault {
-                    self.safe_fault = f;
-                }
-                health.recovered
-            }
-        };
+        let restart = self.top_transition(&health);
         let ctx = Ctx {
             cfg: &self.cfg,
             model: &self.model,
@@ -313,69 +258,18 @@ impl Tcu {
             self.top = Top::Run;
             self.strategy.restart(&ctx);
         }
-        let mut cmd = match self.top {
+        let cmd = match self.top {
             Top::Init => Command {
                 x_ref: [self.cfg.control.open_position_mm; 2],
                 state: TcuState::Init,
                 phase: "init",
                 ..Default::default()
             },
-            Top::Safe => {
-                for i in 0..2 {
-                    self.safe_x[i] = approach(
-                        self.safe_x[i],
-                        self.cfg.control.open_position_mm,
-                        s.open_rate_mm_per_s,
-                        dt,
-                    );
-                }
-                let last = *self.strategy.last();
-                Command {
-                    x_ref: self.safe_x,
-                    gear_req: last.gear_req,
-                    state: TcuState::SafeState,
-                    phase: "safe",
-                    ..Default::default()
-                }
-            }
+            Top::Safe => self.safe_command(dt),
             Top::Run => self.strategy.step(&ctx),
         };
-        // Finite outputs, always.
-        self.nonfinite = !(cmd.x_ref.iter().all(|v| v.is_finite())
-            && cmd.t_ref.iter().all(|v| v.is_finite())
-            && cmd.engine_req.is_none_or(f64::is_finite));
-        if self.nonfinite {
-            cmd.x_ref = self.last_x;
-            cmd.t_ref = [0.0; 2];
-            cmd.engine_req = None;
-        }
-        let xmax = self.cfg.physics.actuator.x_max_mm;
-        for x in cmd.x_ref.iter_mut() {
-            *x = x.clamp(self.cfg.physics.actuator.x_min_mm, xmax);
-        }
-        self.last_x = cmd.x_ref;
-        if self.top != Top::Safe {
-            self.safe_x = cmd.x_ref;
-        }
-        let fault = if self.top == Top::Safe {
-            self.safe_fault
-        } else if self.top == Top::Init {
-            if grace {
-                health.fault.unwrap_or(FaultCode::None)
-            } else {
-                FaultCode::None
-            }
-        } else if self.nonfinite {
-            FaultCode::InternalNonFinite
-        } else if self.inputs.lever_refused() {
-            FaultCode::ImplausibleLever
-        } else if self.limit {
-            FaultCode::ClutchOverTempLimit
-        } else if self.warn {
-            FaultCode::ClutchOverTempWarning
-        } else {
-            FaultCode::None
-        };
+        let cmd = self.finite_and_in_range(cmd);
+        let fault = self.fault_code(grace, &health);
         let trace = TcuTrace {
             t_s: now.as_secs_f64(),
             state: cmd.state,
@@ -393,6 +287,152 @@ impl Tcu {
             measurements: m,
         };
         self.encode(&cmd, fault, theta, trace)
+    }
+
+    /// Takes the cycle's frames and returns the time since the last step (s, at most 0.1; 0 at
+    /// the first).
+    fn advance(&mut self, now: Duration, inputs: &TcuInputs) -> f64 {
+        self.steps += 1;
+        if inputs.frames.iter().any(|f| is_sync_frame(&f.frame)) {
+            self.last_sync = Some(now);
+        }
+        self.receive(inputs.frames);
+        let dt = match self.last_now {
+            Some(prev) => now.saturating_sub(prev).as_secs_f64().min(0.1),
+            None => 0.0,
+        };
+        self.last_now = Some(now);
+        dt
+    }
+
+    /// Output-shaft acceleration, filtered (time constant `control.accel_filter_s`).
+    fn filter_output_accel(&mut self, m: &Measurements, dt: f64) {
+        if self.inputs.all_seen() && dt > 0.0 {
+            if let Some(prev) = self.w_out_prev {
+                let raw = (m.w_out - prev) / dt;
+                let a = dt / (self.cfg.control.accel_filter_s + dt);
+                if raw.is_finite() {
+                    self.w_out_dot += a * (raw - self.w_out_dot);
+                }
+            }
+            self.w_out_prev = Some(m.w_out);
+        }
+    }
+
+    /// Updates the thermal estimator (when every sensor value is there and fresh) and returns
+    /// the inputs' health with a failed update as a fault like a missing input: the temperature
+    /// estimate the torque inversion needs is gone.
+    fn estimate(&mut self, m: &Measurements, health: Health, dt: f64) -> Health {
+        if self.inputs.all_seen() && health.all_fresh {
+            let u = EstimatorInputs {
+                x_mm: m.x_mm,
+                slip_radps: [m.slip(0), m.slip(1)],
+                theta_h_c: m.theta_h,
+            };
+            self.est.update(&self.model, &u, dt);
+        }
+        if self.est.failed() {
+            health.with_internal_fault(FaultCode::InternalNonFinite)
+        } else {
+            health
+        }
+    }
+
+    /// Over-temperature warning and limit, with hysteresis.
+    fn update_over_temperature(&mut self, theta: [f64; 2]) {
+        let tmax = theta[0].max(theta[1]);
+        let s = self.cfg.safety;
+        let hys = s.over_temp_hysteresis_c;
+        self.warn = tmax > s.over_temp_warn_c || (self.warn && tmax > s.over_temp_warn_c - hys);
+        self.limit = tmax > s.over_temp_limit_c || (self.limit && tmax > s.over_temp_limit_c - hys);
+    }
+
+    /// The top-level state's transitions: a stale input sends a running TCU to the safe state;
+    /// returns whether the strategy (re)starts (every input seen and fresh from init, or
+    /// recovered from the safe state).
+    fn top_transition(&mut self, health: &Health) -> bool {
+        match self.top {
+            Top::Init => self.inputs.all_seen() && health.all_fresh,
+            Top::Run => {
+                if !health.all_fresh {
+                    self.enter_safe(health.fault.unwrap_or(FaultCode::InternalNonFinite));
+                }
+                false
+            }
+            Top::Safe => {
+                if let Some(f) = health.fault {
+                    self.safe_fault = f;
+                }
+                health.recovered
+            }
+        }
+    }
+
+    /// The safe state's command: both clutches opened at the safe rate, the gears as they were.
+    fn safe_command(&mut self, dt: f64) -> Command {
+        let s = self.cfg.safety;
+        for i in 0..2 {
+            self.safe_x[i] = approach(
+                self.safe_x[i],
+                self.cfg.control.open_position_mm,
+                s.open_rate_mm_per_s,
+                dt,
+            );
+        }
+        let last = *self.strategy.last();
+        Command {
+            x_ref: self.safe_x,
+            gear_req: last.gear_req,
+            state: TcuState::SafeState,
+            phase: "safe",
+            ..Default::default()
+        }
+    }
+
+    /// Finite outputs, always (a non-finite command holds the last positions without torque),
+    /// the positions within the actuator's range; remembered for the next cycle.
+    fn finite_and_in_range(&mut self, mut cmd: Command) -> Command {
+        self.nonfinite = !(cmd.x_ref.iter().all(|v| v.is_finite())
+            && cmd.t_ref.iter().all(|v| v.is_finite())
+            && cmd.engine_req.is_none_or(f64::is_finite));
+        if self.nonfinite {
+            cmd.x_ref = self.last_x;
+            cmd.t_ref = [0.0; 2];
+            cmd.engine_req = None;
+        }
+        let xmax = self.cfg.physics.actuator.x_max_mm;
+        for x in cmd.x_ref.iter_mut() {
+            *x = x.clamp(self.cfg.physics.actuator.x_min_mm, xmax);
+        }
+        self.last_x = cmd.x_ref;
+        if self.top != Top::Safe {
+            self.safe_x = cmd.x_ref;
+        }
+        cmd
+    }
+
+    /// The fault code this cycle reports: the safe state's; in init, an input's once the
+    /// start-up grace is over; else a non-finite command, a refused lever, over-temperature.
+    fn fault_code(&self, grace: bool, health: &Health) -> FaultCode {
+        if self.top == Top::Safe {
+            self.safe_fault
+        } else if self.top == Top::Init {
+            if grace {
+                health.fault.unwrap_or(FaultCode::None)
+            } else {
+                FaultCode::None
+            }
+        } else if self.nonfinite {
+            FaultCode::InternalNonFinite
+        } else if self.inputs.lever_refused() {
+            FaultCode::ImplausibleLever
+        } else if self.limit {
+            FaultCode::ClutchOverTempLimit
+        } else if self.warn {
+            FaultCode::ClutchOverTempWarning
+        } else {
+            FaultCode::None
+        }
     }
 
     fn enter_safe(&mut self, fault: FaultCode) {
