@@ -389,38 +389,94 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
         .iter()
         .filter(|r| matches!(r.truth.kind, TruthKind::Class | TruthKind::Sensor))
         .collect();
+    let group = |key: &dyn Fn(&TrialResult) -> String| grouped(&class_trials, key);
+    let by_band = group(&|r| r.truth.band.as_str().to_string());
+    let nominal = of_kind(TruthKind::Nominal);
+    let outside = of_kind(TruthKind::Outside);
+    let pairs = of_kind(TruthKind::Pair);
+    let attributed = outside.iter().filter(|r| !r.correct).count();
+    let both = pairs.iter().filter(|r| r.correct).count();
+    let detectable: Vec<&TrialResult> = pairs
+        .iter()
+        .copied()
+        .filter(|r| r.truth.effect_sizes.iter().all(|e| *e >= 1.0))
+        .collect();
+    let acceptance = acceptance(results, &by_band, &nominal, &outside, &detectable);
+    Summary {
+        trials: results.len(),
+        errors: results.iter().filter(|r| r.error.is_some()).count(),
+        mean_seconds_per_trial: results.iter().map(|r| r.seconds).sum::<f64>()
+            / results.len().max(1) as f64,
+        by_kind: rates_by_kind(results),
+        class_trials: Rate::of(&class_trials),
+        by_class: group(&|r| r.truth.label()),
+        by_band,
+        by_raw_band: group(&|r| Band::of(r.truth.raw_effect_size).as_str().to_string()),
+        by_family: group(&|r| {
+            r.truth
+                .family
+                .map(|f| f.as_str().to_string())
+                .unwrap_or_default()
+        }),
+        nominal_with_recalibration: nominal
+            .iter()
+            .filter(|r| r.recalibration_findings > 0)
+            .count(),
+        nominal_with_outside: nominal.iter().filter(|r| r.outside_findings > 0).count(),
+        outside_attributed_pct: pct(attributed, outside.len()),
+        outside_flagged_pct: pct(
+            outside.iter().filter(|r| r.outside_findings > 0).count(),
+            outside.len(),
+        ),
+        pairs_both_pct: pct(both, pairs.len()),
+        pairs_one_pct: pct(
+            pairs.iter().filter(|r| r.pair_named >= 1).count(),
+            pairs.len(),
+        ),
+        pairs_detectable: detectable.len(),
+        pairs_detectable_both_pct: pct(
+            detectable.iter().filter(|r| r.correct).count(),
+            detectable.len(),
+        ),
+        in_large_set: class_trials.iter().filter(|r| r.in_large_set).count(),
+        confusion: confusion(results),
+        detectability: detectability(&class_trials),
+        acceptance,
+    }
+}
+
+/// Accuracy per kind of truth (no gap reduction for nominal and outside truths: nothing to
+/// shrink, no gap was put in or none is attributable).
+fn rates_by_kind(results: &[TrialResult]) -> BTreeMap<String, Rate> {
     let mut by_kind = BTreeMap::new();
     for k in TruthKind::ALL {
-        let v = of_kind(k);
+        let v: Vec<&TrialResult> = results.iter().filter(|r| r.truth.kind == k).collect();
         if !v.is_empty() {
             let mut r = Rate::of(&v);
             if matches!(k, TruthKind::Nominal | TruthKind::Outside) {
-                // Nothing to shrink: no gap was put in (nominal) or none is attributable.
                 r.median_gap_reduction_pct = f64::NAN;
                 r.median_reduction_pct = f64::NAN;
             }
             by_kind.insert(k.as_str().to_string(), r);
         }
     }
-    let group = |key: &dyn Fn(&TrialResult) -> String| -> BTreeMap<String, Rate> {
-        let mut m: BTreeMap<String, Vec<&TrialResult>> = BTreeMap::new();
-        for r in &class_trials {
-            m.entry(key(r)).or_default().push(r);
-        }
-        m.into_iter().map(|(k, v)| (k, Rate::of(&v))).collect()
-    };
-    let by_class = group(&|r| r.truth.label());
-    let by_band = group(&|r| r.truth.band.as_str().to_string());
-    let by_raw_band = group(&|r| Band::of(r.truth.raw_effect_size).as_str().to_string());
-    let by_family = group(&|r| {
-        r.truth
-            .family
-            .map(|f| f.as_str().to_string())
-            .unwrap_or_default()
-    });
-    let nominal = of_kind(TruthKind::Nominal);
-    let outside = of_kind(TruthKind::Outside);
-    let pairs = of_kind(TruthKind::Pair);
+    by_kind
+}
+
+/// Accuracy of `trials` grouped by `key`.
+fn grouped(
+    trials: &[&TrialResult],
+    key: &dyn Fn(&TrialResult) -> String,
+) -> BTreeMap<String, Rate> {
+    let mut m: BTreeMap<String, Vec<&TrialResult>> = BTreeMap::new();
+    for r in trials {
+        m.entry(key(r)).or_default().push(r);
+    }
+    m.into_iter().map(|(k, v)| (k, Rate::of(&v))).collect()
+}
+
+/// Counts of first findings per hidden truth (pairs in one row).
+fn confusion(results: &[TrialResult]) -> BTreeMap<String, BTreeMap<String, usize>> {
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
     for r in results {
         let row = match r.truth.kind {
@@ -433,7 +489,12 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
             .entry(r.first.clone())
             .or_default() += 1;
     }
-    let detectability = DETECT_EDGES
+    confusion
+}
+
+/// Accuracy of the class and sensor trials per bin of effect size ([`DETECT_EDGES`]).
+fn detectability(class_trials: &[&TrialResult]) -> Vec<DetectBin> {
+    DETECT_EDGES
         .windows(2)
         .map(|w| {
             let v: Vec<&&TrialResult> = class_trials
@@ -452,19 +513,24 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
                 direct_pct: pct(direct, v.len()),
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The acceptance criteria of issue 17 with their values.
+fn acceptance(
+    results: &[TrialResult],
+    by_band: &BTreeMap<String, Rate>,
+    nominal: &[&TrialResult],
+    outside: &[&TrialResult],
+    detectable: &[&TrialResult],
+) -> Vec<Criterion> {
     let band_rate = |b: Band| -> (f64, usize) {
         by_band
             .get(b.as_str())
             .map_or((f64::NAN, 0), |r| (r.accuracy_pct, r.n))
     };
-    let nominal_rate = Rate::of(&nominal);
+    let nominal_rate = Rate::of(nominal);
     let attributed = outside.iter().filter(|r| !r.correct).count();
-    let both = pairs.iter().filter(|r| r.correct).count();
-    let detectable: Vec<&&TrialResult> = pairs
-        .iter()
-        .filter(|r| r.truth.effect_sizes.iter().all(|e| *e >= 1.0))
-        .collect();
     let correct_all: Vec<f64> = results
         .iter()
         .filter(|r| r.correct && !matches!(r.truth.kind, TruthKind::Nominal | TruthKind::Outside))
@@ -483,7 +549,7 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
                 value <= goal
             },
     };
-    let acceptance = vec![
+    vec![
         crit(
             "class trials above 3x the noise: correct class (or in a set of two)",
             band_rate(Band::Above3),
@@ -526,43 +592,7 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
             70.0,
             true,
         ),
-    ];
-    Summary {
-        trials: results.len(),
-        errors: results.iter().filter(|r| r.error.is_some()).count(),
-        mean_seconds_per_trial: results.iter().map(|r| r.seconds).sum::<f64>()
-            / results.len().max(1) as f64,
-        by_kind,
-        class_trials: Rate::of(&class_trials),
-        by_class,
-        by_band,
-        by_raw_band,
-        by_family,
-        nominal_with_recalibration: nominal
-            .iter()
-            .filter(|r| r.recalibration_findings > 0)
-            .count(),
-        nominal_with_outside: nominal.iter().filter(|r| r.outside_findings > 0).count(),
-        outside_attributed_pct: pct(attributed, outside.len()),
-        outside_flagged_pct: pct(
-            outside.iter().filter(|r| r.outside_findings > 0).count(),
-            outside.len(),
-        ),
-        pairs_both_pct: pct(both, pairs.len()),
-        pairs_one_pct: pct(
-            pairs.iter().filter(|r| r.pair_named >= 1).count(),
-            pairs.len(),
-        ),
-        pairs_detectable: detectable.len(),
-        pairs_detectable_both_pct: pct(
-            detectable.iter().filter(|r| r.correct).count(),
-            detectable.len(),
-        ),
-        in_large_set: class_trials.iter().filter(|r| r.in_large_set).count(),
-        confusion,
-        detectability,
-        acceptance,
-    }
+    ]
 }
 
 fn f1(v: f64) -> String {
