@@ -22,6 +22,9 @@ pub struct Seen {
     pub last_sensors: u64,
     /// Index of the last frame of a message the TCU sends.
     pub last_tcu: u64,
+    /// Index of the last TCU_ClutchCmd: the TCU's answer to a DCT_Sensors frame (its other
+    /// messages, TCU_Status say, may go out on their own between a sensor frame and its answer).
+    pub last_answer: u64,
 }
 
 impl Seen {
@@ -40,12 +43,15 @@ impl Seen {
         if id == Some(ids::DCT_SENSORS) {
             self.last_sensors = self.frames;
         }
+        if id == Some(ids::TCU_CLUTCH_CMD) {
+            self.last_answer = self.frames;
+        }
     }
 
     /// True when at least `sent` frames of the other nodes were recorded and the TCU answered
-    /// after the last DCT_Sensors frame.
+    /// the last DCT_Sensors frame (a TCU_ClutchCmd after it).
     pub fn complete(&self, sent: u64) -> bool {
-        self.not_tcu >= sent && self.last_tcu > self.last_sensors
+        self.not_tcu >= sent && self.last_answer > self.last_sensors
     }
 }
 
@@ -175,8 +181,13 @@ mod tests {
             !s.complete(3),
             "the new sensor frame is not answered: {s:?}"
         );
+        // Another message of the TCU is not the answer (under load the TCU's status can go
+        // out between a sensor frame and its answer; the recording must not end there).
         s.record(&frame(ids::TCU_ENGINE_REQ));
-        assert_eq!((s.frames, s.not_tcu), (5, 3));
+        s.record(&frame(ids::TCU_STATUS));
+        assert!(!s.complete(3), "{s:?}");
+        s.record(&frame(ids::TCU_CLUTCH_CMD));
+        assert_eq!((s.frames, s.not_tcu), (7, 3));
         assert!(s.complete(3), "{s:?}");
     }
 
