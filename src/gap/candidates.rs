@@ -442,8 +442,10 @@ pub struct ReplayMemo {
     spare: Spare,
 }
 
-/// Surface temperatures of both clutches kept by surface model.
-type SurfaceMemo = Vec<(Surface, Arc<[Vec<f64>; 2]>)>;
+/// Surface temperatures of both clutches kept by surface model and the disk estimate they were
+/// computed on (its series' addresses and lengths: a record's cached estimate lives as long as
+/// the record).
+type SurfaceMemo = Vec<((Surface, [(usize, usize); 2]), Arc<[Vec<f64>; 2]>)>;
 
 /// Per channel, a prediction vector whose residuals a fit has taken ([`ReplayMemo::recycle`]):
 /// NaN but at the channel's samples, which the next prediction on the same samples writes again
@@ -730,7 +732,10 @@ fn predict_inner(
         let surface = surface_of(model).map(|sf| {
             let make = || Arc::new(surface_temperatures(&sf, m, dk));
             match reuse.surface.as_deref_mut() {
-                Some(kept) => recall(kept, sf, |_| make()).clone(),
+                Some(kept) => {
+                    let on = [0, 1].map(|i| (dk[i].as_ptr() as usize, dk[i].len()));
+                    recall(kept, (sf, on), |_| make()).clone()
+                }
                 None => make(),
             }
         });
