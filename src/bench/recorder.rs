@@ -20,8 +20,6 @@ pub struct Seen {
     pub not_tcu: u64,
     /// Index (1-based, in `frames`) of the last DCT_Sensors frame, 0 before the first.
     pub last_sensors: u64,
-    /// Index of the last frame of a message the TCU sends.
-    pub last_tcu: u64,
     /// Index of the last TCU_ClutchCmd: the TCU's answer to a DCT_Sensors frame (its other
     /// messages, TCU_Status say, may go out on their own between a sensor frame and its answer).
     pub last_answer: u64,
@@ -35,9 +33,7 @@ impl Seen {
         let by_tcu = id
             .and_then(|id| message_def(u32::from(id)))
             .is_some_and(|m| m.sender == "TCU");
-        if by_tcu {
-            self.last_tcu = self.frames;
-        } else {
+        if !by_tcu {
             self.not_tcu += 1;
         }
         if id == Some(ids::DCT_SENSORS) {

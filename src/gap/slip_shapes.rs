@@ -9,7 +9,9 @@
 //! A model with other values computes Q itself: the cache only saves work, the numbers are the
 //! ones [`clutch::slip_shape`] gives.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+
+use super::record_cache::RecordCache;
 
 use super::replay::{Measured, Shared};
 use crate::model::clutch;
@@ -18,7 +20,7 @@ use crate::model::params::ClutchParams;
 /// A record's [`SlipShapes`], one per set of (γ, R1, R2) asked for; clones of a [`Measured`]
 /// share it.
 #[derive(Debug, Clone, Default)]
-pub struct SlipShapeCache(Arc<Mutex<Vec<Arc<SlipShapes>>>>);
+pub struct SlipShapeCache(RecordCache<SlipShapes>);
 
 /// Q(ω) of (6) at every sample of one record, for one clutch geometry.
 #[derive(Debug)]
@@ -63,13 +65,7 @@ impl SlipShapes {
 impl SlipShapeCache {
     /// The slip shapes of `m` for the clutch `p`, made on first use.
     pub fn get(&self, p: &ClutchParams, m: &Measured) -> Arc<SlipShapes> {
-        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(s) = kept.iter().find(|s| s.of(p, m)) {
-            return s.clone();
-        }
-        let s = Arc::new(SlipShapes::new(p, m));
-        kept.push(s.clone());
-        s
+        self.0.get(|s| s.of(p, m), || SlipShapes::new(p, m))
     }
 }
 

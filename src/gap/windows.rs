@@ -14,7 +14,9 @@
 //!
 //! Any other model takes the straightforward replay.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+
+use super::record_cache::RecordCache;
 
 use super::candidates::SetHooks;
 use super::replay::{self, Measured, Shared};
@@ -25,7 +27,7 @@ use crate::model::thermal::{Thermal5State, ThermalInputs};
 
 /// A record's [`Windows`], one per stride asked for; clones of a [`Measured`] share it.
 #[derive(Debug, Clone, Default)]
-pub struct WindowCache(Arc<Mutex<Vec<Arc<Windows>>>>);
+pub struct WindowCache(RecordCache<Windows>);
 
 /// The model-free part of the steps of a replay at one stride.
 #[derive(Debug)]
@@ -151,13 +153,7 @@ impl Windows {
 impl WindowCache {
     /// The windows of `m` at `stride`, made on first use.
     fn get(&self, m: &Measured, stride: usize) -> Arc<Windows> {
-        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(w) = kept.iter().find(|w| w.of(m, stride)) {
-            return w.clone();
-        }
-        let w = Arc::new(Windows::new(m, stride));
-        kept.push(w.clone());
-        w
+        self.0.get(|w| w.of(m, stride), || Windows::new(m, stride))
     }
 }
 
@@ -304,7 +300,7 @@ mod tests {
                 .count();
         }
         assert!(mixed > 0, "no window switches engagement within itself");
-        assert_eq!(m.windows.0.lock().unwrap().len(), 5);
+        assert_eq!(m.windows.0.len(), 5);
         assert!(
             bits(&thermal_replay_fast(&p, &cases[0].1, &m, 23))
                 != bits(&thermal_replay_fast(&p, &cases[0].1, &other, 23))
