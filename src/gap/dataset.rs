@@ -32,7 +32,7 @@
 //! [`Dataset::from_csv`], …) refuse a record with gaps ([`DatasetError::Gaps`]).
 
 use super::events::{self, EventKind, SegmentOptions};
-use crate::can::candump::{parse_line, LineError, LogRecord};
+use crate::can::candump::{parse_canonical, parse_line, LineError, LogRecord};
 use crate::can::codec::{CodecError, SignalDef};
 use crate::can::e2e::{is_protected, E2eChecker, E2eConfig, E2eError};
 use crate::can::messages::{ids, message_def, DctActuators, Message};
@@ -883,7 +883,7 @@ fn read_file(path: &Path) -> Result<(String, RawRecord), DatasetError> {
         source: e.into(),
     })?;
     let raw = if text.trim_start().starts_with('(') {
-        decode_log(&file, candump_lines(&file, text.as_bytes()), DEFAULT_DT_S)?
+        decode_log(&file, candump_text(&file, &text), DEFAULT_DT_S)?
     } else {
         parse_csv(&file, &text)?
     };
@@ -1049,7 +1049,7 @@ fn parse_num(s: &str) -> Option<f64> {
 fn candump_lines<'a>(
     file: &'a str,
     input: impl BufRead + 'a,
-) -> impl Iterator<Item = Result<(usize, LogRecord), DatasetError>> + 'a {
+) -> impl Iterator<Item = Result<Stamped, DatasetError>> + 'a {
     input
         .lines()
         .enumerate()
@@ -1070,24 +1070,68 @@ fn candump_lines<'a>(
                     }
                 }
             })?;
-            parse_line(&l)
-                .map(|r| (line, r))
-                .map_err(|kind| DatasetError::LogLine {
-                    file: file.into(),
-                    line,
-                    message: kind.to_string(),
-                })
+            candump_line(file, line, &l)
+        })
+}
+
+/// [`candump_lines`] of a log already in memory: each line borrowed from `text`, not copied
+/// into a string of its own (`str::lines` ends lines where `BufRead::lines` does, at `\n` with
+/// an optional `\r` before it), and a line in the form candump writes parsed in place
+/// ([`parse_canonical`], which gives what [`parse_line`] gives wherever it accepts a line).
+fn candump_text<'a>(
+    file: &'a str,
+    text: &'a str,
+) -> impl Iterator<Item = Result<Stamped, DatasetError>> + 'a {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(move |(i, l)| match parse_canonical(l.as_bytes()) {
+            Some(r) => Ok(Stamped {
+                line: i + 1,
+                timestamp: r.timestamp,
+                frame: r.frame,
+            }),
+            None => candump_line(file, i + 1, l),
+        })
+}
+
+/// One candump line, numbered `line`, parsed; an error names the file and the line.
+fn candump_line(file: &str, line: usize, l: &str) -> Result<Stamped, DatasetError> {
+    parse_line(l)
+        .map(|r| Stamped::of(line, &r))
+        .map_err(|kind| DatasetError::LogLine {
+            file: file.into(),
+            line,
+            message: kind.to_string(),
         })
 }
 
 /// In-memory frames numbered from 1.
 fn numbered(
     records: impl IntoIterator<Item = Result<LogRecord, DatasetError>>,
-) -> impl Iterator<Item = Result<(usize, LogRecord), DatasetError>> {
+) -> impl Iterator<Item = Result<Stamped, DatasetError>> {
     records
         .into_iter()
         .enumerate()
-        .map(|(i, r)| r.map(|r| (i + 1, r)))
+        .map(|(i, r)| r.map(|r| Stamped::of(i + 1, &r)))
+}
+
+/// What the decoding reads of a logged frame: its line (or position) and time, and the frame.
+#[derive(Debug, Clone, Copy)]
+struct Stamped {
+    line: usize,
+    timestamp: std::time::Duration,
+    frame: crate::can::CanFrame,
+}
+
+impl Stamped {
+    fn of(line: usize, r: &LogRecord) -> Self {
+        Stamped {
+            line,
+            timestamp: r.timestamp,
+            frame: r.frame,
+        }
+    }
 }
 
 /// The messages whose signals become columns: a decoding failure of one of them (a value outside
@@ -1109,7 +1153,7 @@ fn read_here(id: u32) -> bool {
 /// Decodes numbered frames with the contract into per-signal series.
 fn decode_log(
     file: &str,
-    records: impl Iterator<Item = Result<(usize, LogRecord), DatasetError>>,
+    records: impl Iterator<Item = Result<Stamped, DatasetError>>,
     dt: f64,
 ) -> Result<RawRecord, DatasetError> {
     let mut raw = CandumpColumns::default();
@@ -1118,7 +1162,8 @@ fn decode_log(
     let mut t0: Option<std::time::Duration> = None;
     let mut latest = 0.0f64;
     for rec in records {
-        let (line, rec) = rec?;
+        let rec = rec?;
+        let line = rec.line;
         stats.records += 1;
         let frame = &rec.frame;
         if frame.is_extended() || frame.is_remote_frame() {
