@@ -310,16 +310,20 @@ fn window_mean(v: &[f64], k: usize) -> f64 {
 /// member (θ̇_s = h·P − (θ_s − θ_c)/τ_s).
 fn surface_temperatures(surface: &Surface, m: &Measured, disk: &[Vec<f64>; 2]) -> [Vec<f64>; 2] {
     let a = (-m.dt / surface.tau_s.max(1e-3)).exp();
-    [0, 1].map(|i| {
-        let mut th = disk[i][0];
-        (0..m.n)
-            .map(|k| {
-                let out = th;
-                th = surface.step(th, disk[i][k], m.power[i][k], a);
-                out
-            })
-            .collect()
-    })
+    let mut out = [Vec::with_capacity(m.n), Vec::with_capacity(m.n)];
+    if m.n == 0 {
+        return out;
+    }
+    let sites = m.power_sites.get(&surface.rise, m);
+    // Both clutches in one loop: two independent chains of steps side by side.
+    let mut th = [disk[0][0], disk[1][0]];
+    for k in 0..m.n {
+        for i in 0..2 {
+            out[i].push(th[i]);
+            th[i] = surface.step_at(th[i], disk[i][k], sites.at(i, k), a);
+        }
+    }
+    out
 }
 
 /// The surface-temperature model of `model`: the flexible term when it has one, else the
@@ -743,7 +747,7 @@ fn predict_inner(
             t.mu.iter()
                 .flatten()
                 .any(|(v, _)| *v == super::class::Variable::SlidingAcceleration)
-                .then(|| [0, 1].map(|i| slide_acceleration(&m.slip[i], m.dt)));
+                .then(|| m.slides.get(m));
         let skew = t.torque_skew_s / m.dt;
         let shapes = m.slip_shapes.get(&p.clutch, m);
         for i in 0..2 {
@@ -758,7 +762,7 @@ fn predict_inner(
                     dk,
                     bearing.as_ref(),
                     surface.as_deref(),
-                    slide.as_ref(),
+                    slide.as_deref().map(|s| &s.acc),
                     &shapes,
                     i,
                     k,

@@ -23,6 +23,7 @@ pub mod finding;
 pub mod identify;
 pub mod keys;
 pub mod lsq;
+pub mod power_sites;
 pub mod record_cache;
 pub mod replay;
 pub mod report;

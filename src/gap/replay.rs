@@ -75,6 +75,12 @@ pub struct Measured {
     pub windows: super::windows::WindowCache,
     /// Q(ω) of (6) at every sample ([`super::slip_shapes`]), made on first use.
     pub slip_shapes: super::slip_shapes::SlipShapeCache,
+    /// The sliding acceleration at every sample ([`super::slip_shapes::SlideCache`]), made on
+    /// first use.
+    pub slides: super::slip_shapes::SlideCache,
+    /// The friction power located on a surface rise's knots ([`super::power_sites`]), made on
+    /// first use.
+    pub power_sites: super::power_sites::PowerSiteCache,
 }
 
 impl Measured {
@@ -145,6 +151,8 @@ impl Measured {
             start: Thermal5State::default(),
             windows: Default::default(),
             slip_shapes: Default::default(),
+            slides: Default::default(),
+            power_sites: Default::default(),
         };
         m.start = m.thermal_at(0);
         m

@@ -34,6 +34,15 @@ pub struct Shape {
     pub v: [f64; KNOTS],
 }
 
+/// A point located among a [`Shape`]'s knots ([`Shape::locate`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Site {
+    /// The segment (0 … KNOTS − 2).
+    pub seg: usize,
+    /// The fraction of the way along it (below 0 or above 1 on the extended end segments).
+    pub f: f64,
+}
+
 impl Shape {
     /// Knots between the 2 and 98 % quantiles of `values` (finite ones), evenly spaced in the
     /// quantiles of an equal mixture of the data and the uniform distribution over that range:
@@ -105,11 +114,27 @@ impl Shape {
     /// Value at `x`: linear between knots, linear extrapolation of the end segments.
     #[inline]
     pub fn eval(&self, x: f64) -> f64 {
+        self.at(self.locate(x))
+    }
+
+    /// Where `x` lies among the knots: its segment and the fraction of the way along it (outside
+    /// the knots, of the end segment extended). It reads the knots alone, so a series located
+    /// once serves every curve on the same knots: [`Self::at`] of it is [`Self::eval`].
+    #[inline]
+    pub fn locate(&self, x: f64) -> Site {
         let seg = self.segment(x);
         let z = &self.z;
         let w = (z[seg + 1] - z[seg]).max(1e-300);
-        let f = (x - z[seg]) / w;
-        self.v[seg] + f * (self.v[seg + 1] - self.v[seg])
+        Site {
+            seg,
+            f: (x - z[seg]) / w,
+        }
+    }
+
+    /// The value at a [`Site`] located on this curve's knots.
+    #[inline]
+    pub fn at(&self, s: Site) -> f64 {
+        self.v[s.seg] + s.f * (self.v[s.seg + 1] - self.v[s.seg])
     }
 
     /// Slope ds/dx at `x` (of the segment `x` falls in).

@@ -8,6 +8,10 @@
 //! [`SlipShapeCache`], keyed by the three parameters' bits and the slip series it was made from.
 //! A model with other values computes Q itself: the cache only saves work, the numbers are the
 //! ones [`clutch::slip_shape`] gives.
+//!
+//! The sliding acceleration d|ω|/dt a friction term of that variable reads
+//! ([`super::candidates::slide_acceleration`]) is a function of the measured slip alone too: it
+//! is kept the same way ([`SlideCache`]), keyed by the slip series and the sample time.
 
 use std::sync::Arc;
 
@@ -69,6 +73,33 @@ impl SlipShapeCache {
     }
 }
 
+/// A record's sliding accelerations ([`Slides`]); clones of a [`Measured`] share it.
+#[derive(Debug, Clone, Default)]
+pub struct SlideCache(RecordCache<Slides>);
+
+/// [`super::candidates::slide_acceleration`] of each clutch's measured slip.
+#[derive(Debug)]
+pub struct Slides {
+    /// The slip series and sample time (bits) they were computed from.
+    slip: [Shared; 2],
+    dt: u64,
+    pub acc: [Vec<f64>; 2],
+}
+
+impl SlideCache {
+    /// The sliding accelerations of `m`, made on first use.
+    pub fn get(&self, m: &Measured) -> Arc<Slides> {
+        self.0.get(
+            |s| s.dt == m.dt.to_bits() && (0..2).all(|i| Arc::ptr_eq(&s.slip[i], &m.slip[i])),
+            || Slides {
+                slip: m.slip.clone(),
+                dt: m.dt.to_bits(),
+                acc: [0, 1].map(|i| super::candidates::slide_acceleration(&m.slip[i], m.dt)),
+            },
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,5 +132,37 @@ mod tests {
             b.at(0, k).to_bits(),
             clutch::slip_shape(&other, m.slip[0][k]).to_bits()
         );
+    }
+
+    /// The kept sliding accelerations are the centred differences of |ω| over ±2 samples,
+    /// computed here by hand; a clone with another slip series gets its own entry.
+    #[test]
+    fn the_slide_cache_holds_the_sliding_acceleration() {
+        let p = Params::default();
+        let m = test_record(&p);
+        let a = m.slides.get(&m);
+        let n = m.n;
+        for i in 0..2 {
+            let w = |k: usize| m.slip[i][k].abs();
+            for k in 0..n {
+                let (lo, hi) = (k.saturating_sub(2), (k + 2).min(n - 1));
+                let want = (w(hi) - w(lo)) / ((hi - lo) as f64 * m.dt);
+                assert_eq!(
+                    a.acc[i][k].to_bits(),
+                    want.to_bits(),
+                    "clutch {i} sample {k}"
+                );
+            }
+        }
+        assert!(
+            a.acc[0].iter().any(|v| v.abs() > 1.0),
+            "the record never slides"
+        );
+        assert!(Arc::ptr_eq(&a, &m.slides.get(&m)));
+        let mut other = m.clone();
+        other.slip[0] = m.slip[0].iter().map(|w| 2.0 * w).collect();
+        let b = other.slides.get(&other);
+        assert!(!Arc::ptr_eq(&a, &b));
+        assert_eq!(b.acc[0][10].to_bits(), (2.0 * a.acc[0][10]).to_bits());
     }
 }

@@ -7,7 +7,7 @@
 //! [`EffectSet`](crate::model::effects::EffectSet) and act through `model::effects`.
 
 use super::class::Variable;
-use super::shape::{Shape, KNOTS};
+use super::shape::{Shape, Site, KNOTS};
 use crate::model::clutch;
 use crate::model::effects::{self, EffectSet, TorqueContext};
 use crate::model::params::{ClutchParams, ThermalParams5};
@@ -220,7 +220,14 @@ impl Surface {
     /// (`decay` = e^(−dt/τ_s)).
     #[inline]
     pub fn step(&self, theta_s: f64, theta_c: f64, p_fric_w: f64, decay: f64) -> f64 {
-        let target = theta_c + self.rise.eval(p_fric_w.max(0.0)).max(0.0);
+        self.step_at(theta_s, theta_c, self.rise.locate(p_fric_w.max(0.0)), decay)
+    }
+
+    /// [`Self::step`] with the friction power (floored at zero) already located on the rise's
+    /// knots.
+    #[inline]
+    pub fn step_at(&self, theta_s: f64, theta_c: f64, power: Site, decay: f64) -> f64 {
+        let target = theta_c + self.rise.at(power).max(0.0);
         target + (theta_s - target) * decay
     }
 
