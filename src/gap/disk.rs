@@ -200,7 +200,8 @@ fn extend<H: Hooks + ?Sized>(
 /// each value of β, and the step's update takes β's value of the step before unless β has
 /// changed — a branch the processor predicts, so the update does not wait for β, which is
 /// computed beside it (a β other than 0 or 1 from other hooks takes the step as [`extend`]
-/// writes it).
+/// writes it). Out of line: the loop's code does not depend on what it is inlined into.
+#[inline(never)]
 fn extend_zero_heat<H: Hooks + ?Sized>(
     p: &Params,
     h: &H,
@@ -214,7 +215,7 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
     let Some(k0) = theta[0].len().checked_sub(1) else {
         return;
     };
-    let mut c = [theta[0][k0], theta[1][k0]];
+    let c = [theta[0][k0], theta[1][k0]];
     let lam_of = |b: f64| a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
     // [`extend`]'s g with the extra heat 0.0 (what the hooks' extra heat is).
     let g_of = |b: f64, pp: f64, cd: f64, th: f64, pw: f64| {
@@ -237,27 +238,32 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
     let decay = [(-lam[0] * m.dt).exp(), (-lam[1] * m.dt).exp()];
     let exact = [lam[0] * m.dt > 1e-9, lam[1] * m.dt > 1e-9];
     // The index in B of each clutch's β at the step before (2: none yet, or another value).
-    let mut j = [2usize; 2];
+    let j = [2usize; 2];
     let span = m.span(0, n);
     let Series { th, cd, pp, pw } = Series::of(m, n);
-    for k in k0..n - 1 {
-        let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
-        let (th_m, cd_m) = (mid(th), mid(cd));
-        for i in 0..2 {
-            let (pp_m, pw_m) = (mid(pp[i]), mid(pw[i]));
-            let b = h.clutch_beta(&p.clutch, &span.context(i, k, c[i]));
-            if b.to_bits() != B[j[i]].to_bits() {
-                j[i] = beta_index(b);
+    // One clutch after the other: the clutches' steps do not depend on each other, and a loop
+    // over one keeps less state live (both in one loop spilled it to the stack); the 30-minute
+    // diagnosis took 4.4 s instead of 4.6 s on the 2-core machine.
+    for i in 0..2 {
+        let (pp, pw) = (pp[i], pw[i]);
+        let (theta, beta_out) = (&mut theta[i], &mut beta_out[i]);
+        let mut c = c[i];
+        let mut j = j[i];
+        for k in k0..n - 1 {
+            let mid = |v: &[f64]| 0.5 * (v[k] + v[k + 1]);
+            let (th_m, cd_m, pp_m, pw_m) = (mid(th), mid(cd), mid(pp), mid(pw));
+            let b = h.clutch_beta(&p.clutch, &span.context(i, k, c));
+            if b.to_bits() != B[j].to_bits() {
+                j = beta_index(b);
             }
-            let ji = j[i];
-            c[i] = if ji < 2 && exact[ji] {
-                let inf = g_of(B[ji], pp_m, cd_m, th_m, pw_m) / lam[ji];
-                inf + (c[i] - inf) * decay[ji]
+            c = if j < 2 && exact[j] {
+                let inf = g_of(B[j], pp_m, cd_m, th_m, pw_m) / lam[j];
+                inf + (c - inf) * decay[j]
             } else {
-                step(c[i], b, g_of(b, pp_m, cd_m, th_m, pw_m))
+                step(c, b, g_of(b, pp_m, cd_m, th_m, pw_m))
             };
-            theta[i].push(c[i]);
-            beta_out[i].push(b);
+            theta.push(c);
+            beta_out.push(b);
         }
     }
 }
