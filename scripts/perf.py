@@ -11,8 +11,9 @@ wall time, not CPU time):
   model     `cargo bench --bench model`: torque (13), its inverse, the plant derivative and the
             vectorised torque (clutch_batch::torque_batch) against the numpy peer in
             benches/model_peer.py; fails when the peer or the batch disagrees with ddct
-  diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7);
-            with --short the identification (7 min) and validation profiles; no peer
+  diagnose  `ddct gap diagnose` of a 30-minute rig log with a 30-minute validation log (seed 7),
+            median of 3 runs; with --short the identification (7 min) and validation profiles,
+            one run; no peer
   blind     `ddct gap blind` of 10 trials (2 with --short), seed 1: wall time per trial
 
 --short (what CI runs) makes one run of each with small inputs and asserts nothing about time:
@@ -169,8 +170,9 @@ def diagnose_rows(out, short):
     train_profile = "config/rig/identification.toml" if short else "config/rig/bench_30min.toml"
     train = rig_log(out, train_profile, 1)
     valid = rig_log(out, "config/rig/validation.toml" if short else train_profile, 7)
-    wall, cpu, _ = run([DDCT, "gap", "diagnose", "--train", str(train), "--validate", str(valid),
-                        "--out", str(out / "diagnose")])
+    cmd = [DDCT, "gap", "diagnose", "--train", str(train), "--validate", str(valid),
+           "--out", str(out / "diagnose")]
+    wall, cpu, _ = median_runs(1 if short else 3, cmd)
     return [{
         "what": f"ddct gap diagnose ({Path(train_profile).stem} log)",
         "ddct": f"{wall:.1f} s wall, {cpu:.1f} s CPU",
