@@ -239,6 +239,15 @@ pub enum DatasetError {
     },
     #[error("{file}: empty file (expected a header line)")]
     Empty { file: String },
+    /// What the `csv` reader reports (through `std::io::Error`, which wraps it: an error here is
+    /// `Clone` and `PartialEq`).
+    #[error("{file}:{line}: not readable as CSV")]
+    Csv {
+        file: String,
+        line: usize,
+        #[source]
+        source: crate::io_error::IoError,
+    },
     #[error("{file}:{line}: missing required column `{column}`")]
     MissingColumn {
         file: String,
@@ -892,16 +901,39 @@ fn read_file(path: &Path) -> Result<(String, RawRecord), DatasetError> {
 
 /// Parses CSV text: the header, every value checked (finite, inside its physical range, gears
 /// in the DBC table), the time column increasing by at least [`MIN_STEP_S`].
+///
+/// The fields are read by the `csv` crate (quoted fields allowed), trimmed. A line that is blank
+/// or whose first character that is not white space is `#` is a comment ([`blank_comments`]:
+/// `csv` takes a comment only at the very start of a line, a line of spaces for a record, and
+/// counts lines past the empty ones it skips in its own way); an error names the file's line.
 fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')))
-        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let Some((hline, header)) = lines.next() else {
+    let kept = blank_comments(text);
+    // A record's line from its byte offset.
+    let ends: Vec<usize> = memchr::memchr_iter(b'\n', kept.as_bytes()).collect();
+    let line_at = |p: Option<&csv::Position>| {
+        p.map_or(0, |p| ends.partition_point(|&e| (e as u64) < p.byte()) + 1)
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(kept.as_bytes());
+    let mut records = reader
+        .records()
+        .filter(|r| !r.as_ref().is_ok_and(is_comment))
+        .map(|r| {
+            r.map(|r| (line_at(r.position()), r))
+                .map_err(|e| DatasetError::Csv {
+                    file: file.into(),
+                    line: line_at(e.position()),
+                    source: std::io::Error::from(e).into(),
+                })
+        });
+    let Some(first) = records.next() else {
         return Err(DatasetError::Empty { file: file.into() });
     };
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let (hline, header) = first?;
+    let names: Vec<&str> = header.iter().collect();
     let mut map: Vec<Option<Col>> = Vec::with_capacity(names.len());
     let mut time_idx = None;
     let mut seen = [false; NCOL];
@@ -958,8 +990,8 @@ fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
     let mut t = Vec::new();
     let mut row_lines = Vec::new();
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); NCOL];
-    for (line, l) in lines {
-        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
+    for r in records {
+        let (line, fields) = r?;
         if fields.len() != names.len() {
             return Err(DatasetError::FieldCount {
                 file: file.into(),
@@ -1039,6 +1071,28 @@ fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
         cycles: false,
         stats,
     })
+}
+
+/// `text` for the CSV reader: line ends as `\n`, each comment or blank line replaced by `#`, a
+/// record [`parse_csv`] drops ([`is_comment`]). No line is empty, so the reader skips none and a
+/// record's byte offset gives its line.
+fn blank_comments(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + 2);
+    for l in text.lines() {
+        let t = l.trim();
+        out.push_str(if t.is_empty() || t.starts_with('#') {
+            "#"
+        } else {
+            l
+        });
+        out.push('\n');
+    }
+    out
+}
+
+/// Whether a record is one [`blank_comments`] put in place of a comment or blank line.
+fn is_comment(r: &csv::StringRecord) -> bool {
+    r.len() == 1 && &r[0] == "#"
 }
 
 fn parse_num(s: &str) -> Option<f64> {
@@ -1724,6 +1778,28 @@ mod tests {
             Dataset::from_csv("g.csv", &text).unwrap_err(),
             DatasetError::DuplicateColumn { index: 13, .. }
         ));
+    }
+
+    /// Comment lines (indented ones too), blank lines and CRLF line ends are skipped without
+    /// moving the line numbers errors name; a quoted field is read as its contents.
+    #[test]
+    fn csv_comments_blanks_and_quotes() {
+        let text = format!(
+            "# rig 3\r\n{HEADER}\r\n   \r\n  # warm-up\r\n0,4,0,\"100\",0,0,1,0,25,25,25,25\r\n\r\n0.01,4,0,abc,0,0,1,0,25,25,25,25\r\n"
+        );
+        assert_eq!(
+            Dataset::from_csv("q.csv", &text).unwrap_err(),
+            DatasetError::BadNumber {
+                file: "q.csv".into(),
+                line: 7,
+                index: 4,
+                column: "w_f_radps".into(),
+                text: "abc".into()
+            }
+        );
+        let d = Dataset::from_csv("q.csv", &text.replace("abc", "100")).unwrap();
+        assert_eq!(d.req(Col::Wf)[0], 100.0);
+        assert_eq!(d.req(Col::Wf)[1], 100.0);
     }
 
     #[test]
