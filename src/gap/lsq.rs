@@ -261,43 +261,8 @@ pub fn solve(
     let mut rn = vec![0.0; n];
     let mut iterations = 0;
     let mut converged = false;
-    // The Jacobian by differences: every column's points first, evaluated together.
     let jacobian = |f: &mut dyn Residuals, z: &[f64], r: &[f64], jac: &mut DMatrix<f64>| {
-        let mut points = Vec::with_capacity(2 * k);
-        let mut cols = Vec::with_capacity(k);
-        for j in 0..k {
-            let h = 1e-6 * z[j].abs().max(1.0);
-            let up_ok = z[j] + h <= zb[j].1;
-            let hs = if up_ok { h } else { -h };
-            let mut zp = z.to_vec();
-            zp[j] += hs;
-            points.push(to_p(&zp));
-            let central = opts.central && z[j] - hs >= zb[j].0 && z[j] - hs <= zb[j].1;
-            if central {
-                let mut zm = z.to_vec();
-                zm[j] -= hs;
-                points.push(to_p(&zm));
-            }
-            cols.push((hs, central));
-        }
-        let mut res = vec![vec![0.0; n]; points.len()];
-        f.eval_many(&points, &mut res);
-        let mut at = 0;
-        for (j, (hs, central)) in cols.into_iter().enumerate() {
-            let rp = &res[at];
-            if central {
-                let rm = &res[at + 1];
-                for i in 0..n {
-                    jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * hs);
-                }
-                at += 2;
-            } else {
-                for i in 0..n {
-                    jac[(i, j)] = (rp[i] - r[i]) / hs;
-                }
-                at += 1;
-            }
-        }
+        difference_jacobian(f, specs, &zb, opts.central, z, r, jac)
     };
     if k > 0 && sse.is_finite() {
         jacobian(f, &z, &r, &mut jac);
@@ -313,21 +278,11 @@ pub fn solve(
             if mu < 0.0 {
                 mu = 1e-3;
             }
-            // Marquardt scaling: damping proportional to the diagonal of JᵀJ (floored so that a
-            // parameter the data do not see still gets a finite step).
-            let dmax = (0..k).map(|j| a[(j, j)]).fold(0.0, f64::max).max(1e-300);
-            let mut m = a.clone();
-            for j in 0..k {
-                m[(j, j)] += mu * a[(j, j)].max(1e-12 * dmax);
-            }
-            let Some(step) = m.cholesky().map(|c| c.solve(&(-&g))) else {
+            let Some(znew) = damped_step(&a, &g, mu, &z, &zb) else {
                 mu *= nu;
                 nu *= 2.0;
                 continue;
             };
-            let znew: Vec<f64> = (0..k)
-                .map(|j| (z[j] + step[j]).clamp(zb[j].0, zb[j].1))
-                .collect();
             let dz: Vec<f64> = (0..k).map(|j| znew[j] - z[j]).collect();
             let moved = dz
                 .iter()
@@ -378,11 +333,113 @@ pub fn solve(
             jacobian(f, &z, &r, &mut jac);
         }
     }
-    let p = to_p(&z);
-    let n_eff = effective_n(&r);
+    summary(
+        specs,
+        to_p(&z),
+        &r,
+        sse,
+        &jac,
+        clusters,
+        iterations,
+        converged,
+    )
+}
+
+/// The Levenberg–Marquardt point from `z`: the step solving (JᵀJ + μ·D)δ = −Jᵀr with JᵀJ = `a`,
+/// Jᵀr = `g` and Marquardt's scaling D, the diagonal of JᵀJ (floored so that a parameter the data
+/// do not see still gets a finite step), clamped to the bounds `zb`; `None` when the damped
+/// matrix is not positive definite.
+fn damped_step(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    mu: f64,
+    z: &[f64],
+    zb: &[(f64, f64)],
+) -> Option<Vec<f64>> {
+    let k = z.len();
+    let dmax = (0..k).map(|j| a[(j, j)]).fold(0.0, f64::max).max(1e-300);
+    let mut m = a.clone();
+    for j in 0..k {
+        m[(j, j)] += mu * a[(j, j)].max(1e-12 * dmax);
+    }
+    let step = m.cholesky().map(|c| c.solve(&(-g)))?;
+    Some(
+        (0..k)
+            .map(|j| (z[j] + step[j]).clamp(zb[j].0, zb[j].1))
+            .collect(),
+    )
+}
+
+/// The Jacobian of the residuals at `z` (residuals `r` there) by differences in the solver's
+/// coordinates, forward (backward at an upper bound) or central where `central` asks and the
+/// bounds allow; every column's points are evaluated together ([`Residuals::eval_many`]).
+fn difference_jacobian(
+    f: &mut dyn Residuals,
+    specs: &[ParamSpec],
+    zb: &[(f64, f64)],
+    central: bool,
+    z: &[f64],
+    r: &[f64],
+    jac: &mut DMatrix<f64>,
+) {
+    let (n, k) = (r.len(), z.len());
+    let to_p = |z: &[f64]| -> Vec<f64> { z.iter().zip(specs).map(|(z, s)| s.to_p(*z)).collect() };
+    let mut points = Vec::with_capacity(2 * k);
+    let mut cols = Vec::with_capacity(k);
+    for j in 0..k {
+        let h = 1e-6 * z[j].abs().max(1.0);
+        let up_ok = z[j] + h <= zb[j].1;
+        let hs = if up_ok { h } else { -h };
+        let mut zp = z.to_vec();
+        zp[j] += hs;
+        points.push(to_p(&zp));
+        let central = central && z[j] - hs >= zb[j].0 && z[j] - hs <= zb[j].1;
+        if central {
+            let mut zm = z.to_vec();
+            zm[j] -= hs;
+            points.push(to_p(&zm));
+        }
+        cols.push((hs, central));
+    }
+    let mut res = vec![vec![0.0; n]; points.len()];
+    f.eval_many(&points, &mut res);
+    let mut at = 0;
+    for (j, (hs, central)) in cols.into_iter().enumerate() {
+        let rp = &res[at];
+        if central {
+            let rm = &res[at + 1];
+            for i in 0..n {
+                jac[(i, j)] = (rp[i] - rm[i]) / (2.0 * hs);
+            }
+            at += 2;
+        } else {
+            for i in 0..n {
+                jac[(i, j)] = (rp[i] - r[i]) / hs;
+            }
+            at += 1;
+        }
+    }
+}
+
+/// The fit at the solution `p` (residuals `r`, Jacobian `jac` there): standard errors from the
+/// covariance inflated by the residuals' autocorrelation, 95 % intervals, the parameters at a
+/// bound.
+#[allow(clippy::too_many_arguments)]
+fn summary(
+    specs: &[ParamSpec],
+    p: Vec<f64>,
+    r: &[f64],
+    sse: f64,
+    jac: &DMatrix<f64>,
+    clusters: Option<&[usize]>,
+    iterations: usize,
+    converged: bool,
+) -> Fit {
+    let (n, k) = (r.len(), specs.len());
+    let n_eff = effective_n(r);
     let dof = (n as f64 - k as f64).max(1.0);
     let sigma2 = sse / dof * (n as f64 / n_eff).max(1.0);
-    let (std_z, corr) = covariance(&jac, sigma2, &r, clusters);
+    let (std_z, corr) = covariance(jac, sigma2, r, clusters);
     let std_err: Vec<f64> = std_z
         .iter()
         .zip(specs)
