@@ -199,90 +199,9 @@ impl SimScenario {
             path: path.to_path_buf(),
             source,
         };
-        let doc: toml::Table =
-            text.parse()
-                .map_err(|e: toml::de::Error| ScenarioError::Syntax {
-                    path: path.to_path_buf(),
-                    message: e.to_string().trim().replace('\n', " "),
-                })?;
-        // A driver scenario (`t_s`, `pedal_pct`, … at the top: the format `ddct plant --scenario`
-        // reads too) is a sim scenario with the built-in plant and that driver.
-        let doc = if is_driver_file(&doc) {
-            let mut wrapped = toml::Table::new();
-            if let Some(d) = doc.get("description") {
-                wrapped.insert("description".into(), d.clone());
-            }
-            wrapped.insert("driver".into(), toml::Value::Table(doc));
-            wrapped
-        } else {
-            doc
-        };
-        for k in doc.keys() {
-            if !SCENARIO_KEYS.contains(&k.as_str()) {
-                return Err(key_err(
-                    path,
-                    k.clone(),
-                    format!("unknown key (allowed: {})", SCENARIO_KEYS.join(", ")),
-                ));
-            }
-        }
+        let doc = scenario_doc(path, text)?;
         let dir = path.parent().unwrap_or(Path::new("."));
-        // Base plant configuration.
-        let (base_path, base_text) = match doc.get("plant") {
-            None => (PathBuf::from("config/plant.toml"), DEFAULT_TOML.to_string()),
-            Some(toml::Value::String(f)) => {
-                let p = dir.join(f);
-                let t = std::fs::read_to_string(&p).map_err(|e| ScenarioError::Io {
-                    path: p.clone(),
-                    source: e,
-                })?;
-                (p, t)
-            }
-            Some(_) => return Err(key_err(path, "plant", "must be a file name")),
-        };
-        let mut base: toml::Table =
-            base_text
-                .parse()
-                .map_err(|e: toml::de::Error| ScenarioError::Syntax {
-                    path: base_path.clone(),
-                    message: e.to_string(),
-                })?;
-        for t in ["initial", "housing", "sensors", "inputs"] {
-            match doc.get(t) {
-                None => {}
-                Some(toml::Value::Table(over)) => {
-                    let entry = base
-                        .entry(t.to_string())
-                        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-                    if let toml::Value::Table(bt) = entry {
-                        for (k, v) in over {
-                            bt.insert(k.clone(), v.clone());
-                        }
-                    }
-                }
-                Some(_) => return Err(key_err(path, t, "must be a table")),
-            }
-        }
-        if let Some(e) = doc.get("effects") {
-            base.insert("effects".into(), e.clone());
-        }
-        // Faults are parsed once the driver is known (DRV_Pedal is then one of the plant's).
-        let faults_doc = match doc.get("faults") {
-            Some(f) => {
-                let mut t = toml::Table::new();
-                t.insert("faults".into(), f.clone());
-                Some(t)
-            }
-            None => base.remove("faults").map(|f| {
-                let mut t = toml::Table::new();
-                t.insert("faults".into(), f);
-                t
-            }),
-        };
-        base.remove("faults");
-        if let Some(toml::Value::Table(p)) = base.get_mut("plant") {
-            p.remove("scenario");
-        }
+        let (base_path, base, faults_doc) = plant_doc(path, dir, &doc)?;
         let mut plant = PlantConfig::from_doc(path, &base, Some(&base_path)).map_err(plant_err)?;
         if plant.mode != Mode::Vehicle {
             return Err(key_err(
@@ -307,29 +226,9 @@ impl SimScenario {
             plant.faults =
                 parse_faults(path, &fd, &sent_ids(Mode::Vehicle, true)).map_err(plant_err)?;
         }
-        let tcu: TcuOverrides = match doc.get("tcu") {
-            None => TcuOverrides::default(),
-            Some(v) => v.clone().try_into().map_err(|e: toml::de::Error| {
-                let key = match v {
-                    toml::Value::Table(t) => {
-                        crate::toml_key::refused_path::<TcuOverrides>("tcu", t)
-                    }
-                    _ => "tcu".to_string(),
-                };
-                key_err(path, key, e.message().to_string())
-            })?,
-        };
+        let tcu: TcuOverrides = typed_section(path, &doc, "tcu")?.unwrap_or_default();
         tcu.validate(path)?;
-        let limits: Option<Limits> = match doc.get("limits") {
-            None => None,
-            Some(v) => Some(v.clone().try_into().map_err(|e: toml::de::Error| {
-                let key = match v {
-                    toml::Value::Table(t) => crate::toml_key::refused_path::<Limits>("limits", t),
-                    _ => "limits".to_string(),
-                };
-                key_err(path, key, e.message().to_string())
-            })?),
-        };
+        let limits: Option<Limits> = typed_section(path, &doc, "limits")?;
         if let Some(e) = limits.as_ref().and_then(|l| l.check_ranges().err()) {
             let reason = format!("{} is outside 0 < limit <= {}", e.value, e.max);
             return Err(key_err(path, e.key, reason));
@@ -361,6 +260,125 @@ impl SimScenario {
             limits,
         })
     }
+}
+
+/// A scenario's document: its TOML, a driver scenario (`t_s`, `pedal_pct`, … at the top: the
+/// format `ddct plant --scenario` reads too) wrapped as the `driver` of a sim scenario with the
+/// built-in plant; every top-level key checked against [`SCENARIO_KEYS`].
+fn scenario_doc(path: &Path, text: &str) -> Result<toml::Table, ScenarioError> {
+    let doc: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| ScenarioError::Syntax {
+            path: path.to_path_buf(),
+            message: e.to_string().trim().replace('\n', " "),
+        })?;
+    let doc = if is_driver_file(&doc) {
+        let mut wrapped = toml::Table::new();
+        if let Some(d) = doc.get("description") {
+            wrapped.insert("description".into(), d.clone());
+        }
+        wrapped.insert("driver".into(), toml::Value::Table(doc));
+        wrapped
+    } else {
+        doc
+    };
+    for k in doc.keys() {
+        if !SCENARIO_KEYS.contains(&k.as_str()) {
+            return Err(key_err(
+                path,
+                k.clone(),
+                format!("unknown key (allowed: {})", SCENARIO_KEYS.join(", ")),
+            ));
+        }
+    }
+    Ok(doc)
+}
+
+/// The plant configuration document of a scenario: the base plant file (`plant`, relative to
+/// `dir`; the built-in one by default) with the scenario's `initial`, `housing`, `sensors` and
+/// `inputs` keys laid over it and its `effects` in place of the base's; and the faults (the
+/// scenario's, else the base file's), parsed once the driver is known (DRV_Pedal is then one of
+/// the plant's). Returns the base file's path, the document and the faults.
+#[allow(clippy::type_complexity)]
+fn plant_doc(
+    path: &Path,
+    dir: &Path,
+    doc: &toml::Table,
+) -> Result<(PathBuf, toml::Table, Option<toml::Table>), ScenarioError> {
+    let (base_path, base_text) = match doc.get("plant") {
+        None => (PathBuf::from("config/plant.toml"), DEFAULT_TOML.to_string()),
+        Some(toml::Value::String(f)) => {
+            let p = dir.join(f);
+            let t = std::fs::read_to_string(&p).map_err(|e| ScenarioError::Io {
+                path: p.clone(),
+                source: e,
+            })?;
+            (p, t)
+        }
+        Some(_) => return Err(key_err(path, "plant", "must be a file name")),
+    };
+    let mut base: toml::Table =
+        base_text
+            .parse()
+            .map_err(|e: toml::de::Error| ScenarioError::Syntax {
+                path: base_path.clone(),
+                message: e.to_string(),
+            })?;
+    for t in ["initial", "housing", "sensors", "inputs"] {
+        match doc.get(t) {
+            None => {}
+            Some(toml::Value::Table(over)) => {
+                let entry = base
+                    .entry(t.to_string())
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                if let toml::Value::Table(bt) = entry {
+                    for (k, v) in over {
+                        bt.insert(k.clone(), v.clone());
+                    }
+                }
+            }
+            Some(_) => return Err(key_err(path, t, "must be a table")),
+        }
+    }
+    if let Some(e) = doc.get("effects") {
+        base.insert("effects".into(), e.clone());
+    }
+    let faults = doc
+        .get("faults")
+        .cloned()
+        .or_else(|| base.remove("faults"))
+        .map(|f| {
+            let mut t = toml::Table::new();
+            t.insert("faults".into(), f);
+            t
+        });
+    base.remove("faults");
+    if let Some(toml::Value::Table(p)) = base.get_mut("plant") {
+        p.remove("scenario");
+    }
+    Ok((base_path, base, faults))
+}
+
+/// The scenario's `key` section as `T` (`None` when absent); a refused key is named by its
+/// dotted path.
+fn typed_section<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    doc: &toml::Table,
+    key: &str,
+) -> Result<Option<T>, ScenarioError> {
+    let Some(v) = doc.get(key) else {
+        return Ok(None);
+    };
+    v.clone()
+        .try_into()
+        .map(Some)
+        .map_err(|e: toml::de::Error| {
+            let at = match v {
+                toml::Value::Table(t) => crate::toml_key::refused_path::<T>(key, t),
+                _ => key.to_string(),
+            };
+            key_err(path, at, e.message().to_string())
+        })
 }
 
 #[cfg(test)]
