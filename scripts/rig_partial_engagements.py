@@ -335,6 +335,15 @@ def run(args) -> int:
                 cache[key] = payload
             counter += 1
             bus.send(can.Message(arbitration_id=cmd_msg.frame_id, data=payload, is_extended_id=False))
+        if plant is not None and not args.free_running:
+            # In lockstep the plant simulates its next cycle only once it has the last answer, so
+            # its next ENG_Status says the answer arrived (and is in its --log); stopped sooner,
+            # the plant could be cut off before reading it (seen once in CI).
+            end = time.monotonic() + 5.0
+            while time.monotonic() < end:
+                more = bus.recv(timeout=0.5)
+                if more is not None and more.arbitration_id == eng_msg.frame_id and not more.is_error_frame:
+                    break
     except KeyboardInterrupt:
         status = 130
     except RuntimeError as e:
