@@ -278,10 +278,16 @@ fn convert_message(
         .filter(|(_, s)| s.multiplexer_indicator == can_dbc::MultiplexIndicator::Multiplexor)
         .map(|(i, _)| i)
         .collect();
+    let within = InMessage {
+        dbc,
+        m,
+        index: &index,
+        plain_switches: &plain_switches,
+    };
     let signals = m
         .signals
         .iter()
-        .map(|s| convert_signal(dbc, m, s, &index, &plain_switches).map_err(|p| bad(&s.name, p)));
+        .map(|s| within.signal(s).map_err(|p| bad(&s.name, p)));
     let mut signals = signals.collect::<Result<Vec<_>, _>>()?;
     for i in 0..signals.len() {
         if let Mux::When { switch, .. } = signals[i].mux {
@@ -301,109 +307,111 @@ fn convert_message(
     Ok(msg)
 }
 
-/// One signal of message `m` in the decoder's terms; an error is the problem with it, in words.
-fn convert_signal(
-    dbc: &can_dbc::Dbc,
-    m: &can_dbc::Message,
-    s: &can_dbc::Signal,
-    index: &HashMap<&str, usize>,
-    plain_switches: &[usize],
-) -> Result<Signal, String> {
-    let length = u32::try_from(s.size).unwrap_or(u32::MAX);
-    if !(1..=64).contains(&length) {
-        return Err(format!("length {} bits (1 to 64 are decoded)", s.size));
-    }
-    let start_bit = u32::try_from(s.start_bit)
-        .ok()
-        .filter(|b| *b < 512)
-        .ok_or_else(|| format!("start bit {} beyond 64 bytes", s.start_bit))?;
-    let kind = match dbc.extended_value_type_for_signal(m.id, &s.name) {
-        Some(can_dbc::SignalExtendedValueType::IEEEfloat32Bit) => Kind::Float32,
-        Some(can_dbc::SignalExtendedValueType::IEEEdouble64bit) => Kind::Float64,
-        _ => Kind::Integer,
-    };
-    match (kind, length) {
-        (Kind::Float32, 32) | (Kind::Float64, 64) | (Kind::Integer, _) => {}
-        _ => return Err(format!("a {kind:?} signal of {length} bits (SIG_VALTYPE_)")),
-    }
-    let values = dbc
-        .value_descriptions_for_signal(m.id, &s.name)
-        .map(|v| {
-            v.iter()
-                .map(|d| (d.id, d.description.clone()))
-                .collect::<Vec<_>>()
-        })
-        .unwrap_or_default();
-    Ok(Signal {
-        name: s.name.clone(),
-        start_bit,
-        length,
-        order: match s.byte_order {
-            can_dbc::ByteOrder::LittleEndian => ByteOrder::Intel,
-            can_dbc::ByteOrder::BigEndian => ByteOrder::Motorola,
-        },
-        signed: s.value_type == can_dbc::ValueType::Signed,
-        kind,
-        factor: s.factor,
-        offset: s.offset,
-        min: numeric(&s.min),
-        max: numeric(&s.max),
-        unit: s.unit.clone(),
-        values,
-        mux: signal_mux(dbc, m, s, index, plain_switches)?,
-        is_multiplexor: false,
-    })
+/// A message of the DBC as its signals' conversion reads it: the DBC, the message, its signals'
+/// indices by name and its plain multiplexors (`M`).
+struct InMessage<'a> {
+    dbc: &'a can_dbc::Dbc,
+    m: &'a can_dbc::Message,
+    index: &'a HashMap<&'a str, usize>,
+    plain_switches: &'a [usize],
 }
 
-/// When signal `s` of message `m` is present: always, or for the values of its multiplexor
-/// that its `SG_MUL_VAL_` ranges (extended multiplexing) or its `mN` (the message's one plain
-/// multiplexor `M`) give.
-fn signal_mux(
-    dbc: &can_dbc::Dbc,
-    m: &can_dbc::Message,
-    s: &can_dbc::Signal,
-    index: &HashMap<&str, usize>,
-    plain_switches: &[usize],
-) -> Result<Mux, String> {
-    let selector = match s.multiplexer_indicator {
-        can_dbc::MultiplexIndicator::MultiplexedSignal(v)
-        | can_dbc::MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => Some(v),
-        _ => None,
-    };
-    let extended_mux = dbc
-        .extended_multiplex
-        .iter()
-        .find(|e| e.message_id == m.id && e.signal_name == s.name);
-    match (selector, extended_mux) {
-        (Some(_), Some(e)) => {
-            let switch = *index
-                .get(e.multiplexor_signal_name.as_str())
-                .ok_or_else(|| {
-                    format!(
-                        "SG_MUL_VAL_ names the multiplexor {}, not a signal of the message",
-                        e.multiplexor_signal_name
-                    )
-                })?;
-            Ok(Mux::When {
-                switch,
-                ranges: e
-                    .mappings
-                    .iter()
-                    .map(|r| (r.min_value, r.max_value))
-                    .collect(),
-            })
+impl InMessage<'_> {
+    /// One signal of the message in the decoder's terms; an error is the problem with it, in words.
+    fn signal(&self, s: &can_dbc::Signal) -> Result<Signal, String> {
+        let (dbc, m) = (self.dbc, self.m);
+        let length = u32::try_from(s.size).unwrap_or(u32::MAX);
+        if !(1..=64).contains(&length) {
+            return Err(format!("length {} bits (1 to 64 are decoded)", s.size));
         }
-        (Some(v), None) => match plain_switches {
-            [switch] => Ok(Mux::When {
-                switch: *switch,
-                ranges: vec![(v, v)],
-            }),
-            [] => Err("multiplexed (m) but the message has no multiplexor (M)".into()),
-            _ => Err(
-                "multiplexed (m) in a message of several multiplexors without SG_MUL_VAL_".into(),
-            ),
-        },
-        (None, _) => Ok(Mux::Always),
+        let start_bit = u32::try_from(s.start_bit)
+            .ok()
+            .filter(|b| *b < 512)
+            .ok_or_else(|| format!("start bit {} beyond 64 bytes", s.start_bit))?;
+        let kind = match dbc.extended_value_type_for_signal(m.id, &s.name) {
+            Some(can_dbc::SignalExtendedValueType::IEEEfloat32Bit) => Kind::Float32,
+            Some(can_dbc::SignalExtendedValueType::IEEEdouble64bit) => Kind::Float64,
+            _ => Kind::Integer,
+        };
+        match (kind, length) {
+            (Kind::Float32, 32) | (Kind::Float64, 64) | (Kind::Integer, _) => {}
+            _ => return Err(format!("a {kind:?} signal of {length} bits (SIG_VALTYPE_)")),
+        }
+        let values = dbc
+            .value_descriptions_for_signal(m.id, &s.name)
+            .map(|v| {
+                v.iter()
+                    .map(|d| (d.id, d.description.clone()))
+                    .collect::<Vec<_>>()
+            })
+            .unwrap_or_default();
+        Ok(Signal {
+            name: s.name.clone(),
+            start_bit,
+            length,
+            order: match s.byte_order {
+                can_dbc::ByteOrder::LittleEndian => ByteOrder::Intel,
+                can_dbc::ByteOrder::BigEndian => ByteOrder::Motorola,
+            },
+            signed: s.value_type == can_dbc::ValueType::Signed,
+            kind,
+            factor: s.factor,
+            offset: s.offset,
+            min: numeric(&s.min),
+            max: numeric(&s.max),
+            unit: s.unit.clone(),
+            values,
+            mux: self.mux(s)?,
+            is_multiplexor: false,
+        })
+    }
+
+    /// When signal `s` of the message is present: always, or for the values of its multiplexor
+    /// that its `SG_MUL_VAL_` ranges (extended multiplexing) or its `mN` (the message's one plain
+    /// multiplexor `M`) give.
+    fn mux(&self, s: &can_dbc::Signal) -> Result<Mux, String> {
+        let (dbc, m, index, plain_switches) = (self.dbc, self.m, self.index, self.plain_switches);
+        let selector = match s.multiplexer_indicator {
+            can_dbc::MultiplexIndicator::MultiplexedSignal(v)
+            | can_dbc::MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => Some(v),
+            _ => None,
+        };
+        let extended_mux = dbc
+            .extended_multiplex
+            .iter()
+            .find(|e| e.message_id == m.id && e.signal_name == s.name);
+        match (selector, extended_mux) {
+            (Some(_), Some(e)) => {
+                let switch = *index
+                    .get(e.multiplexor_signal_name.as_str())
+                    .ok_or_else(|| {
+                        format!(
+                            "SG_MUL_VAL_ names the multiplexor {}, not a signal of the message",
+                            e.multiplexor_signal_name
+                        )
+                    })?;
+                Ok(Mux::When {
+                    switch,
+                    ranges: e
+                        .mappings
+                        .iter()
+                        .map(|r| (r.min_value, r.max_value))
+                        .collect(),
+                })
+            }
+            (Some(v), None) => match plain_switches {
+                [switch] => Ok(Mux::When {
+                    switch: *switch,
+                    ranges: vec![(v, v)],
+                }),
+                [] => Err("multiplexed (m) but the message has no multiplexor (M)".into()),
+                _ => Err(
+                    "multiplexed (m) in a message of several multiplexors without SG_MUL_VAL_"
+                        .into(),
+                ),
+            },
+            (None, _) => Ok(Mux::Always),
+        }
     }
 }
 

@@ -429,7 +429,9 @@ fn knots(model: &Model, train: &[File]) -> Knots {
     let mut vals: BTreeMap<Variable, Vec<f64>> = BTreeMap::new();
     for f in train {
         let Some(dk) = &f.disk else { continue };
-        let slide = [0, 1].map(|i| candidates::slide_acceleration(&f.m.slip[i], f.m.dt));
+        // The record's kept sliding accelerations: the fits that read them take the same.
+        let slide = f.m.slides.get(&f.m);
+        let slide = &slide.acc;
         for i in 0..2 {
             for &k in f.fit.get(Channel::Torque(i)) {
                 let c = f.m.context(i, k, dk[i][k]);
