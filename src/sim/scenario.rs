@@ -44,8 +44,12 @@ pub enum ScenarioError {
         #[source]
         source: std::io::Error,
     },
-    #[error("scenario {path}: not valid TOML: {message}")]
-    Syntax { path: PathBuf, message: String },
+    #[error("scenario {path}: not valid TOML")]
+    Syntax {
+        path: PathBuf,
+        #[source]
+        source: Box<toml::de::Error>,
+    },
     #[error("scenario {path}{}: `{key}`: {reason}", crate::toml_key::at_line(*.line))]
     Key {
         path: PathBuf,
@@ -270,7 +274,7 @@ fn scenario_doc(path: &Path, text: &str) -> Result<toml::Table, ScenarioError> {
         .parse()
         .map_err(|e: toml::de::Error| ScenarioError::Syntax {
             path: path.to_path_buf(),
-            message: e.to_string().trim().replace('\n', " "),
+            source: Box::new(e),
         })?;
     let doc = if is_driver_file(&doc) {
         let mut wrapped = toml::Table::new();
@@ -322,7 +326,7 @@ fn plant_doc(
             .parse()
             .map_err(|e: toml::de::Error| ScenarioError::Syntax {
                 path: base_path.clone(),
-                message: e.to_string(),
+                source: Box::new(e),
             })?;
     for t in ["initial", "housing", "sensors", "inputs"] {
         match doc.get(t) {

@@ -25,8 +25,12 @@ pub enum TcuConfigError {
         #[source]
         source: std::io::Error,
     },
-    #[error("TCU calibration {path}: {message}")]
-    Syntax { path: PathBuf, message: String },
+    #[error("TCU calibration {path}: not valid TOML")]
+    Syntax {
+        path: PathBuf,
+        #[source]
+        source: Box<toml::de::Error>,
+    },
     #[error(transparent)]
     OutOfRange(#[from] RangeError),
     #[error("TCU calibration: inconsistent `{key}`: {reason}")]
@@ -344,7 +348,7 @@ impl TcuConfig {
     pub fn from_toml_str(text: &str, path: &Path) -> Result<TcuConfig, TcuConfigError> {
         let mut c: TcuConfig = toml::from_str(text).map_err(|e| TcuConfigError::Syntax {
             path: path.to_path_buf(),
-            message: e.to_string().trim().replace('\n', " "),
+            source: Box::new(e),
         })?;
         c.physics = Params::default();
         c.validate().map_err(|e| in_file(e, path, text))?;
