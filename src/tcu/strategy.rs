@@ -526,10 +526,11 @@ impl Strategy {
         out
     }
 
+    /// One creep cycle: to launch once the pedal is pressed with the gear engaged; else the
+    /// creep torque released (brake, no gear) or following the creep clutch-speed reference.
     fn creep(&mut self, ctx: &Ctx, mut c: Creep) -> Command {
         let a = c.a;
         let o = 1 - a;
-        let cfg = ctx.cfg;
         let mut want = [Gear::N; 2];
         want[a] = c.gear;
         want[o] = if c.gear.is_reverse() {
@@ -547,50 +548,11 @@ impl Strategy {
             return self.launch(ctx, l);
         }
         // The brake releases the creep torque (at standstill and while rolling).
-        let hold = !engaged || ctx.m.brake;
-        let r = ctx.reduced();
-        let k = ctx.k(c.gear);
-        let mut t = 0.0;
-        let phase;
-        if hold {
-            c.w_c_ref = ctx.m.w_c[a];
-            c.t_ref = approach(c.t_ref, 0.0, cfg.creep.release_rate_nm_per_s, ctx.dt);
-            self.pi_c[a].reset(0.0);
-            phase = "hold";
-            if c.t_ref > 0.5 && engaged {
-                t = c.t_ref;
-            }
+        let (t, phase) = if !engaged || ctx.m.brake {
+            (self.creep_release(ctx, &mut c, engaged), "hold")
         } else {
-            // Clutch-speed reference toward idle minus the creep slip, at the creep acceleration.
-            let target = (ctx.m.w_e.min(ctx.idle()) - cfg.creep.slip_radps).max(0.0);
-            let alpha = cfg.creep.accel_mps2 / cfg.physics.driveline.wheel_radius_m * k.abs();
-            let prev = c.w_c_ref;
-            c.w_c_ref = approach(c.w_c_ref, target, alpha, ctx.dt);
-            let win = cfg.creep.reference_window_radps;
-            c.w_c_ref = c.w_c_ref.clamp(ctx.m.w_c[a] - win, ctx.m.w_c[a] + win);
-            let w_dot_ref = if ctx.dt > 0.0 {
-                (c.w_c_ref - prev) / ctx.dt
-            } else {
-                0.0
-            };
-            // Half the launch gains: the creep torque sits near the kiss point, where the
-            // actuator lag matters most; the torque rises at most at the creep torque rate so
-            // the idle governor keeps up.
-            let e = c.w_c_ref - ctx.m.w_c[a];
-            let pi = self.pi_c[a];
-            let w_dot_cmd = w_dot_ref + 0.5 * (pi.kp * e + pi.integral);
-            let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
-            let hi = cfg
-                .creep
-                .max_torque_nm
-                .min(ctx.t_max(a))
-                .min(c.t_ref + CREEP_TORQUE_RATE_NM_PER_S * ctx.dt)
-                .min(ctx.stall_limit());
-            t = raw.clamp(0.0, hi.max(0.0));
-            self.pi_c[a].integrate(e, ctx.dt, raw >= hi, raw <= 0.0);
-            c.t_ref = t;
-            phase = "creep";
-        }
+            (self.creep_torque(ctx, &mut c), "creep")
+        };
         let x_a = if t > 0.0 {
             ctx.x_slip(a, t)
         } else {
@@ -615,29 +577,108 @@ impl Strategy {
         }
     }
 
-    fn launch(&mut self, ctx: &Ctx, mut l: Launch) -> Command {
+    /// Creep torque released at `creep.release_rate_nm_per_s` (brake pressed or gear not
+    /// engaged): the reference follows the clutch, the integrator is reset; the torque still
+    /// applied, nothing below 0.5 N·m or without the gear.
+    fn creep_release(&mut self, ctx: &Ctx, c: &mut Creep, engaged: bool) -> f64 {
+        let a = c.a;
+        c.w_c_ref = ctx.m.w_c[a];
+        c.t_ref = approach(c.t_ref, 0.0, ctx.cfg.creep.release_rate_nm_per_s, ctx.dt);
+        self.pi_c[a].reset(0.0);
+        if c.t_ref > 0.5 && engaged {
+            c.t_ref
+        } else {
+            0.0
+        }
+    }
+
+    /// Creep torque that brings the clutch speed toward idle minus the creep slip at the creep
+    /// acceleration, with half the launch gains (the creep torque sits near the kiss point, where
+    /// the actuator lag matters most); the torque rises at most at the creep torque rate so the
+    /// idle governor keeps up.
+    fn creep_torque(&mut self, ctx: &Ctx, c: &mut Creep) -> f64 {
         let cfg = ctx.cfg;
-        let a = l.a;
-        let o = 1 - a;
+        let a = c.a;
+        let target = (ctx.m.w_e.min(ctx.idle()) - cfg.creep.slip_radps).max(0.0);
+        let alpha =
+            cfg.creep.accel_mps2 / cfg.physics.driveline.wheel_radius_m * ctx.k(c.gear).abs();
+        let prev = c.w_c_ref;
+        c.w_c_ref = approach(c.w_c_ref, target, alpha, ctx.dt);
+        let win = cfg.creep.reference_window_radps;
+        c.w_c_ref = c.w_c_ref.clamp(ctx.m.w_c[a] - win, ctx.m.w_c[a] + win);
+        let w_dot_ref = if ctx.dt > 0.0 {
+            (c.w_c_ref - prev) / ctx.dt
+        } else {
+            0.0
+        };
+        let e = c.w_c_ref - ctx.m.w_c[a];
+        let pi = self.pi_c[a];
+        let w_dot_cmd = w_dot_ref + 0.5 * (pi.kp * e + pi.integral);
         let r = ctx.reduced();
-        let k = r.k[a];
-        if k == 0.0 || ctx.m.gear[a] != l.gear {
-            // Lost the gear: back to creep, which waits for it.
+        let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
+        let hi = cfg
+            .creep
+            .max_torque_nm
+            .min(ctx.t_max(a))
+            .min(c.t_ref + CREEP_TORQUE_RATE_NM_PER_S * ctx.dt)
+            .min(ctx.stall_limit());
+        let t = raw.clamp(0.0, hi.max(0.0));
+        self.pi_c[a].integrate(e, ctx.dt, raw >= hi, raw <= 0.0);
+        c.t_ref = t;
+        t
+    }
+
+    /// One launch cycle: the clutch-speed reference (jerk-limited, within what the engine has
+    /// left), the engine-speed reference (profile, then synchronisation), the clutch torque by
+    /// PI_c and the decoupling law (27), the engine torque by PI_e and (24); after
+    /// `lock_cycles` cycles locked, drive.
+    fn launch(&mut self, ctx: &Ctx, mut l: Launch) -> Command {
+        let r = ctx.reduced();
+        if let Some(cmd) = self.leave_launch(ctx, &r, &mut l) {
+            return cmd;
+        }
+        let (w_tgt, alpha_tgt) = Launch::targets(ctx, l.a, l.gear, l.w_c0);
+        let w_dot_prof = l.engine_profile_rate(ctx, w_tgt);
+        l.advance_clutch_reference(ctx, &r, alpha_tgt, w_dot_prof);
+        let (w_e_ref, w_e_dot_ref) = l.advance_engine_reference(ctx, w_dot_prof);
+        let t_a = self.launch_clutch_torque(ctx, &r, &l);
+        let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t_a);
+        l.count_lock(ctx);
+        let cmd = self.launch_command(ctx, &l, t_a, t_e, w_e_ref);
+        self.mode = if l.lock_count >= ctx.cfg.control.lock_cycles {
+            Mode::Drive(Drive {
+                a: l.a,
+                gear: l.gear,
+                cap: t_a,
+                blend: Some(t_e),
+                since_s: 0.0,
+                slip_count: 0,
+            })
+        } else {
+            Mode::Launch(l)
+        };
+        cmd
+    }
+
+    /// Back to creep when the launch gear is lost (creep waits for it) or the pedal has been
+    /// released for `launch.pedal_off_s` before synchronisation; counts the pedal-off time.
+    fn leave_launch(&mut self, ctx: &Ctx, r: &Reduced, l: &mut Launch) -> Option<Command> {
+        let a = l.a;
+        if r.k[a] == 0.0 || ctx.m.gear[a] != l.gear {
             self.mode = Mode::Creep(Creep {
                 a,
                 gear: start_gear(ctx.m.lever).unwrap_or(Gear::G1),
                 w_c_ref: ctx.m.w_c[a],
                 t_ref: 0.0,
             });
-            return self.creep_now(ctx);
+            return Some(self.creep_now(ctx));
         }
-        // Pedal released for a while at low speed: creep.
         l.pedal_off_s = if ctx.pedal_on() {
             0.0
         } else {
             l.pedal_off_s + ctx.dt
         };
-        if l.pedal_off_s > cfg.launch.pedal_off_s
+        if l.pedal_off_s > ctx.cfg.launch.pedal_off_s
             && l.sync.is_none()
             && l.gear == start_gear(ctx.m.lever).unwrap_or(Gear::G1)
         {
@@ -647,77 +688,36 @@ impl Strategy {
                 w_c_ref: ctx.m.w_c[a],
                 t_ref: self.last.t_ref[a],
             });
-            return self.creep_now(ctx);
+            return Some(self.creep_now(ctx));
         }
-        let w_c = ctx.m.w_c[a];
-        let slip = ctx.m.slip(a);
-        let (w_tgt, alpha_tgt) = Launch::targets(ctx, a, l.gear, l.w_c0);
-        // The clutch may only take what the engine has left after following its own profile:
-        // α ≤ (0.95 T_full(ω_e) − J_eq ω̇_prof − T̂_L/k)·k²/J_eq2 (the engine flares first).
-        let rate = cfg.launch.engine_rate_rpm_per_s * RPM;
-        let w_dot_prof = ((w_tgt - l.w_e_prof) / cfg.launch.engine_profile_s).clamp(-rate, rate);
-        let (_, t_full) = ctx.engine_limits();
-        let share = cfg.launch.engine_torque_share;
-        let alpha_avail =
-            (share * t_full - r.j_eq * w_dot_prof.max(0.0) - ctx.load() / k) * k * k / r.j_eq2;
-        let alpha_tgt = alpha_tgt.min(alpha_avail.max(0.1 * alpha_tgt));
-        // Jerk-limited clutch acceleration reference.
-        let jerk = alpha_tgt.max(1.0) / cfg.launch.jerk_time_s.max(1e-3);
-        l.alpha = approach(l.alpha, alpha_tgt, jerk, ctx.dt);
-        l.w_c_ref += l.alpha * ctx.dt;
-        let win = cfg.launch.reference_window_radps;
-        l.w_c_ref = l.w_c_ref.clamp(w_c - win, w_c + win);
-        // Engine reference: profile toward the target, then the synchronisation phase.
-        let prof_prev = l.w_e_prof;
-        // Rate-limited first-order approach (time constant 0.12 s): the engine torque request
-        // falls smoothly as the target nears, so the engine's torque lag does not flare it.
-        l.w_e_prof += w_dot_prof * ctx.dt;
-        let mut w_e_dot_ref = if ctx.dt > 0.0 {
-            (l.w_e_prof - prof_prev) / ctx.dt
-        } else {
-            0.0
-        };
-        let mut w_e_ref = l.w_e_prof;
-        if l.sync.is_none() && l.w_e_prof - w_c <= cfg.launch.sync_slip_radps && l.alpha > 0.0 {
-            let s0 = slip.max(1.0);
-            l.sync = Some(Sync {
-                tau: 0.0,
-                s0,
-                duration: (2.0 * s0 / l.alpha.max(1.0)).max(cfg.launch.min_sync_time_s),
-            });
-        }
-        let delta = cfg.control.lock_undershoot_radps;
-        if let Some(s) = l.sync.as_mut() {
-            s.tau += ctx.dt;
-            let u = (s.tau / s.duration).min(1.0);
-            // After the profile, a slip still above zero is pulled down further at 5 rad/s²
-            // (up to 10 rad/s below zero) so that it crosses and the clutch locks.
-            let tail = (s.tau - s.duration).max(0.0);
-            let s_ref = (s.s0 + delta) * (1.0 - u) * (1.0 - u) - delta - (5.0 * tail).min(10.0);
-            let ds = -2.0 * (s.s0 + delta) * (1.0 - u) / s.duration
-                - if tail > 0.0 && 5.0 * tail < 10.0 {
-                    5.0
-                } else {
-                    0.0
-                };
-            w_e_ref = w_c + s_ref;
-            w_e_dot_ref = l.alpha + ds;
-        }
-        // PI_c and the decoupling law (27).
-        let e_c = l.w_c_ref - w_c;
+        None
+    }
+
+    /// PI_c and the decoupling law (27): the clutch torque that follows the launch's clutch
+    /// reference, within the clutch's capacity and the anti-stall limit.
+    fn launch_clutch_torque(&mut self, ctx: &Ctx, r: &Reduced, l: &Launch) -> f64 {
+        let a = l.a;
+        let e_c = l.w_c_ref - ctx.m.w_c[a];
         let w_dot_cmd = self.pi_c[a].output(l.alpha, e_c);
         let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
         let hi = ctx.t_max(a).min(ctx.stall_limit());
         let t_a = raw.clamp(0.0, hi);
         self.pi_c[a].integrate(e_c, ctx.dt, raw >= hi, raw <= 0.0);
-        // PI_e and (24).
-        let t_e = self.engine_law(ctx, &r, w_e_ref, w_e_dot_ref, t_a);
-        // Lock-up detection.
-        if slip.abs() < cfg.control.lock_slip_radps && l.sync.is_some() {
-            l.lock_count += 1;
-        } else {
-            l.lock_count = 0;
-        }
+        t_a
+    }
+
+    /// The launch cycle's command: the active clutch at the position of its torque (with the
+    /// actuator lead), the other at standby with the next gear preselected.
+    fn launch_command(
+        &mut self,
+        ctx: &Ctx,
+        l: &Launch,
+        t_a: f64,
+        t_e: f64,
+        w_e_ref: f64,
+    ) -> Command {
+        let a = l.a;
+        let o = 1 - a;
         let x_a = self.lead(ctx, a, ctx.x_slip(a, t_a));
         let mut x_ref = [0.0; 2];
         x_ref[a] = x_a;
@@ -727,31 +727,17 @@ impl Strategy {
         let mut want = [Gear::N; 2];
         want[a] = l.gear;
         want[o] = preselect(ctx.cfg, l.gear, ctx.v_kmh(), ctx.m.pedal);
-        let gear_req = self.safe_gear_req(ctx, want);
-        let cmd = Command {
+        Command {
             x_ref,
             t_ref,
             engine_req: Some(t_e),
-            gear_req,
+            gear_req: self.safe_gear_req(ctx, want),
             gear_active: l.gear,
             state: TcuState::Launch,
             w_e_ref,
             w_c_ref: l.w_c_ref,
             phase: if l.sync.is_some() { "sync" } else { "launch" },
-        };
-        if l.lock_count >= cfg.control.lock_cycles {
-            self.mode = Mode::Drive(Drive {
-                a,
-                gear: l.gear,
-                cap: t_a,
-                blend: Some(t_e),
-                since_s: 0.0,
-                slip_count: 0,
-            });
-        } else {
-            self.mode = Mode::Launch(l);
         }
-        cmd
     }
 
     fn creep_now(&mut self, ctx: &Ctx) -> Command {
@@ -761,9 +747,10 @@ impl Strategy {
         }
     }
 
+    /// One drive cycle: the engine request blended back to the driver, the active clutch clamped
+    /// above the engine torque, the next gear preselected; then back to creep at a stop, or a
+    /// shift when the schedule asks for one.
     fn drive(&mut self, ctx: &Ctx, mut d: Drive) -> Command {
-        let cfg = ctx.cfg;
-        let k = &cfg.control;
         let a = d.a;
         let o = 1 - a;
         d.since_s += ctx.dt;
@@ -772,44 +759,15 @@ impl Strategy {
             self.mode = Self::initial_mode(ctx);
             return self.step_mode(ctx);
         }
-        let demand = ctx.demand();
-        // Engine request: blend to the driver's demand, then release.
-        if let Some(req) = d.blend {
-            let next = approach(req, demand, k.blend_rate_nm_per_s, ctx.dt);
-            d.blend = if (next - demand).abs() < 1.0 {
-                None
-            } else {
-                Some(next)
-            };
-        }
-        let slip = ctx.m.slip(a);
-        if slip.abs() > k.slip_alarm_radps {
-            d.slip_count += 1;
-        } else {
-            d.slip_count = 0;
-        }
-        let boost = if d.slip_count >= 2 { 2.0 } else { 1.0 };
-        let t_e = ctx
-            .m
-            .t_e
-            .abs()
-            .max(demand.abs())
-            .max(d.blend.unwrap_or(0.0).abs());
-        let target = (1.0 + k.clamp_margin * boost) * t_e + k.clamp_offset_nm * boost;
-        d.cap = if target > d.cap {
-            target.min(k.max_torque_nm)
-        } else {
-            approach(d.cap, target, k.clamp_rate_nm_per_s, ctx.dt)
-        };
+        d.advance(ctx);
         let mut x_ref = [0.0; 2];
         x_ref[a] = ctx.x_clamp(a, d.cap);
         x_ref[o] = ctx.standby(o);
         let mut t_ref = [0.0; 2];
         t_ref[a] = d.cap;
-        let v = ctx.v_kmh();
         let mut want = [Gear::N; 2];
         want[a] = d.gear;
-        want[o] = preselect(cfg, d.gear, v, ctx.m.pedal);
+        want[o] = preselect(ctx.cfg, d.gear, ctx.v_kmh(), ctx.m.pedal);
         let gear_req = self.safe_gear_req(ctx, want);
         let cmd = Command {
             x_ref,
@@ -822,43 +780,34 @@ impl Strategy {
             w_c_ref: ctx.m.w_c[a],
             phase: "drive",
         };
-        self.mode = Mode::Drive(d);
-        // Stop: start gear, pedal off, engine near idle -> creep. Any gear with the engine near
-        // stalling -> open and creep/wait.
-        let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
-        let low = ctx.m.w_e < cfg.creep.stop_engine_rpm * RPM;
-        if (d.gear == start && low && !ctx.pedal_on()) || ctx.m.w_e < 0.85 * ctx.idle() {
-            self.mode = Mode::Creep(Creep {
-                a: shaft(start),
-                gear: start,
-                w_c_ref: ctx.m.w_c[shaft(start)],
-                t_ref: if d.gear == start {
-                    d.cap.min(cfg.creep.max_torque_nm)
-                } else {
-                    0.0
-                },
-            });
-            return cmd;
-        }
-        // Shift decision. A downshift whose engine would otherwise lug toward idle does not wait
-        // for the interval since the last shift nor for the engine-request blend.
-        if !d.gear.is_reverse() {
-            let g = scheduled_gear(cfg, d.gear, v, ctx.m.pedal);
-            let urgent = d.gear.above(g) && ctx.m.w_e < 1.2 * ctx.idle();
-            let settled = d.since_s > 0.3
-                && self.since_shift_s > cfg.shift.min_interval_s
-                && d.blend.is_none();
-            let braking_up = g.above(d.gear) && ctx.m.brake;
-            if (settled || urgent)
-                && g != d.gear
-                && !braking_up
-                && ctx.m.gear[o] == g
-                && shaft(g) == o
-            {
-                self.start_shift(ctx, d, g);
+        match d.stop(ctx) {
+            Some(c) => self.mode = Mode::Creep(c),
+            None => {
+                self.mode = Mode::Drive(d);
+                self.shift_if_scheduled(ctx, d);
             }
         }
         cmd
+    }
+
+    /// Shift decision. A downshift whose engine would otherwise lug toward idle does not wait
+    /// for the interval since the last shift nor for the engine-request blend; no upshift while
+    /// braking; the next gear must be engaged on the other shaft.
+    fn shift_if_scheduled(&mut self, ctx: &Ctx, d: Drive) {
+        if d.gear.is_reverse() {
+            return;
+        }
+        let cfg = ctx.cfg;
+        let o = 1 - d.a;
+        let g = scheduled_gear(cfg, d.gear, ctx.v_kmh(), ctx.m.pedal);
+        let urgent = d.gear.above(g) && ctx.m.w_e < 1.2 * ctx.idle();
+        let settled =
+            d.since_s > 0.3 && self.since_shift_s > cfg.shift.min_interval_s && d.blend.is_none();
+        let braking_up = g.above(d.gear) && ctx.m.brake;
+        if (settled || urgent) && g != d.gear && !braking_up && ctx.m.gear[o] == g && shaft(g) == o
+        {
+            self.start_shift(ctx, d, g);
+        }
     }
 
     fn step_mode(&mut self, ctx: &Ctx) -> Command {
@@ -1148,6 +1097,85 @@ fn scheduled_from_speed(ctx: &Ctx) -> Gear {
     }
 }
 
+impl Drive {
+    /// One cycle of the engaged clutch: the engine request blended toward the driver's demand at
+    /// `blend_rate_nm_per_s` and released within 1 N·m of it; the slip alarm counted; the clamp
+    /// capacity raised at once to (1 + margin·boost)·|T_e| + offset·boost (boost 2 after two
+    /// cycles of slip alarm), lowered at `clamp_rate_nm_per_s`, at most `max_torque_nm`.
+    fn advance(&mut self, ctx: &Ctx) {
+        let k = &ctx.cfg.control;
+        let demand = ctx.demand();
+        if let Some(req) = self.blend {
+            let next = approach(req, demand, k.blend_rate_nm_per_s, ctx.dt);
+            self.blend = if (next - demand).abs() < 1.0 {
+                None
+            } else {
+                Some(next)
+            };
+        }
+        if ctx.m.slip(self.a).abs() > k.slip_alarm_radps {
+            self.slip_count += 1;
+        } else {
+            self.slip_count = 0;
+        }
+        let boost = if self.slip_count >= 2 { 2.0 } else { 1.0 };
+        let t_e = ctx
+            .m
+            .t_e
+            .abs()
+            .max(demand.abs())
+            .max(self.blend.unwrap_or(0.0).abs());
+        let target = (1.0 + k.clamp_margin * boost) * t_e + k.clamp_offset_nm * boost;
+        self.cap = if target > self.cap {
+            target.min(k.max_torque_nm)
+        } else {
+            approach(self.cap, target, k.clamp_rate_nm_per_s, ctx.dt)
+        };
+    }
+
+    /// The creep a stop leads to: in the start gear with the pedal off and the engine near idle
+    /// (`creep.stop_engine_rpm`), keeping the clamp torque up to the creep torque; in any gear
+    /// with the engine near stalling, open (creep waits for the start gear).
+    fn stop(&self, ctx: &Ctx) -> Option<Creep> {
+        let cfg = ctx.cfg;
+        let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
+        let low = ctx.m.w_e < cfg.creep.stop_engine_rpm * RPM;
+        if (self.gear == start && low && !ctx.pedal_on()) || ctx.m.w_e < 0.85 * ctx.idle() {
+            return Some(Creep {
+                a: shaft(start),
+                gear: start,
+                w_c_ref: ctx.m.w_c[shaft(start)],
+                t_ref: if self.gear == start {
+                    self.cap.min(cfg.creep.max_torque_nm)
+                } else {
+                    0.0
+                },
+            });
+        }
+        None
+    }
+}
+
+impl Sync {
+    /// Advances the synchronisation by `dt`: the slip reference falls as a parabola from `s0` to
+    /// `delta` below zero over `duration`, and its rate. After the profile, a slip still above
+    /// zero is pulled down further at 5 rad/s² (up to 10 rad/s below zero) so that it crosses
+    /// and the clutch locks.
+    fn advance(&mut self, dt: f64, delta: f64) -> (f64, f64) {
+        self.tau += dt;
+        let u = (self.tau / self.duration).min(1.0);
+        let tail = (self.tau - self.duration).max(0.0);
+        let s_ref = (self.s0 + delta) * (1.0 - u) * (1.0 - u) - delta - (5.0 * tail).min(10.0);
+        let ds = -2.0 * (self.s0 + delta) * (1.0 - u) / self.duration
+            - if tail > 0.0 && 5.0 * tail < 10.0 {
+                5.0
+            } else {
+                0.0
+            };
+        (s_ref, ds)
+    }
+}
+
 impl Launch {
     fn new(ctx: &Ctx, a: usize, gear: Gear) -> Launch {
         Launch {
@@ -1160,6 +1188,82 @@ impl Launch {
             sync: None,
             lock_count: 0,
             pedal_off_s: 0.0,
+        }
+    }
+
+    /// Rate of the engine-speed profile toward the target `w_tgt`: a first-order approach with
+    /// time constant `engine_profile_s`, limited to `engine_rate_rpm_per_s`, so the engine torque
+    /// request falls smoothly as the target nears and the engine's torque lag does not flare it.
+    fn engine_profile_rate(&self, ctx: &Ctx, w_tgt: f64) -> f64 {
+        let cfg = ctx.cfg;
+        let rate = cfg.launch.engine_rate_rpm_per_s * RPM;
+        ((w_tgt - self.w_e_prof) / cfg.launch.engine_profile_s).clamp(-rate, rate)
+    }
+
+    /// The jerk-limited clutch acceleration reference toward `alpha_tgt`, capped by what the
+    /// engine has left after following its own profile (the engine flares first):
+    /// α ≤ (share·T_full(ω_e) − J_eq ω̇_prof − T̂_L/k)·k²/J_eq2; the clutch-speed reference
+    /// integrates it, kept within `reference_window_radps` of the measured clutch speed.
+    fn advance_clutch_reference(
+        &mut self,
+        ctx: &Ctx,
+        r: &Reduced,
+        alpha_tgt: f64,
+        w_dot_prof: f64,
+    ) {
+        let cfg = ctx.cfg;
+        let k = r.k[self.a];
+        let (_, t_full) = ctx.engine_limits();
+        let share = cfg.launch.engine_torque_share;
+        let alpha_avail =
+            (share * t_full - r.j_eq * w_dot_prof.max(0.0) - ctx.load() / k) * k * k / r.j_eq2;
+        let alpha_tgt = alpha_tgt.min(alpha_avail.max(0.1 * alpha_tgt));
+        let jerk = alpha_tgt.max(1.0) / cfg.launch.jerk_time_s.max(1e-3);
+        self.alpha = approach(self.alpha, alpha_tgt, jerk, ctx.dt);
+        self.w_c_ref += self.alpha * ctx.dt;
+        let w_c = ctx.m.w_c[self.a];
+        let win = cfg.launch.reference_window_radps;
+        self.w_c_ref = self.w_c_ref.clamp(w_c - win, w_c + win);
+    }
+
+    /// The engine-speed reference and its rate: the profile advanced at `w_dot_prof`, then,
+    /// once the profile is within `sync_slip_radps` of the clutch, the synchronisation phase.
+    fn advance_engine_reference(&mut self, ctx: &Ctx, w_dot_prof: f64) -> (f64, f64) {
+        let w_c = ctx.m.w_c[self.a];
+        let prof_prev = self.w_e_prof;
+        self.w_e_prof += w_dot_prof * ctx.dt;
+        let w_e_dot_ref = if ctx.dt > 0.0 {
+            (self.w_e_prof - prof_prev) / ctx.dt
+        } else {
+            0.0
+        };
+        if self.sync.is_none()
+            && self.w_e_prof - w_c <= ctx.cfg.launch.sync_slip_radps
+            && self.alpha > 0.0
+        {
+            let s0 = ctx.m.slip(self.a).max(1.0);
+            self.sync = Some(Sync {
+                tau: 0.0,
+                s0,
+                duration: (2.0 * s0 / self.alpha.max(1.0)).max(ctx.cfg.launch.min_sync_time_s),
+            });
+        }
+        let delta = ctx.cfg.control.lock_undershoot_radps;
+        match self.sync.as_mut() {
+            Some(s) => {
+                let (s_ref, ds) = s.advance(ctx.dt, delta);
+                (w_c + s_ref, self.alpha + ds)
+            }
+            None => (self.w_e_prof, w_e_dot_ref),
+        }
+    }
+
+    /// Lock-up detection: cycles in a row synchronised with the slip below `lock_slip_radps`.
+    fn count_lock(&mut self, ctx: &Ctx) {
+        if ctx.m.slip(self.a).abs() < ctx.cfg.control.lock_slip_radps && self.sync.is_some() {
+            self.lock_count += 1;
+        } else {
+            self.lock_count = 0;
         }
     }
 
