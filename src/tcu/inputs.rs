@@ -314,10 +314,28 @@ impl InputMonitor {
         }
     }
 
+    /// One received frame checked and, when valid, applied to the measurements: its E2E
+    /// protection, then its decoded values' plausibility.
     fn check(&mut self, input: Input, f: &TimedFrame) -> Result<(), FaultCode> {
-        let (_, crc_code, counter_code) = input.codes();
+        self.check_e2e(input, f)?;
+        // Time since the previous accepted frame, at least one cycle: a frame carries at least a
+        // cycle of physics even when a sender's scheduling delay delivers several at once.
+        let prev_at = self.ch[input.index()].last_valid;
+        let dt = prev_at.map(|p| f.at.saturating_sub(p).max(input.cycle()).as_secs_f64());
         let data = f.frame.bytes();
-        let e2e = self.checker.check(f.at, f.frame.raw_id(), data);
+        match input {
+            Input::EngStatus => self.apply_engine(data, dt),
+            Input::Pedal => self.apply_pedal(data),
+            Input::Sensors => self.apply_sensors(data, dt),
+            Input::Actuators => self.apply_actuators(data),
+        }
+    }
+
+    /// The frame's E2E protection (CRC, alive counter), counted in its sender's record; a counter
+    /// skip of at most `max_counter_skip` passes.
+    fn check_e2e(&mut self, input: Input, f: &TimedFrame) -> Result<(), FaultCode> {
+        let (_, crc_code, counter_code) = input.codes();
+        let e2e = self.checker.check(f.at, f.frame.raw_id(), f.frame.bytes());
         if matches!(e2e, Err(E2eError::BadCrc { .. })) {
             self.senders[input.index()].bad_crc(f.at, input.cycle());
         } else {
@@ -328,90 +346,100 @@ impl InputMonitor {
             self.senders[input.index()].frame(f.at, counter_error, input.cycle());
         }
         match e2e {
-            Ok(()) => {}
+            Ok(()) => Ok(()),
             Err(E2eError::CounterSkipped { skipped, .. })
-                if skipped <= self.cfg.max_counter_skip => {}
+                if skipped <= self.cfg.max_counter_skip =>
+            {
+                Ok(())
+            }
             Err(E2eError::CounterSkipped { .. }) | Err(E2eError::CounterRepeated { .. }) => {
-                return Err(counter_code)
+                Err(counter_code)
             }
-            Err(_) => return Err(crc_code),
+            Err(_) => Err(crc_code),
         }
-        // Time since the previous accepted frame, at least one cycle: a frame carries at least a
-        // cycle of physics even when a sender's scheduling delay delivers several at once.
-        let prev_at = self.ch[input.index()].last_valid;
-        let cycle = input.cycle();
-        let dt = prev_at.map(|p| f.at.saturating_sub(p).max(cycle).as_secs_f64());
+    }
+
+    /// ENG_Status: the engine speed within `max_engine_rpm` and, `dt` after the previous frame,
+    /// within `max_engine_rate_rpm_per_s` of it (plus 1 rpm).
+    fn apply_engine(&mut self, data: &[u8], dt: Option<f64>) -> Result<(), FaultCode> {
         let cfg = self.cfg;
-        match input {
-            Input::EngStatus => {
-                let m = EngStatus::decode(data).map_err(|e| decode_code(&e, input))?;
-                let w = m.eng_speed * RPM;
-                if m.eng_speed > cfg.max_engine_rpm || !w.is_finite() {
-                    return Err(FaultCode::ImplausibleSpeed);
-                }
-                if let Some(dt) = dt {
-                    let bound = (cfg.max_engine_rate_rpm_per_s * dt + 1.0) * RPM;
-                    if (w - self.meas.w_e).abs() > bound {
-                        return Err(FaultCode::ImplausibleSpeed);
-                    }
-                }
-                self.meas.w_e = w;
-                self.meas.t_e = m.eng_torque_act;
-            }
-            Input::Pedal => {
-                let m = DrvPedal::decode(data).map_err(|e| decode_code(&e, input))?;
-                self.meas.pedal = (m.accel_pedal / 100.0).clamp(0.0, 1.0);
-                self.meas.brake = m.brake_switch;
-                // Into D or R only below walking pace: a moving vehicle keeps its lever (a
-                // spoofed or mistaken R at speed is refused and reported, not obeyed).
-                let engages = matches!(m.gear_lever, GearLever::D | GearLever::R)
-                    && m.gear_lever != self.meas.lever;
-                let moving = self.seen[Input::Sensors.index()]
-                    && self.meas.w_out.abs() > cfg.max_lever_engage_out_rpm * RPM;
-                self.lever_refused = engages && moving;
-                if !self.lever_refused {
-                    self.meas.lever = m.gear_lever;
-                }
-            }
-            Input::Sensors => {
-                let m = DctSensors::decode(data).map_err(|e| decode_code(&e, input))?;
-                if !(cfg.housing_temp_min_c..=cfg.housing_temp_max_c).contains(&m.housing_temp) {
-                    return Err(FaultCode::ImplausibleTemp);
-                }
-                let w_c = [m.in_shaft1_speed * RPM, m.in_shaft2_speed * RPM];
-                let w_out = m.out_shaft_speed * RPM;
-                if w_c.iter().any(|w| w.abs() > cfg.max_engine_rpm * RPM * 1.5) {
-                    return Err(FaultCode::ImplausibleSpeed);
-                }
-                if let Some(dt) = dt {
-                    let bound = (cfg.max_out_rate_rpm_per_s * dt + 1.0) * RPM;
-                    if (w_out - self.meas.w_out).abs() > bound {
-                        return Err(FaultCode::ImplausibleSpeed);
-                    }
-                }
-                // An input shaft with its gear engaged turns with the output: a gross mismatch
-                // (the gear state comes from DCT_Actuators, possibly a cycle older) is not a
-                // transmission.
-                for (shaft, &g) in self.meas.gear.iter().enumerate() {
-                    if let Some(k) = driveline::overall_ratio(&self.driveline, g) {
-                        if (w_c[shaft] - k * w_out).abs() > cfg.max_shaft_mismatch_radps {
-                            return Err(FaultCode::ImplausibleSpeed);
-                        }
-                    }
-                }
-                self.meas.w_c = w_c;
-                self.meas.w_out = w_out;
-                self.meas.theta_h = m.housing_temp;
-            }
-            Input::Actuators => {
-                let m = DctActuators::decode(data).map_err(|e| decode_code(&e, input))?;
-                if m.clutch1_pos > cfg.max_position_mm || m.clutch2_pos > cfg.max_position_mm {
-                    return Err(FaultCode::ImplausiblePosition);
-                }
-                self.meas.x_mm = [m.clutch1_pos, m.clutch2_pos];
-                self.meas.gear = [m.gear_odd_act.into(), m.gear_even_act.into()];
+        let m = EngStatus::decode(data).map_err(|e| decode_code(&e, Input::EngStatus))?;
+        let w = m.eng_speed * RPM;
+        if m.eng_speed > cfg.max_engine_rpm || !w.is_finite() {
+            return Err(FaultCode::ImplausibleSpeed);
+        }
+        if let Some(dt) = dt {
+            let bound = (cfg.max_engine_rate_rpm_per_s * dt + 1.0) * RPM;
+            if (w - self.meas.w_e).abs() > bound {
+                return Err(FaultCode::ImplausibleSpeed);
             }
         }
+        self.meas.w_e = w;
+        self.meas.t_e = m.eng_torque_act;
+        Ok(())
+    }
+
+    /// DRV_Pedal: pedal and brake; into D or R only below walking pace: a moving vehicle keeps
+    /// its lever (a spoofed or mistaken R at speed is refused and reported, not obeyed).
+    fn apply_pedal(&mut self, data: &[u8]) -> Result<(), FaultCode> {
+        let m = DrvPedal::decode(data).map_err(|e| decode_code(&e, Input::Pedal))?;
+        self.meas.pedal = (m.accel_pedal / 100.0).clamp(0.0, 1.0);
+        self.meas.brake = m.brake_switch;
+        let engages =
+            matches!(m.gear_lever, GearLever::D | GearLever::R) && m.gear_lever != self.meas.lever;
+        let moving = self.seen[Input::Sensors.index()]
+            && self.meas.w_out.abs() > self.cfg.max_lever_engage_out_rpm * RPM;
+        self.lever_refused = engages && moving;
+        if !self.lever_refused {
+            self.meas.lever = m.gear_lever;
+        }
+        Ok(())
+    }
+
+    /// DCT_Sensors: the housing temperature in its range, the shaft speeds plausible (input
+    /// shafts within 1.5 × `max_engine_rpm`, the output's rate within `max_out_rate_rpm_per_s`,
+    /// an input shaft with its gear engaged turning with the output).
+    fn apply_sensors(&mut self, data: &[u8], dt: Option<f64>) -> Result<(), FaultCode> {
+        let cfg = self.cfg;
+        let m = DctSensors::decode(data).map_err(|e| decode_code(&e, Input::Sensors))?;
+        if !(cfg.housing_temp_min_c..=cfg.housing_temp_max_c).contains(&m.housing_temp) {
+            return Err(FaultCode::ImplausibleTemp);
+        }
+        let w_c = [m.in_shaft1_speed * RPM, m.in_shaft2_speed * RPM];
+        let w_out = m.out_shaft_speed * RPM;
+        if w_c.iter().any(|w| w.abs() > cfg.max_engine_rpm * RPM * 1.5) {
+            return Err(FaultCode::ImplausibleSpeed);
+        }
+        if let Some(dt) = dt {
+            let bound = (cfg.max_out_rate_rpm_per_s * dt + 1.0) * RPM;
+            if (w_out - self.meas.w_out).abs() > bound {
+                return Err(FaultCode::ImplausibleSpeed);
+            }
+        }
+        // A gross mismatch (the gear state comes from DCT_Actuators, possibly a cycle older) is
+        // not a transmission.
+        for (shaft, &g) in self.meas.gear.iter().enumerate() {
+            if let Some(k) = driveline::overall_ratio(&self.driveline, g) {
+                if (w_c[shaft] - k * w_out).abs() > cfg.max_shaft_mismatch_radps {
+                    return Err(FaultCode::ImplausibleSpeed);
+                }
+            }
+        }
+        self.meas.w_c = w_c;
+        self.meas.w_out = w_out;
+        self.meas.theta_h = m.housing_temp;
+        Ok(())
+    }
+
+    /// DCT_Actuators: clutch positions within `max_position_mm`, and the engaged gears.
+    fn apply_actuators(&mut self, data: &[u8]) -> Result<(), FaultCode> {
+        let m = DctActuators::decode(data).map_err(|e| decode_code(&e, Input::Actuators))?;
+        let cfg = self.cfg;
+        if m.clutch1_pos > cfg.max_position_mm || m.clutch2_pos > cfg.max_position_mm {
+            return Err(FaultCode::ImplausiblePosition);
+        }
+        self.meas.x_mm = [m.clutch1_pos, m.clutch2_pos];
+        self.meas.gear = [m.gear_odd_act.into(), m.gear_even_act.into()];
         Ok(())
     }
 
