@@ -121,33 +121,40 @@ crate::ranges!(FaultSpec as f, "faults" {
     delay_ms: [1.0, 1000.0],
 });
 
+/// Where a `[[faults]]` entry is: its file and index, for the errors that name its keys.
+struct Entry<'a> {
+    path: &'a Path,
+    index: usize,
+}
+
+impl Entry<'_> {
+    /// An error of the entry's key `k` (`faults[i].k`).
+    fn err(&self, k: &str, reason: String) -> PlantError {
+        PlantError::key(self.path, format!("faults[{}].{k}", self.index), reason)
+    }
+
+    /// An error when the key `k`, which `kind` does not use, is `present`.
+    fn unused(&self, k: &str, present: bool, kind: FaultKind) -> Result<(), PlantError> {
+        if present {
+            Err(self.err(k, format!("does not apply to kind {}", kind.as_str())))
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// Whether a signal is the E2E protection rather than data.
+fn is_e2e_signal(name: &str) -> bool {
+    matches!(name, "AliveCounter" | "Crc")
+}
+
 impl FaultSpec {
     /// Validates against the contract and the messages the plant sends (`sent` ids).
     pub fn validate(&self, path: &Path, index: usize, sent: &[u16]) -> Result<Fault, PlantError> {
-        let key = |k: &str| format!("faults[{index}].{k}");
-        let err = |k: &str, reason: String| PlantError::key(path, key(k), reason);
-        let def = message_by_name(&self.message)
-            .or_else(|| {
-                let t = self
-                    .message
-                    .trim_start_matches("0x")
-                    .trim_start_matches("0X");
-                u32::from_str_radix(t, 16).ok().and_then(message_def)
-            })
-            .ok_or_else(|| {
-                err(
-                    "message",
-                    format!("`{}` is not a message of the contract", self.message),
-                )
-            })?;
-        if !sent.contains(&def.id) {
-            return Err(err(
-                "message",
-                format!("the plant does not send {} in this mode", def.name),
-            ));
-        }
+        let at = Entry { path, index };
+        let def = self.message_def(&at, sent)?;
         let kind = FaultKind::parse(&self.kind).ok_or_else(|| {
-            err(
+            at.err(
                 "kind",
                 format!(
                     "`{}` is not a fault kind ({})",
@@ -159,10 +166,10 @@ impl FaultSpec {
         self.check_ranges_in(&format!("faults[{index}]"))
             .map_err(|e| PlantError::range(path, e))?;
         if self.to_s == Some(self.from_s) {
-            return Err(err("to_s", "must be later than from_s".into()));
+            return Err(at.err("to_s", "must be later than from_s".into()));
         }
         if matches!(kind, FaultKind::FreezeCounter | FaultKind::CorruptCrc) && !def.e2e {
-            return Err(err(
+            return Err(at.err(
                 "kind",
                 format!(
                     "{} needs an E2E-protected message; {} has no alive counter and CRC",
@@ -171,90 +178,121 @@ impl FaultSpec {
                 ),
             ));
         }
-        let mut fault = Fault {
+        let delay = self.delay(&at, kind)?;
+        let every = self.every(&at, kind)?;
+        let (signal, value) = self.implausible(&at, kind, def)?;
+        Ok(Fault {
             message: def,
             kind,
             from: Duration::from_secs_f64(self.from_s),
             to: self.to_s.map(Duration::from_secs_f64),
-            delay: Duration::ZERO,
-            every: 1,
-            signal: None,
-            value: 0.0,
-        };
-        let unused = |k: &str, present: bool| -> Result<(), PlantError> {
-            if present {
-                Err(err(k, format!("does not apply to kind {}", kind.as_str())))
-            } else {
-                Ok(())
-            }
-        };
-        match kind {
-            FaultKind::Delay => {
-                let d = self
-                    .delay_ms
-                    .ok_or_else(|| err("delay_ms", "missing (delay in ms)".into()))?;
-                fault.delay = Duration::from_secs_f64(d * 1e-3);
-            }
-            _ => unused("delay_ms", self.delay_ms.is_some())?,
+            delay,
+            every,
+            signal,
+            value,
+        })
+    }
+
+    /// The faulted message, by name or hexadecimal id, among those the plant sends.
+    fn message_def(&self, at: &Entry, sent: &[u16]) -> Result<&'static MessageDef, PlantError> {
+        let def = message_by_name(&self.message)
+            .or_else(|| {
+                let t = self
+                    .message
+                    .trim_start_matches("0x")
+                    .trim_start_matches("0X");
+                u32::from_str_radix(t, 16).ok().and_then(message_def)
+            })
+            .ok_or_else(|| {
+                at.err(
+                    "message",
+                    format!("`{}` is not a message of the contract", self.message),
+                )
+            })?;
+        if !sent.contains(&def.id) {
+            return Err(at.err(
+                "message",
+                format!("the plant does not send {} in this mode", def.name),
+            ));
         }
-        match kind {
-            FaultKind::Drop => {
-                let n = self.every.unwrap_or(1);
-                if n == 0 {
-                    return Err(err("every", "must be at least 1".into()));
-                }
-                fault.every = n;
-            }
-            _ => unused("every", self.every.is_some())?,
+        Ok(def)
+    }
+
+    /// `delay`'s `delay_ms` (required there, refused elsewhere).
+    fn delay(&self, at: &Entry, kind: FaultKind) -> Result<Duration, PlantError> {
+        if kind != FaultKind::Delay {
+            at.unused("delay_ms", self.delay_ms.is_some(), kind)?;
+            return Ok(Duration::ZERO);
         }
-        match kind {
-            FaultKind::Implausible => {
-                let name = self
-                    .signal
-                    .as_deref()
-                    .ok_or_else(|| err("signal", "missing (signal name)".into()))?;
-                let si = def
-                    .signal_index(name)
-                    .filter(|&i| !matches!(def.signals[i].name, "AliveCounter" | "Crc"))
-                    .ok_or_else(|| {
-                        err(
-                            "signal",
-                            format!(
-                                "`{name}` is not a data signal of {} ({})",
-                                def.name,
-                                def.signals
-                                    .iter()
-                                    .map(|s| s.name)
-                                    .filter(|n| !matches!(*n, "AliveCounter" | "Crc"))
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ),
-                        )
-                    })?;
-                let v = self
-                    .value
-                    .filter(|v| v.is_finite())
-                    .ok_or_else(|| err("value", "missing or not finite (physical value)".into()))?;
-                // Anything the signal's bits can carry, inside or outside the DBC range.
-                let s = &def.signals[si];
-                let (lo, hi) = s.raw_limits();
-                let (a, b) = (s.physical(lo), s.physical(hi));
-                let (lo, hi) = (a.min(b), a.max(b));
-                if !(lo..=hi).contains(&v) {
-                    return Err(err(
-                        "value",
-                        format!("{v} cannot be sent in {} ({lo} ..= {hi})", s.name),
-                    ));
-                }
-                fault.signal = Some(si);
-                fault.value = v;
-            }
-            _ => {
-                unused("signal", self.signal.is_some())?;
-                unused("value", self.value.is_some())?;
-            }
+        let d = self
+            .delay_ms
+            .ok_or_else(|| at.err("delay_ms", "missing (delay in ms)".into()))?;
+        Ok(Duration::from_secs_f64(d * 1e-3))
+    }
+
+    /// `drop`'s `every` (default 1: every frame; refused elsewhere).
+    fn every(&self, at: &Entry, kind: FaultKind) -> Result<u32, PlantError> {
+        if kind != FaultKind::Drop {
+            at.unused("every", self.every.is_some(), kind)?;
+            return Ok(1);
         }
-        Ok(fault)
+        let n = self.every.unwrap_or(1);
+        if n == 0 {
+            return Err(at.err("every", "must be at least 1".into()));
+        }
+        Ok(n)
+    }
+
+    /// `implausible`'s data signal (by name) and physical value: anything the signal's bits can
+    /// carry, inside or outside the DBC range (both refused for other kinds).
+    fn implausible(
+        &self,
+        at: &Entry,
+        kind: FaultKind,
+        def: &MessageDef,
+    ) -> Result<(Option<usize>, f64), PlantError> {
+        if kind != FaultKind::Implausible {
+            at.unused("signal", self.signal.is_some(), kind)?;
+            at.unused("value", self.value.is_some(), kind)?;
+            return Ok((None, 0.0));
+        }
+        let name = self
+            .signal
+            .as_deref()
+            .ok_or_else(|| at.err("signal", "missing (signal name)".into()))?;
+        let si = def
+            .signal_index(name)
+            .filter(|&i| !is_e2e_signal(def.signals[i].name))
+            .ok_or_else(|| {
+                at.err(
+                    "signal",
+                    format!(
+                        "`{name}` is not a data signal of {} ({})",
+                        def.name,
+                        def.signals
+                            .iter()
+                            .map(|s| s.name)
+                            .filter(|n| !is_e2e_signal(n))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )
+            })?;
+        let v = self
+            .value
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| at.err("value", "missing or not finite (physical value)".into()))?;
+        let s = &def.signals[si];
+        let (lo, hi) = s.raw_limits();
+        let (a, b) = (s.physical(lo), s.physical(hi));
+        let (lo, hi) = (a.min(b), a.max(b));
+        if !(lo..=hi).contains(&v) {
+            return Err(at.err(
+                "value",
+                format!("{v} cannot be sent in {} ({lo} ..= {hi})", s.name),
+            ));
+        }
+        Ok((Some(si), v))
     }
 }
 
@@ -334,6 +372,13 @@ mod tests {
                 "faults[0].value",
             ),
             ("message = \"ENG_Status\"\nkind = \"stop\"\nfrom = 0", "faults[0]"),
+            ("message = \"ENG_Status\"\nkind = \"drop\"\nfrom_s = 0\nevery = 0", "faults[0].every"),
+            (
+                "message = \"ENG_Status\"\nkind = \"delay\"\nfrom_s = 0\ndelay_ms = 5\nevery = 2",
+                "faults[0].every",
+            ),
+            ("message = \"ENG_Status\"\nkind = \"drop\"\nfrom_s = 0\ndelay_ms = 5", "faults[0].delay_ms"),
+            ("message = \"0x7ff\"\nkind = \"drop\"\nfrom_s = 0", "faults[0].message"),
         ];
         for (body, key) in cases {
             let e = parse(&format!("[[faults]]\n{body}\n")).unwrap_err();
