@@ -33,6 +33,7 @@ use super::faults::{Fault, FaultKind};
 use super::hooks::EffectHooks;
 use super::noise::gauss;
 use super::profile::{CycleSampler, DriverSample};
+use crate::can::codec::MessageDef;
 use crate::can::e2e::{protect, E2eChecker, E2eConfig, E2eError, CRC_BYTE};
 use crate::can::messages::{
     ids, message_def, BenchTemps, BenchTorque, BenchVehicle, DctActuators, DctSensors, DrvPedal,
@@ -194,6 +195,39 @@ struct Latch {
     pedal: Latched<DrvPedal>,
 }
 
+impl<T> Latched<T> {
+    /// A message just received at `at`.
+    fn new(msg: T, at: Duration) -> Self {
+        Latched {
+            msg: Some(msg),
+            at,
+            fresh: true,
+        }
+    }
+}
+
+impl Latch {
+    /// Decodes the data of message `id` received at `at` into its latch; false when it does not
+    /// decode (or is not a message the plant latches).
+    fn set(&mut self, id: u16, data: &[u8], at: Duration) -> bool {
+        match id {
+            ids::TCU_CLUTCH_CMD => TcuClutchCmd::decode(data)
+                .map(|m| self.clutch = Latched::new(m, at))
+                .is_ok(),
+            ids::TCU_ENGINE_REQ => TcuEngineReq::decode(data)
+                .map(|m| self.engine = Latched::new(m, at))
+                .is_ok(),
+            ids::TCU_GEAR_CMD => TcuGearCmd::decode(data)
+                .map(|m| self.gear = Latched::new(m, at))
+                .is_ok(),
+            ids::DRV_PEDAL => DrvPedal::decode(data)
+                .map(|m| self.pedal = Latched::new(m, at))
+                .is_ok(),
+            _ => false,
+        }
+    }
+}
+
 /// Noise channels (fixed numbering: the noise of a channel does not depend on the others).
 mod ch {
     pub const ENG_SPEED: u32 = 0;
@@ -266,6 +300,46 @@ fn finite(s: &State) -> bool {
     .all(|v| v.is_finite())
 }
 
+/// The E2E-protected messages the plant receives and checks.
+const RECEIVED_E2E: [u16; 4] = [
+    ids::TCU_CLUTCH_CMD,
+    ids::TCU_ENGINE_REQ,
+    ids::TCU_GEAR_CMD,
+    ids::DRV_PEDAL,
+];
+
+/// The state at the configuration's initial conditions: at rest at the initial engine speed (a
+/// rig: its input speed `rig_rpm`) and temperatures (each part's own where given), the gears of
+/// the mode engaged; a vehicle rolls at its initial speed with the input shafts of engaged gears
+/// turning with the output.
+fn initial_state(cfg: &PlantConfig, rig_rpm: f64) -> State {
+    let p = cfg.params;
+    let i = cfg.initial;
+    let rpm = if cfg.mode == Mode::Rig {
+        rig_rpm
+    } else {
+        i.engine_rpm
+    };
+    let mut s = State::at_rest(rpm, i.temperature_c);
+    s.thermal.pp1 = i.pp1_c.unwrap_or(i.temperature_c);
+    s.thermal.pp2 = i.pp2_c.unwrap_or(i.temperature_c);
+    s.thermal.c1 = i.c1_c.unwrap_or(i.temperature_c);
+    s.thermal.c2 = i.c2_c.unwrap_or(i.temperature_c);
+    s.thermal.cd = i.cd_c.unwrap_or(i.temperature_c);
+    let (g_odd, g_even) = match cfg.mode {
+        Mode::Vehicle => (i.gear_odd, i.gear_even),
+        Mode::Rig => (cfg.rig.gear_odd, cfg.rig.gear_even),
+    };
+    s.gear_odd = GearShaft::engaged(g_odd);
+    s.gear_even = GearShaft::engaged(g_even);
+    if cfg.mode == Mode::Vehicle {
+        s.w_out = i.vehicle_kmh / 3.6 / p.driveline.wheel_radius_m;
+        s.w_c1 = driveline::overall_ratio(&p.driveline, g_odd).map_or(0.0, |k| k * s.w_out);
+        s.w_c2 = driveline::overall_ratio(&p.driveline, g_even).map_or(0.0, |k| k * s.w_out);
+    }
+    s
+}
+
 impl Plant {
     /// A plant at its initial conditions.
     pub fn new(cfg: PlantConfig) -> Self {
@@ -275,28 +349,7 @@ impl Plant {
             .rig_profile
             .as_ref()
             .map_or(cfg.rig.input_speed_rpm, |r| r.input_speed_rpm);
-        let rpm = if cfg.mode == Mode::Rig {
-            rig_rpm
-        } else {
-            i.engine_rpm
-        };
-        let mut s = State::at_rest(rpm, i.temperature_c);
-        s.thermal.pp1 = i.pp1_c.unwrap_or(i.temperature_c);
-        s.thermal.pp2 = i.pp2_c.unwrap_or(i.temperature_c);
-        s.thermal.c1 = i.c1_c.unwrap_or(i.temperature_c);
-        s.thermal.c2 = i.c2_c.unwrap_or(i.temperature_c);
-        s.thermal.cd = i.cd_c.unwrap_or(i.temperature_c);
-        let (g_odd, g_even) = match cfg.mode {
-            Mode::Vehicle => (i.gear_odd, i.gear_even),
-            Mode::Rig => (cfg.rig.gear_odd, cfg.rig.gear_even),
-        };
-        s.gear_odd = GearShaft::engaged(g_odd);
-        s.gear_even = GearShaft::engaged(g_even);
-        if cfg.mode == Mode::Vehicle {
-            s.w_out = i.vehicle_kmh / 3.6 / p.driveline.wheel_radius_m;
-            s.w_c1 = driveline::overall_ratio(&p.driveline, g_odd).map_or(0.0, |k| k * s.w_out);
-            s.w_c2 = driveline::overall_ratio(&p.driveline, g_even).map_or(0.0, |k| k * s.w_out);
-        }
+        let s = initial_state(&cfg, rig_rpm);
         let hooks = EffectHooks::new(cfg.effects, &s);
         let pt = Powertrain::with_hooks(p, hooks);
         let dt = p.integrator.dt_s;
@@ -304,18 +357,12 @@ impl Plant {
         let delay_steps = effects::dead_time_steps(&cfg.effects, dt);
         let sent = cfg.sent_ids();
         let n = sent.len();
-        let e2e = E2eConfig {
-            timeout_cycles: cfg.inputs.timeout_cycles,
-        };
         let checker = E2eChecker::for_ids(
-            e2e,
+            E2eConfig {
+                timeout_cycles: cfg.inputs.timeout_cycles,
+            },
             Duration::ZERO,
-            [
-                ids::TCU_CLUTCH_CMD,
-                ids::TCU_ENGINE_REQ,
-                ids::TCU_GEAR_CMD,
-                ids::DRV_PEDAL,
-            ],
+            RECEIVED_E2E,
         );
         let last_out = pt.outputs(&s, &Inputs::default());
         let nf = cfg.faults.len();
@@ -491,19 +538,11 @@ impl Plant {
             self.stats.rx_ignored += 1;
             return;
         };
-        let plays_driver = self.cfg.scenario.is_some();
-        let reads = match self.cfg.mode {
-            Mode::Vehicle => {
-                matches!(
-                    id,
-                    ids::TCU_CLUTCH_CMD | ids::TCU_ENGINE_REQ | ids::TCU_GEAR_CMD
-                ) || (id == ids::DRV_PEDAL && !plays_driver)
-            }
-            Mode::Rig => id == ids::TCU_CLUTCH_CMD && self.cfg.rig_profile.is_none(),
-        };
         let name = message_def(u32::from(id)).map_or("?", |d| d.name);
-        if !reads {
-            if id == ids::DRV_PEDAL && plays_driver && self.cfg.mode == Mode::Vehicle {
+        if !self.reads(id) {
+            // A pedal frame while the plant plays the driver's scenario is a second driver.
+            if id == ids::DRV_PEDAL && self.cfg.scenario.is_some() && self.cfg.mode == Mode::Vehicle
+            {
                 Self::count(&mut self.stats.rx_errors, format!("{name}.second_driver"));
             } else {
                 self.stats.rx_ignored += 1;
@@ -521,50 +560,25 @@ impl Plant {
                 return;
             }
         }
-        let at = r.timestamp;
-        let ok = match id {
-            ids::TCU_CLUTCH_CMD => TcuClutchCmd::decode(data)
-                .map(|m| {
-                    self.latch.clutch = Latched {
-                        msg: Some(m),
-                        at,
-                        fresh: true,
-                    }
-                })
-                .is_ok(),
-            ids::TCU_ENGINE_REQ => TcuEngineReq::decode(data)
-                .map(|m| {
-                    self.latch.engine = Latched {
-                        msg: Some(m),
-                        at,
-                        fresh: true,
-                    }
-                })
-                .is_ok(),
-            ids::TCU_GEAR_CMD => TcuGearCmd::decode(data)
-                .map(|m| {
-                    self.latch.gear = Latched {
-                        msg: Some(m),
-                        at,
-                        fresh: true,
-                    }
-                })
-                .is_ok(),
-            ids::DRV_PEDAL => DrvPedal::decode(data)
-                .map(|m| {
-                    self.latch.pedal = Latched {
-                        msg: Some(m),
-                        at,
-                        fresh: true,
-                    }
-                })
-                .is_ok(),
-            _ => false,
-        };
-        if ok {
+        if self.latch.set(id, data, r.timestamp) {
             Self::count(&mut self.stats.rx_accepted, name.to_string());
         } else {
             Self::count(&mut self.stats.rx_errors, format!("{name}.decode"));
+        }
+    }
+
+    /// Whether the plant reads message `id` in its mode: a vehicle the TCU's commands and, unless
+    /// it plays the driver's scenario itself, the pedal; a rig only the clutch command, unless it
+    /// follows its own profile.
+    fn reads(&self, id: u16) -> bool {
+        match self.cfg.mode {
+            Mode::Vehicle => {
+                matches!(
+                    id,
+                    ids::TCU_CLUTCH_CMD | ids::TCU_ENGINE_REQ | ids::TCU_GEAR_CMD
+                ) || (id == ids::DRV_PEDAL && self.cfg.scenario.is_none())
+            }
+            Mode::Rig => id == ids::TCU_CLUTCH_CMD && self.cfg.rig_profile.is_none(),
         }
     }
 
@@ -905,75 +919,30 @@ impl Plant {
     fn send(&mut self, slot: usize, t: Duration, mut data: [u8; 8]) -> Option<(u8, u8)> {
         let id = self.sent[slot];
         let def = message_def(u32::from(id))?;
-        let active: Vec<(usize, Fault)> = self
-            .cfg
-            .faults
-            .iter()
-            .enumerate()
-            .filter(|(_, f)| f.message.id == id && f.active(t))
-            .map(|(i, f)| (i, *f))
-            .collect();
-        let has = |k: FaultKind| active.iter().find(|(_, f)| f.kind == k);
+        let active = ActiveFaults::of(&self.cfg.faults, id, t);
         let mut applied: Option<FaultKind> = None;
-        let mut hit = |stats: &mut PlantStats, k: FaultKind| {
-            Self::count(
-                &mut stats.faults_applied,
-                format!("{}.{}", def.name, k.as_str()),
-            );
-            applied = Some(k);
-        };
-        if has(FaultKind::Stop).is_some() {
-            hit(&mut self.stats, FaultKind::Stop);
+        if active.get(FaultKind::Stop).is_some() {
+            self.hit(def, FaultKind::Stop, &mut applied);
             return None;
         }
-        let mut clean = None;
-        if def.e2e {
-            let counter =
-                if has(FaultKind::FreezeCounter).is_some() && self.last_counter[slot].is_some() {
-                    hit(&mut self.stats, FaultKind::FreezeCounter);
-                    self.last_counter[slot].unwrap_or(0)
-                } else {
-                    let c = self.counters[slot];
-                    self.counters[slot] = (c + 1) % 16;
-                    c
-                };
-            let mut clean_data = data;
-            protect(id, &mut clean_data, counter);
-            clean = Some((counter, clean_data[CRC_BYTE]));
-            if let Some((_, f)) = has(FaultKind::Implausible) {
-                if let Some((si, raw)) = f.implausible_raw() {
-                    let mut payload = u64::from_le_bytes(data);
-                    def.signals[si].insert(&mut payload, raw);
-                    data = payload.to_le_bytes();
-                    hit(&mut self.stats, FaultKind::Implausible);
-                }
-            }
-            protect(id, &mut data, counter);
-            self.last_counter[slot] = Some(counter);
-            if has(FaultKind::CorruptCrc).is_some() {
-                data[CRC_BYTE] ^= 0x5A;
-                hit(&mut self.stats, FaultKind::CorruptCrc);
-            }
-        } else if let Some((_, f)) = has(FaultKind::Implausible) {
-            if let Some((si, raw)) = f.implausible_raw() {
-                let mut payload = u64::from_le_bytes(data);
-                def.signals[si].insert(&mut payload, raw);
-                data = payload.to_le_bytes();
-                hit(&mut self.stats, FaultKind::Implausible);
-            }
-        }
-        if let Some((i, f)) = has(FaultKind::Drop) {
-            let n = self.fault_hits[*i];
-            self.fault_hits[*i] += 1;
+        let clean = if def.e2e {
+            Some(self.protect_faulted(slot, def, &active, &mut data, &mut applied))
+        } else {
+            self.implant(def, &active, &mut data, &mut applied);
+            None
+        };
+        if let Some(&(i, f)) = active.get(FaultKind::Drop) {
+            let n = self.fault_hits[i];
+            self.fault_hits[i] += 1;
             if n % u64::from(f.every) == 0 {
-                hit(&mut self.stats, FaultKind::Drop);
+                self.hit(def, FaultKind::Drop, &mut applied);
                 return clean;
             }
         }
         let mut due = t;
-        if let Some((_, f)) = has(FaultKind::Delay) {
+        if let Some((_, f)) = active.get(FaultKind::Delay) {
             due = t + f.delay;
-            hit(&mut self.stats, FaultKind::Delay);
+            self.hit(def, FaultKind::Delay, &mut applied);
         }
         let Ok(frame) = CanFrame::standard(id, &data) else {
             self.stats.encode_errors += 1;
@@ -986,6 +955,93 @@ impl Plant {
             fault: applied,
         });
         clean
+    }
+
+    /// Counts fault `k` applied to a frame of `def` and notes it as the frame's fault.
+    fn hit(&mut self, def: &MessageDef, k: FaultKind, applied: &mut Option<FaultKind>) {
+        Self::count(
+            &mut self.stats.faults_applied,
+            format!("{}.{}", def.name, k.as_str()),
+        );
+        *applied = Some(k);
+    }
+
+    /// An `implausible` fault's value written into `data`.
+    fn implant(
+        &mut self,
+        def: &MessageDef,
+        active: &ActiveFaults,
+        data: &mut [u8; 8],
+        applied: &mut Option<FaultKind>,
+    ) {
+        if let Some((si, raw)) = active
+            .get(FaultKind::Implausible)
+            .and_then(|(_, f)| f.implausible_raw())
+        {
+            let mut payload = u64::from_le_bytes(*data);
+            def.signals[si].insert(&mut payload, raw);
+            *data = payload.to_le_bytes();
+            self.hit(def, FaultKind::Implausible, applied);
+        }
+    }
+
+    /// The E2E protection of an outgoing frame of slot `slot`, with its faults: the alive counter
+    /// (frozen by `freeze_counter` once one was sent), an `implausible` value protected as if
+    /// valid, a `corrupt_crc` CRC. Returns the counter and CRC the frame would carry without
+    /// faults (the bench's record of what was meant).
+    fn protect_faulted(
+        &mut self,
+        slot: usize,
+        def: &MessageDef,
+        active: &ActiveFaults,
+        data: &mut [u8; 8],
+        applied: &mut Option<FaultKind>,
+    ) -> (u8, u8) {
+        let id = self.sent[slot];
+        let counter = match self.last_counter[slot] {
+            Some(last) if active.get(FaultKind::FreezeCounter).is_some() => {
+                self.hit(def, FaultKind::FreezeCounter, applied);
+                last
+            }
+            _ => {
+                let c = self.counters[slot];
+                self.counters[slot] = (c + 1) % 16;
+                c
+            }
+        };
+        let mut clean_data = *data;
+        protect(id, &mut clean_data, counter);
+        let clean = (counter, clean_data[CRC_BYTE]);
+        self.implant(def, active, data, applied);
+        protect(id, data, counter);
+        self.last_counter[slot] = Some(counter);
+        if active.get(FaultKind::CorruptCrc).is_some() {
+            data[CRC_BYTE] ^= 0x5A;
+            self.hit(def, FaultKind::CorruptCrc, applied);
+        }
+        clean
+    }
+}
+
+/// The faults active on one message at one time, with their index in the configuration.
+struct ActiveFaults(Vec<(usize, Fault)>);
+
+impl ActiveFaults {
+    /// The faults of `faults` on message `id` whose window holds `t`.
+    fn of(faults: &[Fault], id: u16, t: Duration) -> Self {
+        ActiveFaults(
+            faults
+                .iter()
+                .enumerate()
+                .filter(|(_, f)| f.message.id == id && f.active(t))
+                .map(|(i, f)| (i, *f))
+                .collect(),
+        )
+    }
+
+    /// The first active fault of kind `k`.
+    fn get(&self, k: FaultKind) -> Option<&(usize, Fault)> {
+        self.0.iter().find(|(_, f)| f.kind == k)
     }
 }
 
