@@ -361,39 +361,18 @@ pub struct RigProfile {
     pub source: Option<PathBuf>,
 }
 
-impl RigProfile {
-    pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, PlantError> {
-        Self::from_table(path, &parse_toml(path, text)?).map_err(|e| e.located(path, text))
-    }
+/// A rig profile's `[engagement]` table, checked: which clutch, how many engagements, their
+/// period and the position curve of one engagement.
+struct RigEngagement {
+    clutch: u8,
+    count: u32,
+    period_s: f64,
+    x_to: Table,
+}
 
-    pub fn load(path: &Path) -> Result<Self, PlantError> {
-        let mut r = Self::from_toml_str(path, &read_text(path)?)?;
-        r.source = Some(path.to_path_buf());
-        Ok(r)
-    }
-
-    fn from_table(path: &Path, doc: &toml::Table) -> Result<Self, PlantError> {
-        check_keys(
-            path,
-            doc,
-            "",
-            &[
-                "description",
-                "input_speed_rpm",
-                "start_s",
-                "engagement",
-                "cooling",
-            ],
-        )?;
-        let description = doc
-            .get("description")
-            .and_then(|v| v.as_str())
-            .unwrap_or("")
-            .to_string();
-        let input_speed_rpm = number(path, doc, "input_speed_rpm")?.unwrap_or(2000.0);
-        in_range(path, "input_speed_rpm", &input_speed_rpm, 0.0, 6000.0)?;
-        let start_s = number(path, doc, "start_s")?.unwrap_or(0.0);
-        in_range(path, "start_s", &start_s, 0.0, 3600.0)?;
+impl RigEngagement {
+    /// The `[engagement]` table of `doc` (required); every key checked, errors name it.
+    fn from_doc(path: &Path, doc: &toml::Table) -> Result<Self, PlantError> {
         let eng = match doc.get("engagement") {
             Some(toml::Value::Table(t)) => t,
             _ => {
@@ -434,24 +413,73 @@ impl RigProfile {
         in_range(path, "engagement.x_mm", &x[..], 0.0, 8.0)?;
         in_range(path, "engagement.t_s", &t[..], 0.0, period_s)?;
         let x_to = Table::new(t, x).map_err(|e| PlantError::key(path, "engagement.t_s", e))?;
-        let cooling_s = match doc.get("cooling") {
-            None => 0.0,
-            Some(toml::Value::Table(c)) => {
-                check_keys(path, c, "cooling.", &["duration_s"])?;
-                let d = number(path, c, "duration_s")?.unwrap_or(0.0);
-                in_range(path, "cooling.duration_s", &d, 0.0, 36000.0)?;
-                d
-            }
-            Some(_) => return Err(PlantError::key(path, "cooling", "must be a table")),
-        };
-        Ok(RigProfile {
-            description,
-            input_speed_rpm,
-            start_s,
+        Ok(RigEngagement {
+            // 1 or 2, and a whole number in 0 ..= 10 000: checked above.
             clutch: clutch as u8,
             count: count as u32,
             period_s,
             x_to,
+        })
+    }
+}
+
+/// A rig profile's optional `[cooling]` table: the cooling time after the engagements (s).
+fn cooling_s(path: &Path, doc: &toml::Table) -> Result<f64, PlantError> {
+    match doc.get("cooling") {
+        None => Ok(0.0),
+        Some(toml::Value::Table(c)) => {
+            check_keys(path, c, "cooling.", &["duration_s"])?;
+            let d = number(path, c, "duration_s")?.unwrap_or(0.0);
+            in_range(path, "cooling.duration_s", &d, 0.0, 36000.0)?;
+            Ok(d)
+        }
+        Some(_) => Err(PlantError::key(path, "cooling", "must be a table")),
+    }
+}
+
+impl RigProfile {
+    pub fn from_toml_str(path: &Path, text: &str) -> Result<Self, PlantError> {
+        Self::from_table(path, &parse_toml(path, text)?).map_err(|e| e.located(path, text))
+    }
+
+    pub fn load(path: &Path) -> Result<Self, PlantError> {
+        let mut r = Self::from_toml_str(path, &read_text(path)?)?;
+        r.source = Some(path.to_path_buf());
+        Ok(r)
+    }
+
+    fn from_table(path: &Path, doc: &toml::Table) -> Result<Self, PlantError> {
+        check_keys(
+            path,
+            doc,
+            "",
+            &[
+                "description",
+                "input_speed_rpm",
+                "start_s",
+                "engagement",
+                "cooling",
+            ],
+        )?;
+        let description = doc
+            .get("description")
+            .and_then(|v| v.as_str())
+            .unwrap_or("")
+            .to_string();
+        let input_speed_rpm = number(path, doc, "input_speed_rpm")?.unwrap_or(2000.0);
+        in_range(path, "input_speed_rpm", &input_speed_rpm, 0.0, 6000.0)?;
+        let start_s = number(path, doc, "start_s")?.unwrap_or(0.0);
+        in_range(path, "start_s", &start_s, 0.0, 3600.0)?;
+        let e = RigEngagement::from_doc(path, doc)?;
+        let cooling_s = cooling_s(path, doc)?;
+        Ok(RigProfile {
+            description,
+            input_speed_rpm,
+            start_s,
+            clutch: e.clutch,
+            count: e.count,
+            period_s: e.period_s,
+            x_to: e.x_to,
             cooling_s,
             source: None,
         })
