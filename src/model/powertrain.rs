@@ -768,31 +768,7 @@ impl<H: Hooks> Powertrain<H> {
                 None => f(&s0),
             };
             let s1 = rk4_step_from(&s0, &d0, h_left, f);
-            // Earliest predicted zero crossing of a slipping clutch: from the RK4 end point
-            // (sign change) or from the slip rate at the start (the cube-root friction makes
-            // RK4's own stages straddle zero, so the end point alone can miss a crossing).
-            let mut first: Option<(usize, f64)> = None;
-            for (i, &skipped) in skip.iter().enumerate() {
-                if s0.locked(i) || skipped {
-                    continue;
-                }
-                let (a, b) = (s0.slip(i), s1.slip(i));
-                let rate = d0.w_f - if i == 0 { d0.w_c1 } else { d0.w_c2 };
-                let mut frac = f64::INFINITY;
-                if a == 0.0 {
-                    frac = 0.0;
-                } else {
-                    if a * b < 0.0 || b == 0.0 {
-                        frac = a / (a - b);
-                    }
-                    if a * rate < 0.0 && a.abs() <= h_left * rate.abs() {
-                        frac = frac.min(-a / rate / h_left);
-                    }
-                }
-                if frac.is_finite() && first.is_none_or(|(_, f)| frac < f) {
-                    first = Some((i, frac.clamp(0.0, 1.0)));
-                }
-            }
+            let first = first_slip_crossing(&s0, &s1, &d0, h_left, skip);
             match first {
                 Some((i, frac)) if rep.events < max_events => {
                     let h1 = frac * h_left;
@@ -827,6 +803,43 @@ impl<H: Hooks> Powertrain<H> {
         s.set_speeds(w);
         rep
     }
+}
+
+/// Earliest predicted zero crossing of a slipping clutch (not `skip`ped) over the step `h` from
+/// `s0` (slip rates `d0`) to `s1`: the clutch and the fraction of the step. From the RK4 end point
+/// (sign change) or from the slip rate at the start (the cube-root friction makes RK4's own
+/// stages straddle zero, so the end point alone can miss a crossing).
+#[inline]
+fn first_slip_crossing(
+    s0: &State,
+    s1: &State,
+    d0: &State,
+    h: f64,
+    skip: [bool; 2],
+) -> Option<(usize, f64)> {
+    let mut first: Option<(usize, f64)> = None;
+    for (i, &skipped) in skip.iter().enumerate() {
+        if s0.locked(i) || skipped {
+            continue;
+        }
+        let (a, b) = (s0.slip(i), s1.slip(i));
+        let rate = d0.w_f - if i == 0 { d0.w_c1 } else { d0.w_c2 };
+        let mut frac = f64::INFINITY;
+        if a == 0.0 {
+            frac = 0.0;
+        } else {
+            if a * b < 0.0 || b == 0.0 {
+                frac = a / (a - b);
+            }
+            if a * rate < 0.0 && a.abs() <= h * rate.abs() {
+                frac = frac.min(-a / rate / h);
+            }
+        }
+        if frac.is_finite() && first.is_none_or(|(_, f)| frac < f) {
+            first = Some((i, frac.clamp(0.0, 1.0)));
+        }
+    }
+    first
 }
 
 impl<H: Hooks> OdeSystem for Powertrain<H> {
