@@ -525,139 +525,196 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     let iface = bus.iface().to_string();
     let link = Link::open(bus, config.log.as_deref(), MAX_SEND_FAILURES)?;
     let start = Instant::now();
-    let mut shell = Shell {
-        link,
-        tcu: Tcu::new(config.tcu.clone(), Duration::ZERO),
-        start,
-        time: TimeBase::new(),
-        bus_clock: (config.clock == TcuClock::Bus).then(|| BusClock::new(CYCLE)),
-        inbox: Vec::new(),
-        coalesced: 0,
-        computations: 0,
-        sync: 0,
-        fallback: 0,
-        overruns: 0,
-        compute: Micros::default(),
-        send_gap: Micros::default(),
-        last_sent: None,
-        last_sync: None,
-        last_at: Duration::ZERO,
-        deadline: Duration::ZERO,
-        last_sync_at: None,
-        last_now: Duration::ZERO,
-        last_state: (TcuState::Init, FaultCode::None),
-        clocks: WakeClocks::default(),
-        cycle_frames: 0,
-        paced: false,
-        paced_cycles: 0,
-        batch: Vec::with_capacity(DRAIN_BUDGET),
-        core_fired: None,
-        stall_log: Vec::new(),
-    };
+    let mut shell = Shell::new(link, &config, start);
     let mut timer = Periodic::new(start, CYCLE);
     let mut stats = LoopStats::default();
     tokio::pin!(shutdown);
     let stopped_by = loop {
-        shell.deadline = timer.next_deadline().saturating_duration_since(start);
-        let core_at = shell.core_deadline();
-        let core_armed = shell.bus_clock.is_none()
-            && core_at < timer.next_deadline()
-            && shell.core_fired != Some(core_at);
+        let (core_at, core_armed) = shell.arm(timer.next_deadline());
         tokio::select! {
             biased;
             _ = shutdown.as_mut() => break "shutdown",
             _ = tokio::time::sleep_until(timer.next_deadline()) => {
-                let now = Instant::now();
-                let tick = timer.fire(now);
-                stats.record(&tick, CYCLE);
-                // Frames waiting in the socket are read on every tick too, not only when the
-                // receive future is woken, so no queued frame waits longer than a cycle.
-                shell.woke();
-                shell.drain()?;
-                shell.pace_next_cycle();
-                shell.deadline = timer.next_deadline().saturating_duration_since(start);
-                if config.duration.is_some_and(|d| now.saturating_duration_since(start) >= d) {
+                if shell.on_tick(&mut timer, &mut stats, config.duration).await? {
                     break "duration";
-                }
-                if shell.bus_clock.is_some() {
-                    // Bus time: queued sync frames are computed at their own time; a fallback
-                    // computation only after BUS_SILENCE of live time without one.
-                    if shell.sync_queued() {
-                        shell.run_syncs().await?;
-                    } else if shell.bus_silent(now.saturating_duration_since(start)) {
-                        shell.compute(None).await?;
-                    }
-                } else if shell.fallback_due(now.saturating_duration_since(start)) {
-                    // The core's own deadline (the sensors silent), or a coalesced sync frame
-                    // still queued: computed on this deadline.
-                    shell.compute(None).await?;
                 }
             }
             // The core's own deadline between two ticks (the sensors silent for two cycles): at
             // that time, not at the next tick, so the TCU's frames are never more than the
             // silence apart. Armed once per deadline.
             _ = tokio::time::sleep_until(core_at), if core_armed => {
-                shell.core_fired = Some(core_at);
-                shell.woke();
-                shell.drain()?;
-                if shell.fallback_due(shell.clocks.mono) {
-                    shell.compute(None).await?;
-                }
+                shell.on_core_deadline(core_at).await?;
             }
             // A flood: everything queued, every FLOOD_PACE.
             _ = tokio::time::sleep_until(shell.next_read()), if shell.paced => {
-                shell.woke();
-                shell.drain()?;
-                shell.run_syncs().await?;
+                shell.on_paced_read().await?;
             }
-            rx = shell.link.bus.recv(), if !shell.paced => {
-                shell.woke();
-                match rx {
-                    Ok(rx) => shell.on_receive(rx)?,
-                    Err(e) => shell.recv_error(e)?,
-                }
-                shell.drain()?;
-                shell.run_syncs().await?;
-            }
+            rx = shell.link.bus.recv(), if !shell.paced => shell.on_bus_wake(rx).await?,
         }
     };
-    let (stalls, stall_total, stall_longest) = shell.time.stalls();
-    let log_frames = shell.link.finish()?;
-    Ok(TcuReport {
-        iface,
-        stopped_by,
-        clock: config.clock,
-        wall_time_s: start.elapsed().as_secs_f64(),
-        core_time_s: shell.last_now.as_secs_f64(),
-        computations: shell.computations,
-        sync_computations: shell.sync,
-        fallback_computations: shell.fallback,
-        overruns: shell.overruns,
-        deadline_misses: stats.deadline_misses,
-        timer_lateness_p99_us: stats.lateness_percentile_us(0.99),
-        timer_lateness_max_us: stats.lateness_percentile_us(1.0),
-        stalls,
-        stall_total_s: stall_total.as_secs_f64(),
-        stall_longest_s: stall_longest.as_secs_f64(),
-        paced_cycles: shell.paced_cycles,
-        stall_log: std::mem::take(&mut shell.stall_log),
-        syncs_coalesced: shell.coalesced,
-        compute_p50_us: shell.compute.percentile(0.5),
-        compute_p99_us: shell.compute.percentile(0.99),
-        compute_max_us: shell.compute.percentile(1.0),
-        send_gap_p99_us: shell.send_gap.percentile(0.99),
-        send_gap_max_us: shell.send_gap.percentile(1.0),
-        frames_sent: shell.link.sent,
-        send_errors: shell.link.send_errors,
-        frames_received: shell.link.received,
-        receive_errors: shell.link.receive_errors,
-        safe_entries: shell.tcu.safe_entries(),
-        final_state: shell.last_state.0,
-        final_fault: shell.last_state.1,
-        inputs: shell.tcu.input_counters(),
-        log: config.log,
-        log_frames,
-    })
+    shell.report(iface, stopped_by, config, &stats)
+}
+
+impl<B: Bus> Shell<B> {
+    /// The shell at the start: a fresh core on `link`, nothing received or computed yet.
+    fn new(link: Link<B>, config: &TcuDaemonConfig, start: Instant) -> Self {
+        Shell {
+            link,
+            tcu: Tcu::new(config.tcu.clone(), Duration::ZERO),
+            start,
+            time: TimeBase::new(),
+            bus_clock: (config.clock == TcuClock::Bus).then(|| BusClock::new(CYCLE)),
+            inbox: Vec::new(),
+            coalesced: 0,
+            computations: 0,
+            sync: 0,
+            fallback: 0,
+            overruns: 0,
+            compute: Micros::default(),
+            send_gap: Micros::default(),
+            last_sent: None,
+            last_sync: None,
+            last_at: Duration::ZERO,
+            deadline: Duration::ZERO,
+            last_sync_at: None,
+            last_now: Duration::ZERO,
+            last_state: (TcuState::Init, FaultCode::None),
+            clocks: WakeClocks::default(),
+            cycle_frames: 0,
+            paced: false,
+            paced_cycles: 0,
+            batch: Vec::with_capacity(DRAIN_BUDGET),
+            core_fired: None,
+            stall_log: Vec::new(),
+        }
+    }
+
+    /// Before each wait: notes the timer's pending deadline (`next_tick`) and returns the core's
+    /// own deadline and whether its wake-up is armed (real time only, before the next tick, and
+    /// once per deadline).
+    fn arm(&mut self, next_tick: Instant) -> (Instant, bool) {
+        self.deadline = next_tick.saturating_duration_since(self.start);
+        let core_at = self.core_deadline();
+        let core_armed =
+            self.bus_clock.is_none() && core_at < next_tick && self.core_fired != Some(core_at);
+        (core_at, core_armed)
+    }
+
+    /// A timer tick: reads what is queued, decides the next cycle's pacing and computes if a
+    /// computation is due. Returns whether `duration` has passed (the daemon stops, without
+    /// computing).
+    async fn on_tick(
+        &mut self,
+        timer: &mut Periodic,
+        stats: &mut LoopStats,
+        duration: Option<Duration>,
+    ) -> Result<bool, TcuDaemonError> {
+        let now = Instant::now();
+        let tick = timer.fire(now);
+        stats.record(&tick, CYCLE);
+        // Frames waiting in the socket are read on every tick too, not only when the
+        // receive future is woken, so no queued frame waits longer than a cycle.
+        self.woke();
+        self.drain()?;
+        self.pace_next_cycle();
+        self.deadline = timer.next_deadline().saturating_duration_since(self.start);
+        let mono = now.saturating_duration_since(self.start);
+        if duration.is_some_and(|d| mono >= d) {
+            return Ok(true);
+        }
+        if self.bus_clock.is_some() {
+            // Bus time: queued sync frames are computed at their own time; a fallback
+            // computation only after BUS_SILENCE of live time without one.
+            if self.sync_queued() {
+                self.run_syncs().await?;
+            } else if self.bus_silent(mono) {
+                self.compute(None).await?;
+            }
+        } else if self.fallback_due(mono) {
+            // The core's own deadline (the sensors silent), or a coalesced sync frame
+            // still queued: computed on this deadline.
+            self.compute(None).await?;
+        }
+        Ok(false)
+    }
+
+    /// The core's own deadline `core_at` has come between two ticks: reads what is queued and
+    /// computes if the core still asks for it.
+    async fn on_core_deadline(&mut self, core_at: Instant) -> Result<(), TcuDaemonError> {
+        self.core_fired = Some(core_at);
+        self.woke();
+        self.drain()?;
+        if self.fallback_due(self.clocks.mono) {
+            self.compute(None).await?;
+        }
+        Ok(())
+    }
+
+    /// A paced read (a flood): everything queued, then the sync computations due.
+    async fn on_paced_read(&mut self) -> Result<(), TcuDaemonError> {
+        self.woke();
+        self.drain()?;
+        self.run_syncs().await
+    }
+
+    /// The bus woke the daemon with a frame (or a receive error): queues it with the rest of
+    /// what is waiting, then runs the sync computations due.
+    async fn on_bus_wake(&mut self, rx: Result<Received, BusError>) -> Result<(), TcuDaemonError> {
+        self.woke();
+        match rx {
+            Ok(rx) => self.on_receive(rx)?,
+            Err(e) => self.recv_error(e)?,
+        }
+        self.drain()?;
+        self.run_syncs().await
+    }
+
+    /// The exit report (the candump tap is flushed and closed first).
+    fn report(
+        mut self,
+        iface: String,
+        stopped_by: &'static str,
+        config: TcuDaemonConfig,
+        stats: &LoopStats,
+    ) -> Result<TcuReport, TcuDaemonError> {
+        let (stalls, stall_total, stall_longest) = self.time.stalls();
+        let log_frames = self.link.finish()?;
+        Ok(TcuReport {
+            iface,
+            stopped_by,
+            clock: config.clock,
+            wall_time_s: self.start.elapsed().as_secs_f64(),
+            core_time_s: self.last_now.as_secs_f64(),
+            computations: self.computations,
+            sync_computations: self.sync,
+            fallback_computations: self.fallback,
+            overruns: self.overruns,
+            deadline_misses: stats.deadline_misses,
+            timer_lateness_p99_us: stats.lateness_percentile_us(0.99),
+            timer_lateness_max_us: stats.lateness_percentile_us(1.0),
+            stalls,
+            stall_total_s: stall_total.as_secs_f64(),
+            stall_longest_s: stall_longest.as_secs_f64(),
+            paced_cycles: self.paced_cycles,
+            stall_log: self.stall_log,
+            syncs_coalesced: self.coalesced,
+            compute_p50_us: self.compute.percentile(0.5),
+            compute_p99_us: self.compute.percentile(0.99),
+            compute_max_us: self.compute.percentile(1.0),
+            send_gap_p99_us: self.send_gap.percentile(0.99),
+            send_gap_max_us: self.send_gap.percentile(1.0),
+            frames_sent: self.link.sent,
+            send_errors: self.link.send_errors,
+            frames_received: self.link.received,
+            receive_errors: self.link.receive_errors,
+            safe_entries: self.tcu.safe_entries(),
+            final_state: self.last_state.0,
+            final_fault: self.last_state.1,
+            inputs: self.tcu.input_counters(),
+            log: config.log,
+            log_frames,
+        })
+    }
 }
 
 #[cfg(test)]
