@@ -301,23 +301,12 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     shutdown: S,
     config: PlantDaemonConfig,
 ) -> Result<PlantReport, PlantDaemonError> {
-    let speed = match &config.pacing {
-        Pacing::RealTime { speed } => {
-            if !(speed.is_finite() && *speed > 0.0) {
-                return Err(PlantDaemonError::Speed { speed: *speed });
-            }
-            *speed
-        }
-        Pacing::Virtual { .. } => 1.0,
-    };
+    let speed = checked_speed(&config.pacing)?;
     let iface = bus.iface().to_string();
     let link = Link::open(bus, config.log.as_deref(), MAX_SEND_FAILURES)?;
-    let mode = config.plant.mode.as_str();
-    let effects = config.plant.effects;
-    let faults = config.plant.faults.len();
     let mut shell = Shell {
         link,
-        plant: Plant::new(config.plant),
+        plant: Plant::new(config.plant.clone()),
         start_wall: wall_clock(),
         start: Instant::now(),
         time: TimeBase::new(),
@@ -330,71 +319,105 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     let wall0 = std::time::Instant::now();
     let mut stats = LoopStats::default();
     tokio::pin!(shutdown);
-    let stopped_by = match (&config.pacing, config.lockstep.clone()) {
+    let stopped_by = run_paced(&mut shell, &mut shutdown, &config, &mut stats).await?;
+    shell.report(iface, stopped_by, &stats, wall0, config)
+}
+
+/// The real-time speed factor (1 for virtual pacing, which has none); refused unless finite
+/// and positive.
+fn checked_speed(pacing: &Pacing) -> Result<f64, PlantDaemonError> {
+    match pacing {
+        Pacing::RealTime { speed } => {
+            if !(speed.is_finite() && *speed > 0.0) {
+                return Err(PlantDaemonError::Speed { speed: *speed });
+            }
+            Ok(*speed)
+        }
+        Pacing::Virtual { .. } => Ok(1.0),
+    }
+}
+
+/// The pacing loop `config` asks for (real time, lockstep or virtual), run to its end; returns
+/// what stopped it.
+async fn run_paced<B: Bus, S: Future<Output = ()>>(
+    shell: &mut Shell<B>,
+    shutdown: &mut std::pin::Pin<&mut S>,
+    config: &PlantDaemonConfig,
+    stats: &mut LoopStats,
+) -> Result<&'static str, PlantDaemonError> {
+    match (&config.pacing, config.lockstep.clone()) {
         (Pacing::RealTime { .. }, Some(ls)) => {
-            run_lockstep(&mut shell, &mut shutdown, config.duration, ls, &mut stats).await?
+            run_lockstep(shell, shutdown, config.duration, ls, stats).await
         }
         (Pacing::RealTime { .. }, None) => {
-            run_real_time(&mut shell, &mut shutdown, config.duration, &mut stats).await?
+            run_real_time(shell, shutdown, config.duration, stats).await
         }
         (Pacing::Virtual { clock }, _) => {
-            run_virtual(
-                &mut shell,
-                &mut shutdown,
-                config.duration,
-                clock.clone(),
-                &mut stats,
-            )
-            .await?
+            run_virtual(shell, shutdown, config.duration, clock.clone(), stats).await
         }
-    };
-    let log_frames = shell.link.finish()?;
-    let (pacing, speed_out) = match config.pacing {
-        Pacing::RealTime { speed } if config.lockstep.is_some() => ("lockstep", Some(speed)),
-        Pacing::RealTime { speed } => ("real_time", Some(speed)),
-        Pacing::Virtual { .. } => ("virtual", None),
-    };
-    Ok(PlantReport {
-        iface,
-        mode,
-        pacing,
-        speed: speed_out,
-        stopped_by,
-        sim_time_s: shell.plant.time().as_secs_f64(),
-        wall_time_s: wall0.elapsed().as_secs_f64(),
-        cycles: stats.cycles,
-        deadline_misses: stats.deadline_misses,
-        overruns: stats.overruns,
-        lateness_p50_us: stats.lateness_percentile_us(0.5),
-        lateness_p99_us: stats.lateness_percentile_us(0.99),
-        lateness_max_us: stats.lateness_percentile_us(1.0),
-        frames_sent: shell.link.sent,
-        send_errors: shell.link.send_errors,
-        frames_received: shell.link.received,
-        receive_errors: shell.link.receive_errors,
-        lockstep: config.lockstep.map(|l| {
-            l.messages
-                .iter()
-                .map(|&m| message_name(m))
-                .collect::<Vec<_>>()
-                .join(",")
-        }),
-        lockstep_timeouts: shell.lockstep_timeouts,
-        lockstep_first_timeout_s: shell
-            .lockstep_first_timeout
-            .as_ref()
-            .map(|(t, _)| t.as_secs_f64()),
-        lockstep_first_missing: shell
-            .lockstep_first_timeout
-            .as_ref()
-            .map(|(_, ids)| ids.iter().map(|&id| message_name(id)).collect())
-            .unwrap_or_default(),
-        log: config.log,
-        log_frames,
-        effects,
-        faults,
-        plant: shell.plant.stats().clone(),
-    })
+    }
+}
+
+impl<B: Bus> Shell<B> {
+    /// The exit report (the candump tap is flushed and closed first); `wall0`: when the
+    /// daemon started.
+    fn report(
+        mut self,
+        iface: String,
+        stopped_by: &'static str,
+        stats: &LoopStats,
+        wall0: std::time::Instant,
+        config: PlantDaemonConfig,
+    ) -> Result<PlantReport, PlantDaemonError> {
+        let log_frames = self.link.finish()?;
+        let (pacing, speed) = match config.pacing {
+            Pacing::RealTime { speed } if config.lockstep.is_some() => ("lockstep", Some(speed)),
+            Pacing::RealTime { speed } => ("real_time", Some(speed)),
+            Pacing::Virtual { .. } => ("virtual", None),
+        };
+        let plant = self.plant.config();
+        Ok(PlantReport {
+            iface,
+            mode: plant.mode.as_str(),
+            pacing,
+            speed,
+            stopped_by,
+            sim_time_s: self.plant.time().as_secs_f64(),
+            wall_time_s: wall0.elapsed().as_secs_f64(),
+            cycles: stats.cycles,
+            deadline_misses: stats.deadline_misses,
+            overruns: stats.overruns,
+            lateness_p50_us: stats.lateness_percentile_us(0.5),
+            lateness_p99_us: stats.lateness_percentile_us(0.99),
+            lateness_max_us: stats.lateness_percentile_us(1.0),
+            frames_sent: self.link.sent,
+            send_errors: self.link.send_errors,
+            frames_received: self.link.received,
+            receive_errors: self.link.receive_errors,
+            lockstep: config.lockstep.map(|l| {
+                l.messages
+                    .iter()
+                    .map(|&m| message_name(m))
+                    .collect::<Vec<_>>()
+                    .join(",")
+            }),
+            lockstep_timeouts: self.lockstep_timeouts,
+            lockstep_first_timeout_s: self
+                .lockstep_first_timeout
+                .as_ref()
+                .map(|(t, _)| t.as_secs_f64()),
+            lockstep_first_missing: self
+                .lockstep_first_timeout
+                .as_ref()
+                .map(|(_, ids)| ids.iter().map(|&id| message_name(id)).collect())
+                .unwrap_or_default(),
+            log: config.log,
+            log_frames,
+            effects: plant.effects,
+            faults: plant.faults.len(),
+            plant: self.plant.stats().clone(),
+        })
+    }
 }
 
 async fn run_real_time<B: Bus, S: Future<Output = ()>>(
