@@ -49,57 +49,94 @@ fn add_nonzero(p: &mut Panel, s: Series) {
 
 /// The figure of one run, as an SVG document.
 pub fn run_figure(title: &str, rows: &[Row]) -> String {
-    let c = |i: usize| PALETTE[i % PALETTE.len()];
+    let mut speeds = speeds_panel(rows);
+    let mut state = state_panel(rows);
+    for (t, name) in fault_events(rows) {
+        state.marker(t, name.clone());
+        speeds.marker(t, name);
+    }
+    Figure::new(title, 2)
+        .panel(speeds)
+        .panel(torque_panel(rows))
+        .panel(position_panel(rows))
+        .panel(temperature_panel(rows))
+        .panel(acceleration_panel(rows))
+        .panel(speed_pedal_panel(rows))
+        .panel(state)
+        .panel(gear_panel(rows))
+        .to_svg()
+}
+
+/// The `i`-th colour of the palette (cycling).
+fn palette(i: usize) -> &'static str {
+    PALETTE[i % PALETTE.len()]
+}
+
+/// Engine and clutch speeds, with the TCU's references when the bus carries them.
+fn speeds_panel(rows: &[Row]) -> Panel {
     let mut speeds = Panel::new("Engine and clutch speeds", "t (s)", "n (rpm)");
-    speeds.add(series(rows, "engine", |r| r.n_e_rpm).color(c(0)));
+    speeds.add(series(rows, "engine", |r| r.n_e_rpm).color(palette(0)));
     add_nonzero(
         &mut speeds,
         series(rows, "engine ref", |r| r.n_e_ref_rpm)
-            .color(c(0))
+            .color(palette(0))
             .style(Style::Dashed),
     );
-    speeds.add(series(rows, "clutch 1 (odd)", |r| r.n_c_rpm[0]).color(c(1)));
-    speeds.add(series(rows, "clutch 2 (even)", |r| r.n_c_rpm[1]).color(c(2)));
+    speeds.add(series(rows, "clutch 1 (odd)", |r| r.n_c_rpm[0]).color(palette(1)));
+    speeds.add(series(rows, "clutch 2 (even)", |r| r.n_c_rpm[1]).color(palette(2)));
     add_nonzero(
         &mut speeds,
         series(rows, "active clutch ref", |r| r.n_c_ref_rpm)
-            .color(c(6))
+            .color(palette(6))
             .style(Style::Dotted),
     );
+    speeds
+}
 
+/// Each clutch's torque reference (TCU_Estimates) against its actual torque (BENCH_Torque),
+/// with the engine torque.
+fn torque_panel(rows: &[Row]) -> Panel {
     let mut torque = Panel::new("Clutch torque: reference vs actual", "t (s)", "T (N·m)");
     torque.add(
         series(rows, "T_ref 1", |r| r.t_ref_nm[0])
-            .color(c(1))
+            .color(palette(1))
             .style(Style::Dashed),
     );
-    torque.add(series(rows, "T_actual 1", |r| r.t_act_nm[0]).color(c(1)));
+    torque.add(series(rows, "T_actual 1", |r| r.t_act_nm[0]).color(palette(1)));
     torque.add(
         series(rows, "T_ref 2", |r| r.t_ref_nm[1])
-            .color(c(2))
+            .color(palette(2))
             .style(Style::Dashed),
     );
-    torque.add(series(rows, "T_actual 2", |r| r.t_act_nm[1]).color(c(2)));
+    torque.add(series(rows, "T_actual 2", |r| r.t_act_nm[1]).color(palette(2)));
     torque.add(
         series(rows, "engine", |r| r.t_e_nm)
-            .color(c(0))
+            .color(palette(0))
             .style(Style::Dotted),
     );
+    torque
+}
 
+/// Each throwout bearing's position request against its measured position.
+fn position_panel(rows: &[Row]) -> Panel {
     let mut x = Panel::new("Throwout-bearing position", "t (s)", "x_to (mm)");
     x.add(
         series(rows, "x_ref 1", |r| r.x_ref_mm[0])
-            .color(c(1))
+            .color(palette(1))
             .style(Style::Dashed),
     );
-    x.add(series(rows, "x 1", |r| r.x_mm[0]).color(c(1)));
+    x.add(series(rows, "x 1", |r| r.x_mm[0]).color(palette(1)));
     x.add(
         series(rows, "x_ref 2", |r| r.x_ref_mm[1])
-            .color(c(2))
+            .color(palette(2))
             .style(Style::Dashed),
     );
-    x.add(series(rows, "x 2", |r| r.x_mm[1]).color(c(2)));
+    x.add(series(rows, "x 2", |r| r.x_mm[1]).color(palette(2)));
+    x
+}
 
+/// The estimated clutch temperatures against SIM_Truth, with the housing's.
+fn temperature_panel(rows: &[Row]) -> Panel {
     let mut temps = Panel::new(
         "Clutch temperatures: estimate (17) vs truth (16)",
         "t (s)",
@@ -107,33 +144,45 @@ pub fn run_figure(title: &str, rows: &[Row]) -> String {
     );
     temps.add(
         series(rows, "θ̂ clutch 1", |r| r.theta_est_c[0])
-            .color(c(1))
+            .color(palette(1))
             .style(Style::Dashed),
     );
-    temps.add(series(rows, "θ clutch 1 (SIM_Truth)", |r| r.theta_true_c[0]).color(c(1)));
+    temps.add(series(rows, "θ clutch 1 (SIM_Truth)", |r| r.theta_true_c[0]).color(palette(1)));
     temps.add(
         series(rows, "θ̂ clutch 2", |r| r.theta_est_c[1])
-            .color(c(2))
+            .color(palette(2))
             .style(Style::Dashed),
     );
-    temps.add(series(rows, "θ clutch 2 (SIM_Truth)", |r| r.theta_true_c[1]).color(c(2)));
+    temps.add(series(rows, "θ clutch 2 (SIM_Truth)", |r| r.theta_true_c[1]).color(palette(2)));
     temps.add(
         series(rows, "housing", |r| r.housing_c)
-            .color(c(6))
+            .color(palette(6))
             .style(Style::Dotted),
     );
+    temps
+}
 
+/// The vehicle's acceleration.
+fn acceleration_panel(rows: &[Row]) -> Panel {
     let mut acc = Panel::new("Vehicle acceleration", "t (s)", "a (m/s²)");
-    acc.add(series(rows, "a (BENCH_Vehicle)", |r| r.accel_mps2).color(c(0)));
+    acc.add(series(rows, "a (BENCH_Vehicle)", |r| r.accel_mps2).color(palette(0)));
+    acc
+}
 
+/// The vehicle's speed and the pedal.
+fn speed_pedal_panel(rows: &[Row]) -> Panel {
     let mut v = Panel::new("Vehicle speed and pedal", "t (s)", "v (km/h), pedal (%)");
-    v.add(series(rows, "v (km/h)", |r| r.v_kmh).color(c(0)));
+    v.add(series(rows, "v (km/h)", |r| r.v_kmh).color(palette(0)));
     v.add(
         series(rows, "pedal (%)", |r| r.pedal_pct)
-            .color(c(4))
+            .color(palette(4))
             .style(Style::Dashed),
     );
+    v
+}
 
+/// The TCU state as labelled lanes (fault codes are marked by the caller).
+fn state_panel(rows: &[Row]) -> Panel {
     let state_index = |s: TcuState| TcuState::ALL.iter().position(|x| *x == s).unwrap_or(0) as f64;
     let mut state = lanes(
         "TCU state (fault codes marked)",
@@ -145,8 +194,13 @@ pub fn run_figure(title: &str, rows: &[Row]) -> String {
     state.add(
         series(rows, "TcuState", |r| state_index(r.state))
             .steps()
-            .color(c(6)),
+            .color(palette(6)),
     );
+    state
+}
+
+/// The active gear as labelled lanes.
+fn gear_panel(rows: &[Row]) -> Panel {
     let gear_index =
         |g: GearActive| GearActive::ALL.iter().position(|x| *x == g).unwrap_or(0) as f64;
     let mut gear = lanes(
@@ -159,23 +213,9 @@ pub fn run_figure(title: &str, rows: &[Row]) -> String {
     gear.add(
         series(rows, "gear", |r| gear_index(r.gear_active.into()))
             .steps()
-            .color(c(3)),
+            .color(palette(3)),
     );
-    for (t, name) in fault_events(rows) {
-        state.marker(t, name.clone());
-        speeds.marker(t, name);
-    }
-
-    Figure::new(title, 2)
-        .panel(speeds)
-        .panel(torque)
-        .panel(x)
-        .panel(temps)
-        .panel(acc)
-        .panel(v)
-        .panel(state)
-        .panel(gear)
-        .to_svg()
+    gear
 }
 
 #[cfg(test)]
