@@ -165,7 +165,22 @@ fn opt(v: Option<f64>, prec: usize) -> String {
     v.map_or("-".into(), |x| format!("{x:.prec$}"))
 }
 
+/// The text tables of a run: launches, torque error by slip, shifts, the runs themselves, and
+/// where the plots went.
 fn print_tables(out: &[ScenarioSummary]) {
+    print_launches(out);
+    print_torque_error_by_slip(out);
+    print_shifts(out);
+    print_runs(out);
+    for s in out {
+        if let Some(p) = &s.plot {
+            println!("plot: {}", p.display());
+        }
+    }
+}
+
+/// One line per launch: its pedal, the compensations on, and its quality metrics.
+fn print_launches(out: &[ScenarioSummary]) {
     println!(
         "{:<22} {:>6} {:>5} {:>5} {:>8} {:>8} {:>7} {:>7} {:>8} {:>8} {:>8}",
         "scenario",
@@ -202,7 +217,11 @@ fn print_tables(out: &[ScenarioSummary]) {
             );
         }
     }
-    // Fig. 14: mean T_ref − T_actual of the launch clutch per slip bin (rad/s), as % of T_ref.
+}
+
+/// Fig. 14: mean T_ref − T_actual of the launch clutch per slip bin (rad/s), as % of T_ref, one
+/// line per launch (nothing without a launch).
+fn print_torque_error_by_slip(out: &[ScenarioSummary]) {
     if out.iter().any(|s| !s.metrics.launches.is_empty()) {
         println!();
         let edges = metrics::SLIP_BINS_RADPS;
@@ -225,6 +244,10 @@ fn print_tables(out: &[ScenarioSummary]) {
             }
         }
     }
+}
+
+/// One line per gear shift of every scenario (nothing without a shift).
+fn print_shifts(out: &[ScenarioSummary]) {
     let shifts: Vec<_> = out
         .iter()
         .flat_map(|s| s.metrics.shifts.iter().map(move |x| (s, x)))
@@ -249,6 +272,11 @@ fn print_tables(out: &[ScenarioSummary]) {
             );
         }
     }
+}
+
+/// One line per scenario: simulated and wall time, the temperature estimator's errors and the
+/// faults the TCU reported.
+fn print_runs(out: &[ScenarioSummary]) {
     println!();
     println!(
         "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10}",
@@ -273,10 +301,5 @@ fn print_tables(out: &[ScenarioSummary]) {
             e.max_true_c[0].max(e.max_true_c[1]),
             faults
         );
-    }
-    for s in out {
-        if let Some(p) = &s.plot {
-            println!("plot: {}", p.display());
-        }
     }
 }
