@@ -22,7 +22,7 @@
 //! bench, fault codes after the plant's last frame (the TCU's ENG_Status timeout when the plant
 //! stops first) end the run and are not judged.
 
-use super::metrics::Metrics;
+use super::metrics::{EstimatorMetrics, LaunchMetrics, Metrics, ShiftMetrics, StatusEvent};
 use crate::can::messages::FaultCode;
 use serde::{Deserialize, Serialize};
 
@@ -105,7 +105,30 @@ pub fn judge(limits: Option<&Limits>, m: &Metrics, latency_ratio: Option<f64>) -
         !m.nonfinite,
     )];
     let Some(l) = limits else { return out };
-    let n = m.launches.len();
+    out.extend(launch_checks(l, &m.launches));
+    if l.shifts_complete.unwrap_or(true) {
+        out.push(shifts_complete(&m.shifts));
+    }
+    if let Some(max) = l.estimator_rmse_c_max {
+        out.push(estimator_rmse(max, &m.estimator));
+    }
+    out.push(faults(&l.faults_allowed, &m.status_events));
+    if let (Some(max), Some(r)) = (l.latency_ratio_max, latency_ratio) {
+        out.push(check(
+            "latency_ratio_max",
+            format!("≤ {max}× the echo"),
+            format!("{r:.1}×"),
+            r <= max,
+        ));
+    }
+    out
+}
+
+/// The checks of the launches' limits that are set (how many, lock-up, flare, spike, torque
+/// error), and that no launch stalled (unless `no_stall = false`).
+fn launch_checks(l: &Limits, launches: &[LaunchMetrics]) -> Vec<Check> {
+    let mut out = Vec::new();
+    let n = launches.len();
     if let Some(min) = l.launches_min {
         out.push(check(
             "launches_min",
@@ -114,8 +137,8 @@ pub fn judge(limits: Option<&Limits>, m: &Metrics, latency_ratio: Option<f64>) -
             n >= min,
         ));
     }
-    let launch = |f: fn(&super::metrics::LaunchMetrics) -> Option<f64>| -> Vec<Option<f64>> {
-        m.launches.iter().map(f).collect()
+    let launch = |f: fn(&LaunchMetrics) -> Option<f64>| -> Vec<Option<f64>> {
+        launches.iter().map(f).collect()
     };
     if let Some(max) = l.lockup_s_max {
         out.push(at_most("lockup_s_max", "s", max, &launch(|x| x.lockup_s)));
@@ -137,7 +160,7 @@ pub fn judge(limits: Option<&Limits>, m: &Metrics, latency_ratio: Option<f64>) -
         out.push(at_most("torque_error_300ms_nm_max", "N·m", max, &v));
     }
     if l.no_stall.unwrap_or(true) {
-        let stalls = m.launches.iter().filter(|x| x.stall).count();
+        let stalls = launches.iter().filter(|x| x.stall).count();
         out.push(check(
             "no_stall",
             "no launch stalls".into(),
@@ -145,51 +168,58 @@ pub fn judge(limits: Option<&Limits>, m: &Metrics, latency_ratio: Option<f64>) -
             stalls == 0,
         ));
     }
-    if l.shifts_complete.unwrap_or(true) {
-        let open: Vec<String> = m
-            .shifts
-            .iter()
-            .filter(|s| !s.completed)
-            .map(|s| format!("{}->{} at {:.2} s", s.from, s.to, s.t_start_s))
-            .collect();
-        out.push(check(
-            "shifts_complete",
-            "every shift ends in Drive".into(),
-            if open.is_empty() {
-                format!("{} of {} completed", m.shifts.len(), m.shifts.len())
-            } else {
-                format!("not completed: {}", open.join(", "))
-            },
-            open.is_empty(),
-        ));
-    }
-    if let Some(max) = l.estimator_rmse_c_max {
-        let e = &m.estimator;
-        let worst = e.rmse_c[0].max(e.rmse_c[1]);
-        out.push(check(
-            "estimator_rmse_c_max",
-            format!("≤ {max} °C"),
-            if e.samples == 0 {
-                "no SIM_Truth".into()
-            } else {
-                format!("{worst:.2} °C")
-            },
-            e.samples > 0 && worst <= max,
-        ));
-    }
-    let mut faults: Vec<FaultCode> = m
-        .status_events
+    out
+}
+
+/// Every shift ends in Drive (the ones that did not are listed).
+fn shifts_complete(shifts: &[ShiftMetrics]) -> Check {
+    let open: Vec<String> = shifts
+        .iter()
+        .filter(|s| !s.completed)
+        .map(|s| format!("{}->{} at {:.2} s", s.from, s.to, s.t_start_s))
+        .collect();
+    check(
+        "shifts_complete",
+        "every shift ends in Drive".into(),
+        if open.is_empty() {
+            format!("{} of {} completed", shifts.len(), shifts.len())
+        } else {
+            format!("not completed: {}", open.join(", "))
+        },
+        open.is_empty(),
+    )
+}
+
+/// The worse clutch's estimated temperature RMSE against SIM_Truth, at most `max` (fails
+/// without SIM_Truth).
+fn estimator_rmse(max: f64, e: &EstimatorMetrics) -> Check {
+    let worst = e.rmse_c[0].max(e.rmse_c[1]);
+    check(
+        "estimator_rmse_c_max",
+        format!("≤ {max} °C"),
+        if e.samples == 0 {
+            "no SIM_Truth".into()
+        } else {
+            format!("{worst:.2} °C")
+        },
+        e.samples > 0 && worst <= max,
+    )
+}
+
+/// No fault code in the TCU's status but the `allowed` ones.
+fn faults(allowed: &[FaultCode], events: &[StatusEvent]) -> Check {
+    let mut faults: Vec<FaultCode> = events
         .iter()
         .map(|e| e.fault)
-        .filter(|f| *f != FaultCode::None && !l.faults_allowed.contains(f))
+        .filter(|f| *f != FaultCode::None && !allowed.contains(f))
         .collect();
     faults.dedup();
-    out.push(check(
+    check(
         "faults",
-        if l.faults_allowed.is_empty() {
+        if allowed.is_empty() {
             "no fault code".into()
         } else {
-            let a: Vec<_> = l.faults_allowed.iter().map(|f| f.label()).collect();
+            let a: Vec<_> = allowed.iter().map(|f| f.label()).collect();
             format!("only {}", a.join(", "))
         },
         if faults.is_empty() {
@@ -199,16 +229,7 @@ pub fn judge(limits: Option<&Limits>, m: &Metrics, latency_ratio: Option<f64>) -
             f.join(", ")
         },
         faults.is_empty(),
-    ));
-    if let (Some(max), Some(r)) = (l.latency_ratio_max, latency_ratio) {
-        out.push(check(
-            "latency_ratio_max",
-            format!("≤ {max}× the echo"),
-            format!("{r:.1}×"),
-            r <= max,
-        ));
-    }
-    out
+    )
 }
 
 /// The checks of several runs as one table for a terminal or a pipe (no colour).
