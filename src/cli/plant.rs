@@ -222,7 +222,28 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
         bail!("--iface is required");
     };
     let sim = iface.is_sim();
-    let speed: Option<f64> = match a.speed {
+    let speed = pacing_speed(&a, sim)?;
+    let duration = run_duration(&a, &cfg, sim, speed)?;
+    let lockstep = parse_lockstep(&a, sim, speed)?;
+    let rt = runtime()?;
+    let report: PlantReport = rt.block_on(async {
+        if sim {
+            run_on_sim(&a, cfg, speed, duration, lockstep).await
+        } else {
+            run_on_can(&a, &iface, cfg, speed, duration, lockstep).await
+        }
+    })?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    }
+    eprint!("{}", report.summary());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The real-time speed factor (`None`: as fast as possible, on the in-process bus only; a real
+/// bus runs at 1 unless told otherwise).
+fn pacing_speed(a: &PlantArgs, sim: bool) -> anyhow::Result<Option<f64>> {
+    Ok(match a.speed {
         None if sim => None,
         None => Some(1.0),
         Some(Speed::Max) if sim => None,
@@ -230,7 +251,17 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             bail!("--speed max needs --iface sim (a real bus runs in scaled real time)")
         }
         Some(Speed::Factor(k)) => Some(k),
-    };
+    })
+}
+
+/// How much simulated time to run: `--duration`, else a rig profile's length, else (as fast
+/// as possible on the in-process bus, where it is required) the scenario's.
+fn run_duration(
+    a: &PlantArgs,
+    cfg: &PlantConfig,
+    sim: bool,
+    speed: Option<f64>,
+) -> anyhow::Result<Option<Duration>> {
     let mut duration = a.duration;
     if duration.is_none() {
         if let (Mode::Rig, Some(p)) = (cfg.mode, &cfg.rig_profile) {
@@ -242,67 +273,86 @@ pub fn run(a: PlantArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
-    let lockstep = match &a.lockstep {
-        None => None,
-        Some(names) => {
-            let mut messages = Vec::new();
-            for name in names.split(',').map(str::trim) {
-                let def = ddct::can::messages::message_by_name(name).with_context(|| {
-                    format!("--lockstep {names}: {name:?} is not a message of the contract")
-                })?;
-                messages.push(def.id);
-            }
-            if sim && speed.is_none() {
-                bail!("--lockstep needs real-time pacing (--speed K)");
-            }
-            Some(Lockstep {
-                messages,
-                timeout: a.lockstep_timeout,
-            })
-        }
+    Ok(duration)
+}
+
+/// `--lockstep`: the messages named (each one of the contract), in real-time pacing only.
+fn parse_lockstep(
+    a: &PlantArgs,
+    sim: bool,
+    speed: Option<f64>,
+) -> anyhow::Result<Option<Lockstep>> {
+    let Some(names) = &a.lockstep else {
+        return Ok(None);
     };
-    let rt = runtime()?;
-    let report: PlantReport = rt.block_on(async {
-        if sim {
-            let (bus, pacing) = match speed {
-                None => {
-                    let clock = Arc::new(ManualClock::new(wall_clock()));
-                    let bus = InProcessBus::with_clock("sim", clock.clone());
-                    (bus, Pacing::Virtual { clock: Some(clock) })
-                }
-                Some(k) => (InProcessBus::new("sim"), Pacing::RealTime { speed: k }),
-            };
-            let ep = bus.endpoint(EndpointConfig::default());
-            let c = PlantDaemonConfig {
-                plant: cfg,
-                pacing,
-                duration,
-                log: a.log.clone(),
-                lockstep,
-            };
-            let pb = super::spinner("the plant on the in-process bus");
-            let r = run_plant(ep, shutdown_signal(), c).await;
-            pb.finish_and_clear();
-            anyhow::Ok(r?)
-        } else {
-            let bus = open_can(&iface.to_string())?;
-            let c = PlantDaemonConfig {
-                plant: cfg,
-                pacing: Pacing::RealTime {
-                    speed: speed.unwrap_or(1.0),
-                },
-                duration,
-                log: a.log.clone(),
-                lockstep,
-            };
-            let stop = shutdown_signal();
-            announce_ready(a.ready_file.as_deref())?;
-            anyhow::Ok(run_plant(bus, stop, c).await?)
-        }
-    })?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+    let mut messages = Vec::new();
+    for name in names.split(',').map(str::trim) {
+        let def = ddct::can::messages::message_by_name(name).with_context(|| {
+            format!("--lockstep {names}: {name:?} is not a message of the contract")
+        })?;
+        messages.push(def.id);
     }
-    eprint!("{}", report.summary());
-    Ok(ExitCode::SUCCESS)
+    if sim && speed.is_none() {
+        bail!("--lockstep needs real-time pacing (--speed K)");
+    }
+    Ok(Some(Lockstep {
+        messages,
+        timeout: a.lockstep_timeout,
+    }))
+}
+
+/// The plant alone on the in-process bus: in scaled real time, or as fast as possible on the
+/// bus's own clock (`speed` `None`).
+async fn run_on_sim(
+    a: &PlantArgs,
+    cfg: PlantConfig,
+    speed: Option<f64>,
+    duration: Option<Duration>,
+    lockstep: Option<Lockstep>,
+) -> anyhow::Result<PlantReport> {
+    let (bus, pacing) = match speed {
+        None => {
+            let clock = Arc::new(ManualClock::new(wall_clock()));
+            let bus = InProcessBus::with_clock("sim", clock.clone());
+            (bus, Pacing::Virtual { clock: Some(clock) })
+        }
+        Some(k) => (InProcessBus::new("sim"), Pacing::RealTime { speed: k }),
+    };
+    let ep = bus.endpoint(EndpointConfig::default());
+    let c = PlantDaemonConfig {
+        plant: cfg,
+        pacing,
+        duration,
+        log: a.log.clone(),
+        lockstep,
+    };
+    let pb = super::spinner("the plant on the in-process bus");
+    let r = run_plant(ep, shutdown_signal(), c).await;
+    pb.finish_and_clear();
+    Ok(r?)
+}
+
+/// The plant on a CAN interface, in real time (at `speed`, 1 by default), until a signal or
+/// its duration.
+async fn run_on_can(
+    a: &PlantArgs,
+    iface: &Iface,
+    cfg: PlantConfig,
+    speed: Option<f64>,
+    duration: Option<Duration>,
+    lockstep: Option<Lockstep>,
+) -> anyhow::Result<PlantReport> {
+    let bus = open_can(&iface.to_string())?;
+    let c = PlantDaemonConfig {
+        plant: cfg,
+        pacing: Pacing::RealTime {
+            speed: speed.unwrap_or(1.0),
+        },
+        duration,
+        log: a.log.clone(),
+        lockstep,
+    };
+    let stop = shutdown_signal();
+    announce_ready(a.ready_file.as_deref())?;
+    Ok(run_plant(bus, stop, c).await?)
 }
