@@ -11,6 +11,7 @@ use ddct::daemon::tcu::{
     INPUT_IDS,
 };
 use ddct::plant::{PlantConfig, Scenario};
+use ddct::tcu::TcuConfig;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -79,84 +80,14 @@ impl From<ClockArg> for TcuClock {
 
 pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     let cfg = super::args::tcu_config(a.config.as_deref())?;
-    let duration = a.duration;
-    if a.clock == ClockArg::Bus && a.iface.is_sim() {
-        bail!("--clock bus is for a lockstep bench on a CAN interface (`--iface sim` runs in real time)");
-    }
-    if a.scenario.is_some() && !a.iface.is_sim() {
-        bail!("--scenario is for --iface sim (on a real bus the driver is on the bus)");
-    }
-    if let Some(p) = a.rt_priority {
-        set_realtime_priority(p).with_context(|| format!("--rt-priority {p}"))?;
-    }
-    if let Some(n) = a.nice {
-        set_nice(n).with_context(|| format!("--nice {n}"))?;
-    }
+    check_iface_options(&a)?;
+    set_priorities(&a)?;
     let rt = runtime()?;
     let report: TcuReport = rt.block_on(async {
         if a.iface.is_sim() {
-            let bus = InProcessBus::new("sim");
-            let plant = PlantConfig {
-                scenario: Some(match &a.scenario {
-                    Some(p) => Scenario::load(p)?,
-                    None => Scenario::builtin(),
-                }),
-                ..PlantConfig::default()
-            };
-            let d = duration.unwrap_or_else(|| {
-                Duration::from_secs_f64(plant.scenario.as_ref().map_or(10.0, |s| s.duration_s))
-            });
-            let stop = Arc::new(tokio::sync::Notify::new());
-            let stop2 = stop.clone();
-            let plant_cfg = PlantDaemonConfig {
-                plant,
-                pacing: Pacing::RealTime { speed: 1.0 },
-                duration: Some(d),
-                log: None,
-                lockstep: None,
-            };
-            let tcu_cfg = TcuDaemonConfig {
-                tcu: cfg,
-                duration: Some(d),
-                log: a.log.clone(),
-                clock: Default::default(),
-            };
-            let plant_ep = bus.endpoint(EndpointConfig::default());
-            let tcu_ep = bus.endpoint(EndpointConfig::default());
-            let (plant_stop, tcu_stop) = (shutdown_signal(), shutdown_signal());
-            announce_ready(a.ready_file.as_deref())?;
-            let (p, t) = tokio::join!(
-                async {
-                    let r = run_plant(plant_ep, plant_stop, plant_cfg).await;
-                    stop2.notify_one();
-                    r
-                },
-                run_tcu(
-                    tcu_ep,
-                    async {
-                        tokio::select! {
-                            _ = tcu_stop => {}
-                            _ = stop.notified() => {}
-                        }
-                    },
-                    tcu_cfg
-                )
-            );
-            let p = p?;
-            eprint!("{}", p.summary());
-            anyhow::Ok(t?)
+            run_with_plant(&a, cfg).await
         } else {
-            let bus = open_can(&a.iface.to_string())?;
-            bus.set_filter_ids(&INPUT_IDS)?;
-            let c = TcuDaemonConfig {
-                tcu: cfg,
-                duration,
-                log: a.log.clone(),
-                clock: a.clock.into(),
-            };
-            let stop = shutdown_signal();
-            announce_ready(a.ready_file.as_deref())?;
-            anyhow::Ok(run_tcu(bus, stop, c).await?)
+            run_on_can(&a, cfg).await
         }
     })?;
     if a.json {
@@ -164,4 +95,98 @@ pub fn run(a: TcuArgs) -> anyhow::Result<ExitCode> {
     }
     eprint!("{}", report.summary());
     Ok(ExitCode::SUCCESS)
+}
+
+/// Refuses the options that do not fit the interface: `--clock bus` on the in-process bus,
+/// `--scenario` on a real one.
+fn check_iface_options(a: &TcuArgs) -> anyhow::Result<()> {
+    if a.clock == ClockArg::Bus && a.iface.is_sim() {
+        bail!("--clock bus is for a lockstep bench on a CAN interface (`--iface sim` runs in real time)");
+    }
+    if a.scenario.is_some() && !a.iface.is_sim() {
+        bail!("--scenario is for --iface sim (on a real bus the driver is on the bus)");
+    }
+    Ok(())
+}
+
+/// The process's scheduling: `--rt-priority` and `--nice`, when given.
+fn set_priorities(a: &TcuArgs) -> anyhow::Result<()> {
+    if let Some(p) = a.rt_priority {
+        set_realtime_priority(p).with_context(|| format!("--rt-priority {p}"))?;
+    }
+    if let Some(n) = a.nice {
+        set_nice(n).with_context(|| format!("--nice {n}"))?;
+    }
+    Ok(())
+}
+
+/// `--iface sim`: the TCU with the plant (playing the scenario) on the in-process bus, in real
+/// time, until the plant ends; the plant's summary goes to stderr.
+async fn run_with_plant(a: &TcuArgs, cfg: TcuConfig) -> anyhow::Result<TcuReport> {
+    let bus = InProcessBus::new("sim");
+    let plant = PlantConfig {
+        scenario: Some(match &a.scenario {
+            Some(p) => Scenario::load(p)?,
+            None => Scenario::builtin(),
+        }),
+        ..PlantConfig::default()
+    };
+    let d = a.duration.unwrap_or_else(|| {
+        Duration::from_secs_f64(plant.scenario.as_ref().map_or(10.0, |s| s.duration_s))
+    });
+    let stop = Arc::new(tokio::sync::Notify::new());
+    let stop2 = stop.clone();
+    let plant_cfg = PlantDaemonConfig {
+        plant,
+        pacing: Pacing::RealTime { speed: 1.0 },
+        duration: Some(d),
+        log: None,
+        lockstep: None,
+    };
+    let tcu_cfg = TcuDaemonConfig {
+        tcu: cfg,
+        duration: Some(d),
+        log: a.log.clone(),
+        clock: Default::default(),
+    };
+    let plant_ep = bus.endpoint(EndpointConfig::default());
+    let tcu_ep = bus.endpoint(EndpointConfig::default());
+    let (plant_stop, tcu_stop) = (shutdown_signal(), shutdown_signal());
+    announce_ready(a.ready_file.as_deref())?;
+    let (p, t) = tokio::join!(
+        async {
+            let r = run_plant(plant_ep, plant_stop, plant_cfg).await;
+            stop2.notify_one();
+            r
+        },
+        run_tcu(
+            tcu_ep,
+            async {
+                tokio::select! {
+                    _ = tcu_stop => {}
+                    _ = stop.notified() => {}
+                }
+            },
+            tcu_cfg
+        )
+    );
+    let p = p?;
+    eprint!("{}", p.summary());
+    Ok(t?)
+}
+
+/// The TCU alone on a CAN interface (reading only its input messages) until a signal or
+/// `--duration`.
+async fn run_on_can(a: &TcuArgs, cfg: TcuConfig) -> anyhow::Result<TcuReport> {
+    let bus = open_can(&a.iface.to_string())?;
+    bus.set_filter_ids(&INPUT_IDS)?;
+    let c = TcuDaemonConfig {
+        tcu: cfg,
+        duration: a.duration,
+        log: a.log.clone(),
+        clock: a.clock.into(),
+    };
+    let stop = shutdown_signal();
+    announce_ready(a.ready_file.as_deref())?;
+    Ok(run_tcu(bus, stop, c).await?)
 }
