@@ -126,81 +126,104 @@ struct BusView {
 }
 
 impl BusView {
+    /// Updates the row with a frame's decoded values (a frame that does not decode is ignored).
     fn take(&mut self, f: &CanFrame) {
+        let Some(id) = f.standard_id() else { return };
         let d = f.bytes();
+        match id {
+            ids::TCU_CLUTCH_CMD
+            | ids::TCU_ENGINE_REQ
+            | ids::TCU_GEAR_CMD
+            | ids::TCU_STATUS
+            | ids::TCU_ESTIMATES => self.take_tcu(id, d),
+            _ => self.take_plant(id, d),
+        }
+    }
+
+    /// A frame of the plant, the driver or the bench (engine, pedal, sensors, actuators, bench
+    /// measurements, the simulation's truth).
+    fn take_plant(&mut self, id: u16, d: &[u8]) {
         let r = &mut self.row;
-        match f.standard_id() {
-            Some(ids::DRV_PEDAL) => {
+        match id {
+            ids::DRV_PEDAL => {
                 if let Ok(m) = DrvPedal::decode(d) {
                     r.pedal_pct = m.accel_pedal;
                     r.brake = m.brake_switch;
                 }
             }
-            Some(ids::ENG_STATUS) => {
+            ids::ENG_STATUS => {
                 if let Ok(m) = EngStatus::decode(d) {
                     r.n_e_rpm = m.eng_speed;
                     r.t_e_nm = m.eng_torque_act;
                 }
             }
-            Some(ids::DCT_SENSORS) => {
+            ids::DCT_SENSORS => {
                 if let Ok(m) = DctSensors::decode(d) {
                     r.n_c_rpm = [m.in_shaft1_speed, m.in_shaft2_speed];
                     r.n_out_rpm = m.out_shaft_speed;
                     r.housing_c = m.housing_temp;
                 }
             }
-            Some(ids::DCT_ACTUATORS) => {
+            ids::DCT_ACTUATORS => {
                 if let Ok(m) = DctActuators::decode(d) {
                     r.x_mm = [m.clutch1_pos, m.clutch2_pos];
                     r.gear_act = [m.gear_odd_act.into(), m.gear_even_act.into()];
                 }
             }
-            Some(ids::BENCH_TORQUE) => {
+            ids::BENCH_TORQUE => {
                 if let Ok(m) = BenchTorque::decode(d) {
                     r.t_act_nm = [m.clutch1_torque, m.clutch2_torque];
                 }
             }
-            Some(ids::BENCH_TEMPS) => {
+            ids::BENCH_TEMPS => {
                 if let Ok(m) = BenchTemps::decode(d) {
                     r.theta_pp_c = [m.pressure_plate1_temp, m.pressure_plate2_temp];
                     r.theta_cd_c = m.central_disk_temp;
                 }
             }
-            Some(ids::BENCH_VEHICLE) => {
+            ids::BENCH_VEHICLE => {
                 if let Ok(m) = BenchVehicle::decode(d) {
                     r.v_kmh = m.vehicle_speed;
                     r.accel_mps2 = m.vehicle_accel;
                     r.grade_pct = m.road_grade;
                 }
             }
-            Some(ids::SIM_TRUTH) => {
+            ids::SIM_TRUTH => {
                 if let Ok(m) = SimTruth::decode(d) {
                     r.theta_true_c = [m.clutch1_temp_true, m.clutch2_temp_true];
                 }
             }
-            Some(ids::TCU_CLUTCH_CMD) => {
+            _ => {}
+        }
+    }
+
+    /// A frame of the TCU (commands, requests, status, estimates).
+    fn take_tcu(&mut self, id: u16, d: &[u8]) {
+        let r = &mut self.row;
+        match id {
+            ids::TCU_CLUTCH_CMD => {
                 if let Ok(m) = TcuClutchCmd::decode(d) {
                     r.x_ref_mm = [m.clutch1_pos_req, m.clutch2_pos_req];
                 }
             }
-            Some(ids::TCU_ENGINE_REQ) => {
+            ids::TCU_ENGINE_REQ => {
                 if let Ok(m) = TcuEngineReq::decode(d) {
                     r.eng_req_nm = m.eng_torque_req_active.then_some(m.eng_torque_req);
                 }
             }
-            Some(ids::TCU_GEAR_CMD) => {
+            ids::TCU_GEAR_CMD => {
                 if let Ok(m) = TcuGearCmd::decode(d) {
                     r.gear_req = [m.gear_odd_req.into(), m.gear_even_req.into()];
                 }
             }
-            Some(ids::TCU_STATUS) => {
+            ids::TCU_STATUS => {
                 if let Ok(m) = TcuStatus::decode(d) {
                     r.state = m.tcu_state;
                     r.fault = m.fault_code;
                     r.gear_active = m.gear_active.into();
                 }
             }
-            Some(ids::TCU_ESTIMATES) => {
+            ids::TCU_ESTIMATES => {
                 if let Ok(m) = TcuEstimates::decode(d) {
                     r.theta_est_c = [m.clutch1_temp_est, m.clutch2_temp_est];
                     r.t_ref_nm = [m.clutch1_torque_req, m.clutch2_torque_req];
