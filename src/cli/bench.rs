@@ -320,6 +320,14 @@ fn f1(v: Option<f64>) -> String {
     v.map_or("-".into(), |x| format!("{x:.2}"))
 }
 
+/// The runs whose metrics a summary holds, with their names: the bus's, then the lockstep
+/// simulation's when there is one.
+fn runs(s: &BenchSummary) -> impl Iterator<Item = (&'static str, &Metrics)> {
+    [("bus", Some(&s.bus)), ("sim", s.sim.as_ref())]
+        .into_iter()
+        .filter_map(|(name, m)| Some((name, m?)))
+}
+
 /// The run as a self-contained HTML page: verdict, launches, shifts, timing, the figures.
 fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
     use ddct::sim::html::{self, Table};
@@ -408,17 +416,36 @@ fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
     ))
 }
 
+/// The summary for a terminal: launches, shifts, the bus's estimator and faults, timing, the
+/// daemons, and where the log and plots are.
 fn print_summary(s: &BenchSummary) {
     println!(
         "== ddct bench: {} on {} ({:.0} s): {}",
         s.scenario, s.iface, s.duration_s, s.description
     );
     println!();
+    print_launches(s);
+    println!();
+    print_shifts(s);
+    println!();
+    print_bus_findings(s);
+    println!();
+    print_timing(&s.timing);
+    print_daemons(s);
+    println!();
+    println!("log: {}", s.log.display());
+    for p in &s.plots {
+        println!("plot: {}", p.display());
+    }
+}
+
+/// One line per launch of every run.
+fn print_launches(s: &BenchSummary) {
     println!(
         "{:<10} {:>7} {:>9} {:>8} {:>8} {:>6} {:>10} {:>9}",
         "run", "pedal%", "lockup_s", "flare", "spike", "stall", "|Terr|300", "a_pk600"
     );
-    let launch_rows = |name: &str, m: &Metrics| {
+    for (name, m) in runs(s) {
         for l in &m.launches {
             println!(
                 "{:<10} {:>7.0} {:>9} {:>8.0} {:>8} {:>6} {:>10.1} {:>9.2}",
@@ -432,27 +459,28 @@ fn print_summary(s: &BenchSummary) {
                 l.peak_accel_600ms_mps2
             );
         }
-    };
-    launch_rows("bus", &s.bus);
-    if let Some(m) = &s.sim {
-        launch_rows("sim", m);
     }
-    println!();
+}
+
+/// One line per shift of every run.
+fn print_shifts(s: &BenchSummary) {
     println!(
         "{:<10} {:>7} {:>10} {:>10} {:>10}",
         "run", "shift", "duration", "min_accel", "completed"
     );
-    for (name, m) in [("bus", Some(&s.bus)), ("sim", s.sim.as_ref())] {
-        if let Some(m) = m {
-            for x in &m.shifts {
-                println!(
-                    "{:<10} {:>4}->{:<2} {:>10.2} {:>10.2} {:>10}",
-                    name, x.from, x.to, x.duration_s, x.min_accel_mps2, x.completed
-                );
-            }
+    for (name, m) in runs(s) {
+        for x in &m.shifts {
+            println!(
+                "{:<10} {:>4}->{:<2} {:>10.2} {:>10.2} {:>10}",
+                name, x.from, x.to, x.duration_s, x.min_accel_mps2, x.completed
+            );
         }
     }
-    println!();
+}
+
+/// The bus's temperature estimator against SIM_Truth, and the fault codes on the bus while the
+/// plant ran.
+fn print_bus_findings(s: &BenchSummary) {
     let e = &s.bus.estimator;
     println!(
         "estimator vs SIM_Truth (bus): RMSE {:.2} / {:.2} °C, max {:.2} / {:.2} °C",
@@ -476,8 +504,10 @@ fn print_summary(s: &BenchSummary) {
             faults.join(", ")
         }
     );
-    let t = &s.timing;
-    println!();
+}
+
+/// The bus timing table: the TCU's reaction, the bare echo's, the periods' jitter.
+fn print_timing(t: &Timing) {
     println!(
         "{:<44} {:>6} {:>9} {:>9} {:>9}",
         "timing (recorder receive timestamps)", "n", "p50_us", "p99_us", "max_us"
@@ -494,6 +524,10 @@ fn print_summary(s: &BenchSummary) {
     }
     line("TCU_ClutchCmd |interval - 10 ms|", &t.clutch_cmd_jitter);
     line("DCT_Sensors |interval - 10 ms| (plant)", &t.sensors_jitter);
+}
+
+/// What the daemons reported (a live run) and how fast the lockstep simulation ran.
+fn print_daemons(s: &BenchSummary) {
     if let Some(tc) = &s.tcu {
         println!(
             "TCU daemon: {} computations ({} sync, {} fallback), overruns {}, deadline misses {}, compute p99 {} us",
@@ -518,10 +552,5 @@ fn print_summary(s: &BenchSummary) {
             s.duration_s,
             s.duration_s / w.max(1e-9)
         );
-    }
-    println!();
-    println!("log: {}", s.log.display());
-    for p in &s.plots {
-        println!("plot: {}", p.display());
     }
 }
