@@ -8,7 +8,7 @@ use ddct::gap::class::ClassId;
 use ddct::gap::dataset::{Dataset, Segments};
 use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
 use ddct::gap::experiment::{self, PlantTruth};
-use ddct::gap::identify::{identify, IdentifyOptions};
+use ddct::gap::identify::{identify, Identification, IdentifyOptions};
 use ddct::gap::keys;
 use ddct::gap::report;
 use ddct::model::effects::EffectId;
@@ -295,7 +295,25 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
     pb.finish_and_clear();
     let id = id?;
     let secs = t0.elapsed().as_secs_f64();
-    let text = format!(
+    let text = identified_file(&a, &id);
+    std::fs::write(&a.out, text).with_context(|| format!("writing {}", a.out.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&id)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    for n in &id.notes {
+        println!("{n}");
+    }
+    println!();
+    print_estimates(&id, reference.as_ref());
+    print_validation(&id);
+    println!("\nwrote {} ({secs:.1} s)", a.out.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The identified parameter file: a comment naming the records, then the parameters.
+fn identified_file(a: &IdentifyArgs, id: &Identification) -> String {
+    format!(
         "# Identified by `ddct identify` from {} (validation: {}).\n{}",
         a.train
             .iter()
@@ -308,17 +326,14 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(", "),
         id.params.to_toml_string()
-    );
-    std::fs::write(&a.out, text).with_context(|| format!("writing {}", a.out.display()))?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&id)?);
-        return Ok(ExitCode::SUCCESS);
-    }
-    for n in &id.notes {
-        println!("{n}");
-    }
-    println!();
-    let reference_of = |key: &str| reference.as_ref().and_then(|r| keys::get(r, key));
+    )
+}
+
+/// The estimates' table (initial, identified, 95 % interval, step), with the reference value,
+/// the relative error and whether the interval holds the reference when there is one; then how
+/// many identifiable parameters' final intervals hold it.
+fn print_estimates(id: &Identification, reference: Option<&Params>) {
+    let reference_of = |key: &str| reference.and_then(|r| keys::get(r, key));
     print!(
         "{:<28} {:>12} {:>12} {:>27}",
         "parameter", "initial", "identified", "95 % interval"
@@ -363,6 +378,10 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
             final_hit.len()
         );
     }
+}
+
+/// The validation fits (RMSE and fit % per file, output and mode), when there are any.
+fn print_validation(id: &Identification) {
     if !id.validation.is_empty() {
         println!(
             "\nvalidation fit % = 100·(1 − NRMSE) (n/a: output not excited by the experiment):"
@@ -389,8 +408,6 @@ pub fn run_identify(a: IdentifyArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
-    println!("\nwrote {} ({secs:.1} s)", a.out.display());
-    Ok(ExitCode::SUCCESS)
 }
 
 fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
