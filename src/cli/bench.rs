@@ -22,6 +22,7 @@ use ddct::can::{CanFrame, InProcessBus};
 use ddct::daemon::plant::PlantReport;
 use ddct::daemon::tcu::{set_realtime_priority, TcuReport};
 use ddct::sim::buslog::{self, Spread};
+use ddct::sim::html::{self, Table};
 use ddct::sim::metrics::{self, Metrics};
 use ddct::sim::verdict::{self, Check};
 use ddct::sim::{self, plots, SimOptions, SimScenario};
@@ -330,13 +331,44 @@ fn runs(s: &BenchSummary) -> impl Iterator<Item = (&'static str, &Metrics)> {
 
 /// The run as a self-contained HTML page: verdict, launches, shifts, timing, the figures.
 fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
-    use ddct::sim::html::{self, Table};
-    let strs = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
-    let mut launches = Table {
-        caption: "Launches (|Terr|300: peak torque error in the first 300 ms, N·m; a_pk600: peak \
-                  acceleration in the first 600 ms, m/s²)"
-            .into(),
-        head: strs(&[
+    let mut figures = Vec::new();
+    for p in &s.plots {
+        let svg = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+        figures.push((
+            p.file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into()),
+            svg,
+        ));
+    }
+    Ok(html::report(
+        &format!("ddct bench: {} on {}", s.scenario, s.iface),
+        &s.description,
+        verdict::passed(&s.verdict),
+        &[
+            html::verdict_table(&s.verdict),
+            launches_table(s),
+            shifts_table(s),
+            timing_table(&s.timing),
+        ],
+        &figures,
+    ))
+}
+
+/// A table with its caption and head, no row yet.
+fn empty_table(caption: &str, head: &[&str]) -> Table {
+    Table {
+        caption: caption.into(),
+        head: head.iter().map(|x| x.to_string()).collect(),
+        rows: Vec::new(),
+    }
+}
+
+/// The HTML table of every run's launches.
+fn launches_table(s: &BenchSummary) -> Table {
+    let mut launches = empty_table(
+        "Launches (|Terr|300: peak torque error in the first 300 ms, N·m; a_pk600: peak \
+         acceleration in the first 600 ms, m/s²)",
+        &[
             "run",
             "pedal %",
             "lock-up s",
@@ -345,16 +377,9 @@ fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
             "stall",
             "|Terr|300",
             "a_pk600",
-        ]),
-        rows: Vec::new(),
-    };
-    let mut shifts = Table {
-        caption: "Shifts".into(),
-        head: strs(&["run", "shift", "duration s", "min accel m/s²", "completed"]),
-        rows: Vec::new(),
-    };
-    for (name, m) in [("bus", Some(&s.bus)), ("sim", s.sim.as_ref())] {
-        let Some(m) = m else { continue };
+        ],
+    );
+    for (name, m) in runs(s) {
         for l in &m.launches {
             launches.rows.push(vec![
                 name.into(),
@@ -367,6 +392,17 @@ fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
                 format!("{:.2}", l.peak_accel_600ms_mps2),
             ]);
         }
+    }
+    launches
+}
+
+/// The HTML table of every run's shifts.
+fn shifts_table(s: &BenchSummary) -> Table {
+    let mut shifts = empty_table(
+        "Shifts",
+        &["run", "shift", "duration s", "min accel m/s²", "completed"],
+    );
+    for (name, m) in runs(s) {
         for x in &m.shifts {
             shifts.rows.push(vec![
                 name.into(),
@@ -377,12 +413,15 @@ fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
             ]);
         }
     }
-    let t = &s.timing;
-    let mut timing = Table {
-        caption: "Timing (recorder receive timestamps, µs)".into(),
-        head: strs(&["what", "n", "p50", "p99", "max"]),
-        rows: Vec::new(),
-    };
+    shifts
+}
+
+/// The HTML table of the bus timing: the TCU's reaction, the bare echo's, the periods' jitter.
+fn timing_table(t: &Timing) -> Table {
+    let mut timing = empty_table(
+        "Timing (recorder receive timestamps, µs)",
+        &["what", "n", "p50", "p99", "max"],
+    );
     let mut line = |name: &str, x: &Spread| {
         timing.rows.push(vec![
             name.into(),
@@ -398,22 +437,7 @@ fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
     }
     line("TCU_ClutchCmd |interval − 10 ms|", &t.clutch_cmd_jitter);
     line("DCT_Sensors |interval − 10 ms|", &t.sensors_jitter);
-    let mut figures = Vec::new();
-    for p in &s.plots {
-        let svg = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-        figures.push((
-            p.file_name()
-                .map_or(String::new(), |n| n.to_string_lossy().into()),
-            svg,
-        ));
-    }
-    Ok(html::report(
-        &format!("ddct bench: {} on {}", s.scenario, s.iface),
-        &s.description,
-        verdict::passed(&s.verdict),
-        &[html::verdict_table(&s.verdict), launches, shifts, timing],
-        &figures,
-    ))
+    timing
 }
 
 /// The summary for a terminal: launches, shifts, the bus's estimator and faults, timing, the
