@@ -6,7 +6,7 @@ use clap::{Args, Subcommand};
 use ddct::blind::{self, TrialResult};
 use ddct::gap::class::ClassId;
 use ddct::gap::dataset::{Dataset, Segments};
-use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
+use ddct::gap::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use ddct::gap::experiment::{self, PlantTruth};
 use ddct::gap::identify::{identify, Identification, IdentifyOptions};
 use ddct::gap::keys;
@@ -426,41 +426,71 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     pb.finish_and_clear();
     let d = d?;
     let t_all = t0.elapsed().as_secs_f64();
+    let json = write_diagnosis(&a, &d, t_all, t_load)?;
+    if a.json {
+        println!("{json}");
+        return Ok(ExitCode::SUCCESS);
+    }
+    print_diagnosis(&d);
+    println!(
+        "wrote {} in {t_all:.1} s",
+        a.out.join("report.md").display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes the diagnosis into `--out`: report.json, report.md (with how long it took), the plots
+/// and, when there is one, the calibration (params.toml, effects.toml and, from a template,
+/// tcu.toml); returns the JSON report.
+fn write_diagnosis(
+    a: &DiagnoseArgs,
+    d: &Diagnosis,
+    t_all: f64,
+    t_load: f64,
+) -> anyhow::Result<String> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let write = |name: &str, text: &str| -> anyhow::Result<()> {
         let path = a.out.join(name);
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
     };
-    let json = report::json(&d);
+    let json = report::json(d);
     write("report.json", &json)?;
-    let mut md = report::markdown(&d);
+    let mut md = report::markdown(d);
     md.push_str(&format!(
         "\nDiagnosed in {t_all:.1} s (loading {t_load:.1} s) by `ddct gap diagnose`.\n"
     ));
     write("report.md", &md)?;
-    for (name, svg) in report::plots(&d) {
+    for (name, svg) in report::plots(d) {
         write(&name, &svg)?;
     }
-    if let Some((params, effects)) = report::calibration(&d) {
+    if let Some((params, effects)) = report::calibration(d) {
         write("params.toml", &params)?;
         write("effects.toml", &effects)?;
-        let template = a
-            .tcu_template
-            .clone()
-            .or_else(|| Some(PathBuf::from("config/tcu.toml")).filter(|p| p.exists()));
-        if let Some(t) = template {
-            let text =
-                std::fs::read_to_string(&t).with_context(|| format!("reading {}", t.display()))?;
+        if let Some(text) = tcu_template(a)? {
             write(
                 "tcu.toml",
                 &report::tcu_calibration(&text, "params.toml", "effects.toml"),
             )?;
         }
     }
-    if a.json {
-        println!("{json}");
-        return Ok(ExitCode::SUCCESS);
-    }
+    Ok(json)
+}
+
+/// The text of the TCU calibration to rewrite for the diagnosed calibration: `--tcu-template`,
+/// else config/tcu.toml when it exists (`None`: neither).
+fn tcu_template(a: &DiagnoseArgs) -> anyhow::Result<Option<String>> {
+    let template = a
+        .tcu_template
+        .clone()
+        .or_else(|| Some(PathBuf::from("config/tcu.toml")).filter(|p| p.exists()));
+    template
+        .map(|t| std::fs::read_to_string(&t).with_context(|| format!("reading {}", t.display())))
+        .transpose()
+}
+
+/// The diagnosis in a few lines: the verdict, the five best-ranked effects, how far the gap
+/// closes.
+fn print_diagnosis(d: &Diagnosis) {
     let v = &d.verdict;
     println!("verdict: effect {} (subsystem {})", v.effect, v.subsystem);
     println!("  {}", v.explanation);
@@ -494,11 +524,6 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         h.reduction_ci95.0,
         h.reduction_ci95.1
     );
-    println!(
-        "wrote {} in {t_all:.1} s",
-        a.out.join("report.md").display()
-    );
-    Ok(ExitCode::SUCCESS)
 }
 
 fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
