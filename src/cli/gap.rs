@@ -15,7 +15,7 @@ use ddct::model::effects::EffectId;
 use ddct::model::Params;
 use ddct::truth::form::Family;
 use ddct::truth::inject::{OutsideKind, Target};
-use ddct::truth::{self, CaseSpec, TruthKind, Variants};
+use ddct::truth::{self, CaseSpec, Truth, TruthKind, Variants};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -599,35 +599,7 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
     let p = load_params(&a.params)?;
     let t = match a.trial {
         Some(i) => truth::draw(a.seed, i, &p),
-        None => {
-            let mut targets: Vec<Target> = a.class.iter().map(|c| Target::Class(*c)).collect();
-            targets.extend(a.outside.map(Target::Outside));
-            if targets.len() > 2 {
-                bail!("at most two classes");
-            }
-            if a.magnitude.len() > targets.len() {
-                bail!(
-                    "{} --magnitude for {} effect(s)",
-                    a.magnitude.len(),
-                    targets.len()
-                );
-            }
-            if !(0.0..1.0).contains(&a.detune) {
-                bail!("--detune must lie in 0 ≤ r < 1");
-            }
-            let spec = CaseSpec {
-                targets,
-                family: a.family,
-                magnitudes: a.magnitude.clone(),
-                detune: a.detune,
-                variants: Variants {
-                    only_req1: a.only_req1,
-                    worn_validation: a.worn_validation,
-                },
-                seed: a.seed,
-            };
-            truth::build(&spec, &p).map_err(anyhow::Error::msg)?
-        }
+        None => build_truth(&a, &p)?,
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let pb = super::spinner("simulating the truth's rig records");
@@ -644,6 +616,56 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
     let path = a.out.join("truth.json");
     std::fs::write(&path, serde_json::to_string_pretty(&t)?)
         .with_context(|| format!("writing {}", path.display()))?;
+    print_truth(&t);
+    println!(
+        "wrote {} and truth.json; diagnose with:\n  ddct gap diagnose --train {} --validate {}{} --out DIR",
+        a.out.display(),
+        names.0.join(" "),
+        names.1.join(" "),
+        if t.variants.worn_validation {
+            " --carry-energy"
+        } else {
+            ""
+        }
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The truth the options describe (one or two classes or outside forms, their family,
+/// magnitudes and variants, the baseline's detuning), refused when they do not fit together.
+fn build_truth(a: &TruthArgs, p: &Params) -> anyhow::Result<Truth> {
+    let mut targets: Vec<Target> = a.class.iter().map(|c| Target::Class(*c)).collect();
+    targets.extend(a.outside.map(Target::Outside));
+    if targets.len() > 2 {
+        bail!("at most two classes");
+    }
+    if a.magnitude.len() > targets.len() {
+        bail!(
+            "{} --magnitude for {} effect(s)",
+            a.magnitude.len(),
+            targets.len()
+        );
+    }
+    if !(0.0..1.0).contains(&a.detune) {
+        bail!("--detune must lie in 0 ≤ r < 1");
+    }
+    let spec = CaseSpec {
+        targets,
+        family: a.family,
+        magnitudes: a.magnitude.clone(),
+        detune: a.detune,
+        variants: Variants {
+            only_req1: a.only_req1,
+            worn_validation: a.worn_validation,
+        },
+        seed: a.seed,
+    };
+    truth::build(&spec, p).map_err(anyhow::Error::msg)
+}
+
+/// What the truth is: its label and kind, description, each effect's magnitude range, its
+/// effect size over the noise and the baseline's detuning.
+fn print_truth(t: &Truth) {
     println!("truth: {} ({})", t.label(), t.kind);
     println!("  {}", t.description);
     for e in &t.effects {
@@ -672,18 +694,6 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
                 .join(", ")
         );
     }
-    println!(
-        "wrote {} and truth.json; diagnose with:\n  ddct gap diagnose --train {} --validate {}{} --out DIR",
-        a.out.display(),
-        names.0.join(" "),
-        names.1.join(" "),
-        if t.variants.worn_validation {
-            " --carry-energy"
-        } else {
-            ""
-        }
-    );
-    Ok(ExitCode::SUCCESS)
 }
 
 fn parse_truth(s: &str) -> anyhow::Result<PlantTruth> {
