@@ -1039,8 +1039,8 @@ pub fn invert(
         cc.x_to_mm = x;
         magnitude(p, set, &cc, slip, c.slip_shape) - target
     };
-    let (mut a, mut b) = (lo0, hi0);
-    let (mut fa, mut fb) = (g(a), g(b));
+    let (a, b) = (lo0, hi0);
+    let (fa, fb) = (g(a), g(b));
     if fb < 0.0 {
         return Ok(Inversion {
             x_to_mm: hi0,
@@ -1053,7 +1053,20 @@ pub fn invert(
             saturated: false,
         });
     }
-    // Illinois regula falsi with a bisection guard.
+    Ok(Inversion {
+        x_to_mm: illinois_root(g, (a, fa), (b, fb)),
+        saturated: false,
+    })
+}
+
+/// The root of `g` in the bracket `a` < `b` (`g(a)` < 0 < `g(b)`, given): Illinois regula falsi
+/// with a bisection guard (a midpoint step after each, so the bracket shrinks geometrically even
+/// when regula falsi stalls), to a bracket of 1e-9 or 100 iterations; an exact zero ends it.
+fn illinois_root(
+    g: impl Fn(f64) -> f64,
+    (mut a, mut fa): (f64, f64),
+    (mut b, mut fb): (f64, f64),
+) -> f64 {
     let mut side = 0i8;
     for _ in 0..100 {
         if (b - a) <= 1e-9 {
@@ -1065,10 +1078,7 @@ pub fn invert(
         }
         let fx = g(x);
         if fx == 0.0 {
-            return Ok(Inversion {
-                x_to_mm: x,
-                saturated: false,
-            });
+            return x;
         }
         if fx < 0.0 {
             a = x;
@@ -1085,7 +1095,6 @@ pub fn invert(
             }
             side = 1;
         }
-        // Keep the bracket shrinking geometrically even when regula falsi stalls.
         let m = 0.5 * (a + b);
         let fm = g(m);
         if fm < 0.0 {
@@ -1096,10 +1105,7 @@ pub fn invert(
             fb = fm;
         }
     }
-    Ok(Inversion {
-        x_to_mm: 0.5 * (a + b),
-        saturated: false,
-    })
+    0.5 * (a + b)
 }
 
 // ------------------------------------------------------------------------------------- thermal
