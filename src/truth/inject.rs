@@ -244,6 +244,79 @@ pub struct Effect {
     pub aux: Vec<(&'static str, f64)>,
 }
 
+/// Whether the term of an effect on `target` is anchored at either end of its variable (drawn):
+/// multipliers and shifts of a variable with no natural zero; energy effects start at zero
+/// energy; the other forms (flash temperature, heat flows, drag) are zero at z = 0 by
+/// construction.
+fn is_anchored(target: Target) -> bool {
+    matches!(
+        target,
+        Target::Class(
+            ClassId::FrictionTemperature
+                | ClassId::FrictionStaticTemperature
+                | ClassId::FrictionSlip
+                | ClassId::FrictionClampLoad
+                | ClassId::SpringTemperature
+                | ClassId::KissPointTemperature
+        ) | Target::Outside(OutsideKind::CrossClutch)
+    )
+}
+
+/// The auxiliary parameters of an effect on `target` (time constants, shares, signs, a judder's
+/// frequency and phase, a drift's seed), drawn from `rng`.
+fn draw_aux(target: Target, rng: &mut Xoshiro) -> Vec<(&'static str, f64)> {
+    let mut aux: Vec<(&'static str, f64)> = Vec::new();
+    use ClassId as C;
+    match target {
+        Target::Class(C::FrictionSurfaceTemperature) => {
+            aux.push(("tau_s", rng.log_uniform(0.08, 2.0)));
+        }
+        Target::Class(C::ActuatorLag) => {
+            // Slower or faster than the model's lag.
+            aux.push(("faster", if rng.uniform() < 0.3 { 1.0 } else { 0.0 }));
+        }
+        Target::Class(C::ActuatorTransfer)
+        | Target::Class(C::SensorTorque)
+        | Target::Class(C::SensorTemperature)
+        | Target::Class(C::SensorPosition) => {
+            // Share of the error made by the gain (the rest by the offset), and the sign of
+            // the offset part relative to the gain part.
+            aux.push(("gain_share", rng.uniform()));
+            aux.push(("offset_sign", rng.sign()));
+        }
+        Target::Class(C::SensorTemperatureLag) => {
+            // Sheath and junction: the first lag's share of the lags' time; a transport delay
+            // (heat crossing the plate to a buried junction) taking 5–30 % of the response
+            // time in every trial — a form no lag (one or two) contains, so no lag truth is
+            // the diagnosis's own form.
+            aux.push(("first_share", rng.range(0.5, 1.0)));
+            aux.push(("delay_share", rng.range(0.05, 0.3)));
+        }
+        Target::Class(C::SensorTorqueSkew) => {
+            // Share of a positive delay made by an anti-aliasing filter's group delay.
+            aux.push(("filter_share", rng.range(0.0, 0.6)));
+        }
+        Target::Class(C::SupportConduction) => {
+            aux.push(("w_cd", rng.range(0.3, 1.0)));
+            aux.push(("w_pp", rng.range(0.0, 1.0)));
+            aux.push(("w_c", rng.range(0.0, 1.0)));
+        }
+        Target::Outside(OutsideKind::Judder) => {
+            aux.push(("freq_hz", rng.range(5.0, 20.0)));
+            aux.push(("phase_rad", rng.range(0.0, std::f64::consts::TAU)));
+        }
+        Target::Outside(OutsideKind::FrictionDrift) => {
+            aux.push(("tau_s", rng.log_uniform(30.0, 300.0)));
+            aux.push(("seed", (rng.next_u64() >> 12) as f64));
+        }
+        Target::Outside(OutsideKind::EngagementTime) => {
+            aux.push(("tau_s", rng.log_uniform(0.2, 3.0)));
+        }
+        _ => {}
+    }
+    aux
+}
+
 impl Effect {
     /// Draws an effect of `target`; `family` and `magnitude` (signed, in the range's unit) are
     /// drawn when not given.
@@ -277,70 +350,8 @@ impl Effect {
         };
         let mag_drawn = sign * rng.log_uniform(lo, rg.hi);
         let magnitude = magnitude.unwrap_or(mag_drawn);
-        // Where the term is nominal: multipliers and shifts of a variable with no natural zero
-        // are anchored at either end; energy effects start at zero energy; the other forms
-        // (flash temperature, heat flows, drag) are zero at z = 0 by construction.
-        let anchored = matches!(
-            target,
-            Target::Class(
-                ClassId::FrictionTemperature
-                    | ClassId::FrictionStaticTemperature
-                    | ClassId::FrictionSlip
-                    | ClassId::FrictionClampLoad
-                    | ClassId::SpringTemperature
-                    | ClassId::KissPointTemperature
-            ) | Target::Outside(OutsideKind::CrossClutch)
-        );
-        let anchor_top = anchored && rng.uniform() < 0.5;
-        let mut aux: Vec<(&'static str, f64)> = Vec::new();
-        use ClassId as C;
-        match target {
-            Target::Class(C::FrictionSurfaceTemperature) => {
-                aux.push(("tau_s", rng.log_uniform(0.08, 2.0)));
-            }
-            Target::Class(C::ActuatorLag) => {
-                // Slower or faster than the model's lag.
-                aux.push(("faster", if rng.uniform() < 0.3 { 1.0 } else { 0.0 }));
-            }
-            Target::Class(C::ActuatorTransfer)
-            | Target::Class(C::SensorTorque)
-            | Target::Class(C::SensorTemperature)
-            | Target::Class(C::SensorPosition) => {
-                // Share of the error made by the gain (the rest by the offset), and the sign of
-                // the offset part relative to the gain part.
-                aux.push(("gain_share", rng.uniform()));
-                aux.push(("offset_sign", rng.sign()));
-            }
-            Target::Class(C::SensorTemperatureLag) => {
-                // Sheath and junction: the first lag's share of the lags' time; a transport delay
-                // (heat crossing the plate to a buried junction) taking 5–30 % of the response
-                // time in every trial — a form no lag (one or two) contains, so no lag truth is
-                // the diagnosis's own form.
-                aux.push(("first_share", rng.range(0.5, 1.0)));
-                aux.push(("delay_share", rng.range(0.05, 0.3)));
-            }
-            Target::Class(C::SensorTorqueSkew) => {
-                // Share of a positive delay made by an anti-aliasing filter's group delay.
-                aux.push(("filter_share", rng.range(0.0, 0.6)));
-            }
-            Target::Class(C::SupportConduction) => {
-                aux.push(("w_cd", rng.range(0.3, 1.0)));
-                aux.push(("w_pp", rng.range(0.0, 1.0)));
-                aux.push(("w_c", rng.range(0.0, 1.0)));
-            }
-            Target::Outside(OutsideKind::Judder) => {
-                aux.push(("freq_hz", rng.range(5.0, 20.0)));
-                aux.push(("phase_rad", rng.range(0.0, std::f64::consts::TAU)));
-            }
-            Target::Outside(OutsideKind::FrictionDrift) => {
-                aux.push(("tau_s", rng.log_uniform(30.0, 300.0)));
-                aux.push(("seed", (rng.next_u64() >> 12) as f64));
-            }
-            Target::Outside(OutsideKind::EngagementTime) => {
-                aux.push(("tau_s", rng.log_uniform(0.2, 3.0)));
-            }
-            _ => {}
-        }
+        let anchor_top = is_anchored(target) && rng.uniform() < 0.5;
+        let aux = draw_aux(target, rng);
         Effect {
             target,
             form,

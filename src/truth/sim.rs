@@ -286,7 +286,18 @@ struct Rig<'a> {
     speed_hint: usize,
 }
 
-impl Rig<'_> {
+impl<'a> Rig<'a> {
+    /// The rig of record `rec` under the `effects`.
+    fn new(ph: &'a Physics, rec: &'a RecordDef, effects: &'a [Effect]) -> Self {
+        Rig {
+            ph,
+            rec,
+            fx: Fx::new(effects),
+            q_cache: [(f64::NAN, 0.0); 2],
+            speed_hint: 0,
+        }
+    }
+
     fn q(&mut self, i: usize, w: f64) -> f64 {
         if self.q_cache[i].0 != w {
             self.q_cache[i] = (w, self.ph.q_slip(w));
@@ -308,77 +319,21 @@ impl Rig<'_> {
 
     /// Derivative of the state at time `t` with the actuator requests `r`.
     fn deriv(&mut self, s: &State, t: f64, r: [f64; 2], d: &Discrete) -> (State, Out) {
-        let ph = self.ph;
         let w = self.rec.speed_radps_from(t, &mut self.speed_hint);
         let th_h = self.rec.housing_c(t);
-        let fx = &self.fx;
         // Clamp loads first (the cross-clutch effect needs the other one).
         let mut force = [0.0; 2];
         let mut beta = [false; 2];
         for i in 0..2 {
-            let tc = s.th[2 + i];
-            let xb = self.bearing(i, s.xa[i], d);
-            let ke = shift(fx.kiss_energy, || inject::z_energy(s.e[i]));
-            let kiss = ph.kiss(tc) + shift(fx.kiss_temp, || inject::z_temp(tc)) + ke;
-            let u = ph.compression(xb, kiss, ph.x_max + ke);
-            beta[i] = u > 0.0;
-            // The spring loses load with temperature: 1 − a·f(z) (or 1 + a·(1 − f(z))).
-            force[i] = ph.spring(u) * (1.0 - shift(fx.spring_temp, || inject::z_temp(tc))).max(0.0);
+            (force[i], beta[i]) = self.clamp_load(i, s, d);
         }
         let mut torque = [0.0; 2];
         let mut ds = State::default();
         for i in 0..2 {
-            let tc = s.th[2 + i];
-            let f = force[i];
-            if f > 0.0 && w != 0.0 {
-                let fx = &self.fx;
-                let mu_s = ph.mu_s * mult(fx.mu_s_temp, || inject::z_temp(tc));
-                let (pp, cd) = (s.th[i], s.th[4]);
-                let (th1, th2) = if fx.facing > 0.0 {
-                    (tc + fx.facing * (pp - tc), tc + fx.facing * (cd - tc))
-                } else {
-                    (tc, tc)
-                };
-                let fl = s.flash[i];
-                let m = mult(fx.mu_temp, || inject::z_temp(tc))
-                    * mult(fx.mu_slip, || inject::z_slip(w))
-                    * mult(fx.mu_clamp, || inject::z_clamp(f))
-                    * mult(fx.mu_energy, || inject::z_energy(s.e[i]))
-                    * mult(fx.cross, || inject::z_clamp(force[1 - i]))
-                    * match fx.eng_time {
-                        Some(e) => {
-                            (1.0 + e.magnitude * (-d.t_eng[i] / e.aux("tau_s")).exp()).max(0.0)
-                        }
-                        None => 1.0,
-                    }
-                    * (1.0 + d.drift).max(0.0);
-                let jud = match fx.judder {
-                    Some(e) => {
-                        1.0 + e.magnitude
-                            * (std::f64::consts::TAU * e.aux("freq_hz") * t
-                                + e.aux("phase_rad")
-                                + i as f64)
-                                .sin()
-                    }
-                    None => 1.0,
-                };
-                let q = self.q(i, w);
-                let r1 = ph.r_mu_q(q, mu_s, ph.mu_dyn(th1 + fl));
-                let r_mu = if th1 == th2 {
-                    r1 + r1
-                } else {
-                    r1 + ph.r_mu_q(q, mu_s, ph.mu_dyn(th2 + fl))
-                };
-                torque[i] = w.signum() * r_mu * f * m * jud;
+            if force[i] > 0.0 && w != 0.0 {
+                torque[i] = self.friction_torque(i, s, t, d, w, force);
             } else if let (Some(e), true) = (self.fx.drag, w != 0.0) {
-                // Drag of the open clutch: air and residual contact, growing with speed and
-                // towards the kiss point (30 % of it fully open).
-                let xb = self.bearing(i, s.xa[i], d);
-                let gap = (ph.kiss(tc) - xb).max(0.0);
-                torque[i] = w.signum()
-                    * e.magnitude
-                    * e.form.eval(inject::z_speed(w))
-                    * (0.3 + 0.7 * (-gap / 1.0).exp());
+                torque[i] = self.drag_torque(e, i, s, d, w);
             }
             // Flash temperature: first order towards its steady value at this power.
             if let Some(e) = self.fx.flash {
@@ -387,8 +342,110 @@ impl Rig<'_> {
                 ds.flash[i] = (target - s.flash[i]) / e.aux("tau_s");
             }
         }
-        // Thermal model in its physical form.
+        self.thermal_rates(s, th_h, w, torque, beta, &mut ds);
+        for (i, &request) in r.iter().enumerate() {
+            ds.xa[i] = self
+                .ph
+                .actuator_rate(s.xa[i], request, self.ph.tau * self.fx.lag_factor);
+        }
+        (ds, Out { torque, beta, w })
+    }
+
+    /// Clutch `i`'s clamp load and whether the diaphragm spring is compressed (β): the kiss point
+    /// shifted by temperature and energy, the spring's load lost with temperature
+    /// (1 − a·f(z), or 1 + a·(1 − f(z))).
+    #[inline]
+    fn clamp_load(&self, i: usize, s: &State, d: &Discrete) -> (f64, bool) {
+        let (ph, fx) = (self.ph, &self.fx);
+        let tc = s.th[2 + i];
+        let xb = self.bearing(i, s.xa[i], d);
+        let ke = shift(fx.kiss_energy, || inject::z_energy(s.e[i]));
+        let kiss = ph.kiss(tc) + shift(fx.kiss_temp, || inject::z_temp(tc)) + ke;
+        let u = ph.compression(xb, kiss, ph.x_max + ke);
+        let force = ph.spring(u) * (1.0 - shift(fx.spring_temp, || inject::z_temp(tc))).max(0.0);
+        (force, u > 0.0)
+    }
+
+    /// Clutch `i`'s friction torque at slip `w` under the clamp loads `force`: the friction
+    /// radius of both faces (their temperatures pulled toward the neighbouring plates by the
+    /// facing effect, plus the flash temperature) times every friction effect's multiplier, the
+    /// engagement-time decay, the drift and the judder.
+    #[inline]
+    fn friction_torque(
+        &mut self,
+        i: usize,
+        s: &State,
+        t: f64,
+        d: &Discrete,
+        w: f64,
+        force: [f64; 2],
+    ) -> f64 {
+        let ph = self.ph;
+        let tc = s.th[2 + i];
+        let f = force[i];
         let fx = &self.fx;
+        let mu_s = ph.mu_s * mult(fx.mu_s_temp, || inject::z_temp(tc));
+        let (pp, cd) = (s.th[i], s.th[4]);
+        let (th1, th2) = if fx.facing > 0.0 {
+            (tc + fx.facing * (pp - tc), tc + fx.facing * (cd - tc))
+        } else {
+            (tc, tc)
+        };
+        let fl = s.flash[i];
+        let m = mult(fx.mu_temp, || inject::z_temp(tc))
+            * mult(fx.mu_slip, || inject::z_slip(w))
+            * mult(fx.mu_clamp, || inject::z_clamp(f))
+            * mult(fx.mu_energy, || inject::z_energy(s.e[i]))
+            * mult(fx.cross, || inject::z_clamp(force[1 - i]))
+            * match fx.eng_time {
+                Some(e) => (1.0 + e.magnitude * (-d.t_eng[i] / e.aux("tau_s")).exp()).max(0.0),
+                None => 1.0,
+            }
+            * (1.0 + d.drift).max(0.0);
+        let jud = match fx.judder {
+            Some(e) => {
+                1.0 + e.magnitude
+                    * (std::f64::consts::TAU * e.aux("freq_hz") * t + e.aux("phase_rad") + i as f64)
+                        .sin()
+            }
+            None => 1.0,
+        };
+        let q = self.q(i, w);
+        let r1 = ph.r_mu_q(q, mu_s, ph.mu_dyn(th1 + fl));
+        let r_mu = if th1 == th2 {
+            r1 + r1
+        } else {
+            r1 + ph.r_mu_q(q, mu_s, ph.mu_dyn(th2 + fl))
+        };
+        w.signum() * r_mu * f * m * jud
+    }
+
+    /// Drag of the open clutch `i` (effect `e`): air and residual contact, growing with speed
+    /// and towards the kiss point (30 % of it fully open).
+    #[inline]
+    fn drag_torque(&self, e: &Effect, i: usize, s: &State, d: &Discrete, w: f64) -> f64 {
+        let xb = self.bearing(i, s.xa[i], d);
+        let gap = (self.ph.kiss(s.th[2 + i]) - xb).max(0.0);
+        w.signum()
+            * e.magnitude
+            * e.form.eval(inject::z_speed(w))
+            * (0.3 + 0.7 * (-gap / 1.0).exp())
+    }
+
+    /// The thermal model in its physical form: the five temperatures' rates, the friction
+    /// energies' rates and the heat lost to the balance, into `ds` (convection by speed,
+    /// conduction to the support, the heat partition and the conduction sign effects included).
+    #[inline]
+    fn thermal_rates(
+        &self,
+        s: &State,
+        th_h: f64,
+        w: f64,
+        torque: [f64; 2],
+        beta: [bool; 2],
+        ds: &mut State,
+    ) {
+        let (ph, fx) = (self.ph, &self.fx);
         let conv = mult(fx.conv, || inject::z_speed(w));
         let support = |theta: f64, c: f64, weight: f64| -> f64 {
             match fx.support {
@@ -428,8 +485,6 @@ impl Rig<'_> {
             q_cd += (1.0 - 2.0 * fx.flipped) * q_ccd + ph.phi_cd * p;
             loss += -conv_pp - conv_c + sup_pp + sup_c + 2.0 * fx.flipped * q_ccd;
             ds.e[i] = p;
-            // Actuator.
-            ds.xa[i] = ph.actuator_rate(s.xa[i], r[i], ph.tau * fx.lag_factor);
         }
         let nb = beta.iter().filter(|b| !**b).count() as f64;
         let conv_cd = nb * ph.h_cd * conv * (th_h - s.th[4]);
@@ -437,7 +492,6 @@ impl Rig<'_> {
         ds.th[4] = (q_cd + conv_cd - sup_cd) / ph.c_cd;
         loss += -conv_cd + sup_cd;
         ds.loss = loss;
-        (ds, Out { torque, beta, w })
     }
 }
 
@@ -464,13 +518,7 @@ pub fn simulate_with(
     sub: usize,
 ) -> SimOut {
     let sub = sub.max(1);
-    let mut rig = Rig {
-        ph,
-        rec,
-        fx: Fx::new(effects),
-        q_cache: [(f64::NAN, 0.0); 2],
-        speed_hint: 0,
-    };
+    let mut rig = Rig::new(ph, rec, effects);
     let n = rec.samples();
     let steps = (n - 1) * sub;
     let mut s = State {
@@ -482,12 +530,9 @@ pub fn simulate_with(
         tc: [[rec.theta0_c; 2]; 3],
         ..Discrete::default()
     };
-    let mut drift_rng = rig
-        .fx
-        .drift
-        .map(|e| Xoshiro::new(derive(seed, &[e.aux("seed") as u64])));
-    if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
-        d.drift = e.magnitude * r.normal();
+    let mut drift = rig.fx.drift.map(|e| Drift::new(e, seed));
+    if let Some(dr) = drift.as_mut() {
+        d.drift = dr.start();
     }
     let mut t_ms: [Vec<f64>; 2] = [Vec::with_capacity(steps + 1), Vec::with_capacity(steps + 1)];
     let mut sig = Signals::default();
@@ -496,11 +541,7 @@ pub fn simulate_with(
     let mut p_prev = 0.0;
     // Exactly STEP_S at the default `sub`.
     let h = STEP_S * (SUB as f64 / sub as f64);
-    let tc_lags = rig.fx.tc_lag.map(|tau| Lag::new(h, tau));
-    // The true temperatures the thermocouples see, `tc_delay` late (the pack at rest before t = 0).
-    let delay_steps = (rig.fx.tc_delay / h).round() as usize;
-    let mut seen: [std::collections::VecDeque<f64>; 3] =
-        std::array::from_fn(|_| std::collections::VecDeque::from(vec![rec.theta0_c; delay_steps]));
+    let mut tcs = ThermocouplePath::new(&rig.fx, h, rec.theta0_c);
     let dead = rig.fx.dead_time;
     let mut held = (f64::NAN, [0.0; 2]);
     for j in 0..=steps {
@@ -518,18 +559,7 @@ pub fn simulate_with(
         }
         p_prev = p;
         if j % sub == 0 {
-            let tk = (j / sub) as f64 * SAMPLE_S;
-            sig.time.push(tk);
-            for i in 0..2 {
-                sig.x[i].push(rig.fx.s_pos.read(s.xa[i]));
-                sig.wc[i].push(0.0);
-                sig.xreq[i].push(rec.request(i, tk));
-                sig.pp[i].push(d.tc[i][1]);
-            }
-            sig.cd.push(d.tc[2][1]);
-            sig.wf.push(w);
-            sig.wout.push(0.0);
-            sig.th.push(rec.housing_c(tk));
+            sig.push_sample(rec, &rig.fx, (j / sub) as f64 * SAMPLE_S, &s, &d, w);
             true_temps.push(s.th);
         }
         if j == steps {
@@ -538,31 +568,128 @@ pub fn simulate_with(
         let sp = s.axpy(h, &k1);
         let (k2, _) = rig.deriv(&sp, t + h, r, &d);
         s = s.axpy(0.5 * h, &k1).axpy(0.5 * h, &k2);
-        // Discrete states.
-        let b = rig.fx.backlash;
-        for i in 0..2 {
-            if b > 0.0 {
-                d.xb[i] = d.xb[i].clamp(s.xa[i] - 0.5 * b, s.xa[i] + 0.5 * b);
+        d.advance(&s, &out, h, rig.fx.backlash, &mut tcs);
+        if let Some(dr) = drift.as_mut() {
+            if (j + 1) % sub == 0 {
+                d.drift = dr.next(d.drift);
             }
-            d.t_eng[i] = if out.beta[i] { d.t_eng[i] + h } else { 0.0 };
+        }
+    }
+    sig.torque = torque_channel(&rig.fx, &mut t_ms, n, sub, h);
+    thermocouple_reading(rig.fx.s_temp, &mut sig);
+    SimOut {
+        signals: sig,
+        true_temps,
+        e_end: s.e,
+        friction_work_j: work,
+        heat_lost_j: s.loss,
+    }
+}
+
+impl Signals {
+    /// One sample at `tk` of the state `s` (discrete states `d`, dyno speed `w`): positions read
+    /// through the position sensor, the requests, the thermocouples, the housing.
+    fn push_sample(&mut self, rec: &RecordDef, fx: &Fx, tk: f64, s: &State, d: &Discrete, w: f64) {
+        self.time.push(tk);
+        for i in 0..2 {
+            self.x[i].push(fx.s_pos.read(s.xa[i]));
+            self.wc[i].push(0.0);
+            self.xreq[i].push(rec.request(i, tk));
+            self.pp[i].push(d.tc[i][1]);
+        }
+        self.cd.push(d.tc[2][1]);
+        self.wf.push(w);
+        self.wout.push(0.0);
+        self.th.push(rec.housing_c(tk));
+    }
+}
+
+/// What the thermocouples of pp1, pp2 and cd see of their true temperatures: a delay line of
+/// `tc_delay` (the pack at rest before t = 0), then two first-order lags.
+struct ThermocouplePath {
+    seen: [std::collections::VecDeque<f64>; 3],
+    lags: [Lag; 2],
+}
+
+impl ThermocouplePath {
+    /// The path of the effects `fx` at the integration step `h`, the pack at `theta0_c` before.
+    fn new(fx: &Fx, h: f64, theta0_c: f64) -> Self {
+        let delay_steps = (fx.tc_delay / h).round() as usize;
+        ThermocouplePath {
+            seen: std::array::from_fn(|_| {
+                std::collections::VecDeque::from(vec![theta0_c; delay_steps])
+            }),
+            lags: fx.tc_lag.map(|tau| Lag::new(h, tau)),
+        }
+    }
+}
+
+/// The friction drift: a first-order random process (stationary standard deviation
+/// `magnitude`, time constant `tau_s`) sampled every [`SAMPLE_S`] from the effect's own stream.
+struct Drift<'a> {
+    e: &'a Effect,
+    rng: Xoshiro,
+}
+
+impl<'a> Drift<'a> {
+    /// The drift of effect `e` in the record of `seed`.
+    fn new(e: &'a Effect, seed: u64) -> Self {
+        Drift {
+            e,
+            rng: Xoshiro::new(derive(seed, &[e.aux("seed") as u64])),
+        }
+    }
+
+    /// The value at the start (a draw of the stationary distribution).
+    fn start(&mut self) -> f64 {
+        self.e.magnitude * self.rng.normal()
+    }
+
+    /// The value a sample after `x`.
+    fn next(&mut self, x: f64) -> f64 {
+        let a = (-SAMPLE_S / self.e.aux("tau_s")).exp();
+        x * a + self.e.magnitude * (1.0 - a * a).sqrt() * self.rng.normal()
+    }
+}
+
+impl Discrete {
+    /// The discrete states after a step `h` to `s` (the step's start gave `out`): the bearing
+    /// behind the play `backlash`, the time each clutch has been closed, and the thermocouples —
+    /// each sees its true temperature through the delay line, then the two lags (`tcs`).
+    fn advance(&mut self, s: &State, out: &Out, h: f64, backlash: f64, tcs: &mut ThermocouplePath) {
+        let ThermocouplePath {
+            seen,
+            lags: tc_lags,
+        } = tcs;
+        for i in 0..2 {
+            if backlash > 0.0 {
+                self.xb[i] = self.xb[i].clamp(s.xa[i] - 0.5 * backlash, s.xa[i] + 0.5 * backlash);
+            }
+            self.t_eng[i] = if out.beta[i] { self.t_eng[i] + h } else { 0.0 };
         }
         for (k, j5) in [0usize, 1, 4].into_iter().enumerate() {
             seen[k].push_back(s.th[j5]);
             let x = seen[k].pop_front().unwrap_or(s.th[j5]);
-            d.tc[k][0] = tc_lags[0].step(d.tc[k][0], x);
-            d.tc[k][1] = tc_lags[1].step(d.tc[k][1], d.tc[k][0]);
-        }
-        if let (Some(e), Some(r)) = (rig.fx.drift, drift_rng.as_mut()) {
-            if (j + 1) % sub == 0 {
-                let a = (-SAMPLE_S / e.aux("tau_s")).exp();
-                d.drift = d.drift * a + e.magnitude * (1.0 - a * a).sqrt() * r.normal();
-            }
+            self.tc[k][0] = tc_lags[0].step(self.tc[k][0], x);
+            self.tc[k][1] = tc_lags[1].step(self.tc[k][1], self.tc[k][0]);
         }
     }
-    // Torque channel: filter, skew, then the reading error.
-    let s_torque = rig.fx.s_torque;
-    let skew_steps = rig.fx.skew / h;
-    let tau_f = rig.fx.torque_filter;
+}
+
+/// The torque channel at the `n` samples from the torques of every integration step `t_ms`
+/// (`sub` steps of `h` per sample): the sensor's filter, its skew (linear interpolation between
+/// steps), then its reading error.
+fn torque_channel(
+    fx: &Fx,
+    t_ms: &mut [Vec<f64>; 2],
+    n: usize,
+    sub: usize,
+    h: f64,
+) -> [Vec<f64>; 2] {
+    let steps = (n - 1) * sub;
+    let s_torque = fx.s_torque;
+    let skew_steps = fx.skew / h;
+    let tau_f = fx.torque_filter;
     if tau_f > 0.0 {
         for v in t_ms.iter_mut() {
             let (mut y, lag) = (v[0], Lag::new(h, tau_f));
@@ -572,8 +699,9 @@ pub fn simulate_with(
             }
         }
     }
-    for (i, v) in t_ms.iter().enumerate() {
-        sig.torque[i] = (0..n)
+    std::array::from_fn(|i| {
+        let v = &t_ms[i];
+        (0..n)
             .map(|k| {
                 let pos = ((k * sub) as f64 - skew_steps).clamp(0.0, steps as f64);
                 let a = pos.floor() as usize;
@@ -585,26 +713,19 @@ pub fn simulate_with(
                 };
                 s_torque.read(tq)
             })
-            .collect();
-    }
-    // Thermocouples: the reading error.
-    let s_temp = rig.fx.s_temp;
+            .collect()
+    })
+}
+
+/// The thermocouples' reading error `s_temp`, applied to the recorded plate temperatures.
+fn thermocouple_reading(s_temp: ReadingError, sig: &mut Signals) {
     if s_temp.is_active() {
-        let f = |v: &mut Vec<f64>| {
+        let [pp1, pp2] = &mut sig.pp;
+        for v in [pp1, pp2, &mut sig.cd] {
             for x in v.iter_mut() {
                 *x = s_temp.read(*x);
             }
-        };
-        f(&mut sig.pp[0]);
-        f(&mut sig.pp[1]);
-        f(&mut sig.cd);
-    }
-    SimOut {
-        signals: sig,
-        true_temps,
-        e_end: s.e,
-        friction_work_j: work,
-        heat_lost_j: s.loss,
+        }
     }
 }
 
