@@ -22,7 +22,7 @@
 //!    event-bootstrap intervals; equation error and replay error.
 
 use super::blackbox::{self, BlackBoxResult, Design};
-use super::candidates::{self, Channel, Model};
+use super::candidates::{self, Channel, Model, Samples};
 use super::class::{ClassId, Kind, Variable};
 use super::classfit::{self, Knots, Needs};
 use super::context::{self, File, Scores};
@@ -31,7 +31,7 @@ use super::events::SegmentOptions;
 use super::finding::{ClassFinding, Finding, OutsideFinding, RecalibrationFinding};
 use super::keys;
 use super::lsq;
-use super::replay;
+use super::replay::{self, Measured};
 use super::select::{self, Job, Round, Setup};
 use super::shape::Shape;
 use super::stats::{self, Rng};
@@ -661,9 +661,14 @@ fn outside_library(
     s: &Setup,
     model: &Model,
     val: &Scores,
-    train_preds: &Scores,
     o: &DiagnoseOptions,
 ) -> (Vec<OutsideFinding>, Option<BlackBoxResult>) {
+    let train_preds = Scores::new(
+        s.train,
+        context::predictions(model, s.train, s.chans, true, false),
+        s.chans,
+        context::units(s.train),
+    );
     let mut out = Vec::new();
     let mut bb_out = None;
     for ex in excesses(val, s.chans, o) {
@@ -986,6 +991,97 @@ pub fn diagnose(
     nominal: &Params,
     o: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
+    let (mut tr, mut va, chans) = prepare_files(train, validate, nominal, o)?;
+    let checkable = checkability(&[train, validate].concat());
+    let nunits_v = context::units(&va);
+    let threads = worker_threads(o.threads);
+    let nominal_model = Model::nominal(*nominal);
+    let mut rng = Rng::new(o.seed);
+
+    // Phase 1–2: recalibration, noise floors, knots.
+    let (recal, sigma, kn) =
+        recalibrate_with_floors(&nominal_model, &chans, &mut tr, &mut va, threads);
+    let recalibration = recalibration_table(nominal, &recal.p);
+
+    // Classes this record set can check.
+    let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
+    let (classes, not_checkable) = checkable_classes(&kn, &needs(&all_files, &chans));
+
+    // Phases 3–6: forward selection, recalibrations out of range, what is left above the
+    // floor, the verdict.
+    let setup = setup(&tr, &va, nominal, &kn, &chans, threads, o);
+    let sc_nom_v = Scores::of(&nominal_model, &va, &chans, nunits_v);
+    let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
+    let ex_rec_all = excesses(&sc_rec_v, &chans, o);
+    let w = which(
+        &setup,
+        &recal,
+        &classes,
+        &sc_rec_v,
+        &ex_rec_all,
+        o,
+        &mut rng,
+    );
+
+    // Where.
+    let mut where_ = located(&recal, &va, &sc_rec_v, &chans, &ex_rec_all, o.fdr_q);
+    let verdict = verdict_of(
+        w.findings,
+        &w.rounds,
+        &chans,
+        &where_,
+        &w.outside,
+        unexplained(&sc_rec_v, &w.after_val, &chans),
+        not_checkable,
+    );
+
+    // Phase 7: how far.
+    let sc_after = Scores::of(&w.after, &va, &chans, nunits_v);
+    push_bias_map_after(&mut where_, &va, &sc_after, o.fdr_q);
+    let eq = output_gaps(
+        &va, &chans, &sc_nom_v, &sc_rec_v, &sc_after, &sigma, o, &mut rng,
+    );
+    let first = first_finding(&verdict.findings);
+    let main = main_gap(&first, &verdict.effect, &where_, &eq);
+    let replay_error = replay_gaps(&nominal_model, &w.after, &va);
+    let how_far = how_far(main.as_ref(), &eq, replay_error);
+    let traces = traces(&nominal_model, &w.after, &va, main.as_ref());
+    let calibrated = Some(calibration(&setup, &w.after, &verdict.findings));
+    Ok(Diagnosis {
+        train_files: train.iter().map(|d| d.source.clone()).collect(),
+        validate_files: validate.iter().map(|d| d.source.clone()).collect(),
+        separability: separability(&checkable),
+        checkable,
+        where_,
+        verdict,
+        how_far,
+        recalibration,
+        blackbox: w.blackbox,
+        notes: w.notes,
+        calibrated,
+        traces,
+    })
+}
+
+/// Logs the end of a phase (no clock in the core: the subscriber stamps each line with its time).
+fn phase_done(name: &str) {
+    tracing::debug!("{name} done");
+}
+
+/// Training records, validation records, and the channels the fit can use and the validation
+/// can check.
+type Prepared = (Vec<File>, Vec<File>, Vec<Channel>);
+
+/// The training and validation records prepared for the diagnosis, and the channels the fit
+/// can use and the validation can check; an error without training or validation records or
+/// without such a channel. With carried energy the validation records continue where the
+/// training records ended (one clutch pack, the validation run on the worn pack).
+fn prepare_files(
+    train: &[Dataset],
+    validate: &[Dataset],
+    nominal: &Params,
+    o: &DiagnoseOptions,
+) -> Result<Prepared, DiagnoseError> {
     if train.is_empty() {
         return Err(DiagnoseError::NoTraining);
     }
@@ -1003,105 +1099,170 @@ pub fn diagnose(
             o.max_fit_samples,
         )
     };
-    let mut tr = prep(train, o.carry_energy.then_some([0.0; 2]));
-    // With carried energy the validation records continue where the training records ended
-    // (one clutch pack, the validation run on the worn pack).
+    let tr = prep(train, o.carry_energy.then_some([0.0; 2]));
     let e_end = tr.last().map_or([0.0; 2], |f| {
         [0, 1].map(|i| f.m.e_cum[i].last().copied().unwrap_or(0.0))
     });
-    let mut va = prep(validate, o.carry_energy.then_some(e_end));
-    let nunits_v = context::units(&va);
-    let mut notes = Vec::new();
-    let checkable = checkability(&[train, validate].concat());
+    let va = prep(validate, o.carry_energy.then_some(e_end));
     let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
     }
-    let threads = if o.threads == 0 {
+    Ok((tr, va, chans))
+}
+
+/// Worker threads for the class fits: the option, or the available cores when it is 0.
+fn worker_threads(threads: usize) -> usize {
+    if threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
-        o.threads
-    };
-    let nominal_model = Model::nominal(*nominal);
-    let mut rng = Rng::new(o.seed);
+        threads
+    }
+}
 
-    // Phase 1–2: recalibration, noise floors, knots.
-    // No clock in the core: the subscriber stamps each line with its time.
-    let phase = |name: &str| tracing::debug!("{name} done");
-    context::set_noise(&nominal_model, &mut tr);
+/// Phases 1–2: the recalibrated model, with the noise floors of the training records (set
+/// from the nominal model, then from the recalibrated one) and of the validation records
+/// (returned, per channel), the training records' disk estimates and the class variables'
+/// knots.
+fn recalibrate_with_floors(
+    nominal_model: &Model,
+    chans: &[Channel],
+    tr: &mut [File],
+    va: &mut [File],
+    threads: usize,
+) -> (Model, Vec<f64>, Knots) {
+    context::set_noise(nominal_model, tr);
     let no_knots = Knots::default();
-    let recal = recalibrate(nominal, &chans, &tr, &no_knots, false, threads);
-    context::set_noise(&recal, &mut tr);
-    let sigma = context::set_noise(&recal, &mut va);
-    context::cache_disk(&recal, &mut tr);
-    let kn = knots(&recal, &tr);
-    phase("recalibration");
-    let recalibration = recalibration_table(nominal, &recal.p);
+    let recal = recalibrate(&nominal_model.p, chans, tr, &no_knots, false, threads);
+    context::set_noise(&recal, tr);
+    let sigma = context::set_noise(&recal, va);
+    context::cache_disk(&recal, tr);
+    let kn = knots(&recal, tr);
+    phase_done("recalibration");
+    (recal, sigma, kn)
+}
 
-    // Classes this record set can check.
-    let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
-    let (classes, not_checkable) = checkable_classes(&kn, &needs(&all_files, &chans));
+/// What phases 3–6 find on the recalibrated model.
+struct Which {
+    /// The forward selection's rounds.
+    rounds: Vec<Round>,
+    /// The model after the selection and the recalibration findings, and its validation scores.
+    after: Model,
+    after_val: Scores,
+    /// The verdict's findings, and the outside-library findings it kept.
+    findings: Vec<Finding>,
+    outside: Vec<OutsideFinding>,
+    /// The black box's check of the torque residual left.
+    blackbox: Option<BlackBoxResult>,
+    /// The verdict's notes (partial fits).
+    notes: Vec<String>,
+}
 
-    // Phase 3: forward selection.
-    let setup = Setup {
-        train: &tr,
-        validate: &va,
-        nominal,
-        knots: &kn,
-        chans: &chans,
-        nunits_v,
-        bootstrap: o.bootstrap,
-        threads,
-        bic_threshold: o.bic_threshold,
-        min_gain: o.min_gain,
-    };
-    let sc_nom_v = Scores::of(&nominal_model, &va, &chans, nunits_v);
-    let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
-    let (selected, sel_val, rounds) =
-        select::select(&setup, &recal, &classes, o.max_classes, o.seed);
-    phase("selection");
-
-    // Phase 4: recalibrations out of range.
+/// Phases 3–6: forward selection of the classes, recalibrations out of range, what is left
+/// above the floor, the verdict; `sc_rec_v` and `ex_rec_all` are the recalibrated model's
+/// validation scores and excesses.
+fn which(
+    setup: &Setup,
+    recal: &Model,
+    classes: &[ClassId],
+    sc_rec_v: &Scores,
+    ex_rec_all: &[Excess],
+    o: &DiagnoseOptions,
+    rng: &mut Rng,
+) -> Which {
+    let (selected, sel_val, rounds) = select::select(setup, recal, classes, o.max_classes, o.seed);
+    phase_done("selection");
     let (after, after_val, recal_findings) =
-        recalibration_findings(&setup, &selected, &sel_val, o, &mut rng);
-    phase("recalibration findings");
-
-    // Phase 5: what is left above the floor.
-    let sc_t = Scores::new(
-        &tr,
-        context::predictions(&after, &tr, &chans, true, false),
-        &chans,
-        context::units(&tr),
-    );
-    let (outside, blackbox) = outside_library(&setup, &after, &after_val, &sc_t, o);
-    phase("outside the library");
-
-    // Phase 6: the verdict.
-    let ex_rec_all = excesses(&sc_rec_v, &chans, o);
+        recalibration_findings(setup, &selected, &sel_val, o, rng);
+    phase_done("recalibration findings");
+    let (outside, blackbox) = outside_library(setup, &after, &after_val, o);
+    phase_done("outside the library");
+    let mut notes = Vec::new();
     let (findings, outside) = verdict(
         &rounds,
-        &setup,
-        &sc_rec_v,
-        &ex_rec_all,
+        setup,
+        sc_rec_v,
+        ex_rec_all,
         outside,
         recal_findings,
         &mut notes,
     );
-    let unexplained_pct = unexplained(&sc_rec_v, &after_val, &chans);
+    Which {
+        rounds,
+        after,
+        after_val,
+        findings,
+        outside,
+        blackbox,
+        notes,
+    }
+}
 
-    // Where.
-    let model_after = after;
+/// The selection's setup on the prepared records.
+fn setup<'a>(
+    tr: &'a [File],
+    va: &'a [File],
+    nominal: &'a Params,
+    kn: &'a Knots,
+    chans: &'a [Channel],
+    threads: usize,
+    o: &DiagnoseOptions,
+) -> Setup<'a> {
+    Setup {
+        train: tr,
+        validate: va,
+        nominal,
+        knots: kn,
+        chans,
+        nunits_v: context::units(va),
+        bootstrap: o.bootstrap,
+        threads,
+        bic_threshold: o.bic_threshold,
+        min_gain: o.min_gain,
+    }
+}
+
+/// Adds to "where" the bias map of the model after the diagnosis on the validation records.
+fn push_bias_map_after(where_: &mut Where, va: &[File], sc_after: &Scores, fdr_q: f64) {
+    let (files, samples) = measured_and_samples(va);
+    let map = where_::bias_map(&files, &samples, &sc_after.preds, "after", fdr_q);
+    where_.bias_maps.push(map);
+}
+
+/// The first finding, `Nothing` without one.
+fn first_finding(findings: &[Finding]) -> Finding {
+    findings.first().cloned().unwrap_or(Finding::Nothing)
+}
+
+/// The measured quantities and score samples of the records, one each per record.
+fn measured_and_samples(files: &[File]) -> (Vec<&Measured>, Vec<&Samples>) {
+    (
+        files.iter().map(|f| &f.m).collect(),
+        files.iter().map(|f| &f.all).collect(),
+    )
+}
+
+/// "Where" of the recalibrated model on the validation records, its residual subsystems
+/// significant exactly when the verdict's criterion flags them after recalibration (where and
+/// which agree).
+fn located(
+    recal: &Model,
+    va: &[File],
+    sc_rec_v: &Scores,
+    chans: &[Channel],
+    ex_rec_all: &[Excess],
+    fdr_q: f64,
+) -> Where {
+    let (files, samples) = measured_and_samples(va);
     let mut where_ = where_::locate(
-        &recal,
-        &va.iter().map(|f| &f.m).collect::<Vec<_>>(),
-        &va.iter().map(|f| &f.all).collect::<Vec<_>>(),
+        recal,
+        &files,
+        &samples,
         &sc_rec_v.preds,
         &va.iter().map(|f| f.sigma.as_slice()).collect::<Vec<_>>(),
-        &chans,
-        o.fdr_q,
+        chans,
+        fdr_q,
     );
-    // Where and which agree: a subsystem is significant in the "where" table exactly when it is
-    // flagged after recalibration by the verdict's criterion.
     for r in where_.residual_subsystems.iter_mut() {
         if let Some(e) = ex_rec_all
             .iter()
@@ -1110,35 +1271,25 @@ pub fn diagnose(
             r.significant = e.flagged;
         }
     }
-    let first = findings.first().cloned().unwrap_or(Finding::Nothing);
+    where_
+}
+
+/// The verdict of the findings: the first finding's subsystem and effect, every flagged
+/// subsystem, the first round's ranking and the first class's ambiguity set, what the
+/// outside-library findings depend on, the explanation and each round's kept class.
+fn verdict_of(
+    findings: Vec<Finding>,
+    rounds: &[Round],
+    chans: &[Channel],
+    where_: &Where,
+    outside: &[OutsideFinding],
+    unexplained_pct: f64,
+    not_checkable: Vec<NotCheckable>,
+) -> Verdict {
+    let first = first_finding(&findings);
     let subsystem = first
         .subsystem()
         .map_or("none".to_string(), |s| s.as_str().to_string());
-    let effect = effect_name(&first);
-    let subsystems = flagged_subsystems(&findings, &where_);
-    let explanation = explain(&findings, unexplained_pct);
-
-    // Phase 7: how far.
-    let sc_after = Scores::of(&model_after, &va, &chans, nunits_v);
-    where_.bias_maps.push(where_::bias_map(
-        &va.iter().map(|f| &f.m).collect::<Vec<_>>(),
-        &va.iter().map(|f| &f.all).collect::<Vec<_>>(),
-        &sc_after.preds,
-        "after",
-        o.fdr_q,
-    ));
-    let eq = output_gaps(
-        &va, &chans, &sc_nom_v, &sc_rec_v, &sc_after, &sigma, o, &mut rng,
-    );
-    let main = main_gap(&first, &effect, &where_, &eq);
-    let replay_error = replay_gaps(&nominal_model, &model_after, &va);
-    let how_far = how_far(main.as_ref(), &eq, replay_error);
-    let traces = traces(&nominal_model, &model_after, &va, main.as_ref());
-    let calibrated = Some(calibration(&setup, &model_after, &findings));
-    let outside_library_depends_on = outside
-        .iter()
-        .flat_map(|x| x.depends_on.iter().cloned())
-        .collect();
     let ambiguous_with = findings
         .first()
         .and_then(Finding::class)
@@ -1149,35 +1300,25 @@ pub fn diagnose(
                 .collect()
         })
         .unwrap_or_default();
-    Ok(Diagnosis {
-        train_files: train.iter().map(|d| d.source.clone()).collect(),
-        validate_files: validate.iter().map(|d| d.source.clone()).collect(),
-        separability: separability(&checkable),
-        checkable,
-        where_,
-        verdict: Verdict {
-            subsystem,
-            subsystems,
-            effect,
-            ranking: ranking(rounds.first(), &chans),
-            ambiguous_with,
-            outside_library_depends_on,
-            explanation,
-            findings,
-            unexplained_pct,
-            not_checkable,
-            rounds: rounds
-                .iter()
-                .map(|r| (r.kept.map(|k| r.candidates[k].class), r.ambiguous.clone()))
-                .collect(),
-        },
-        how_far,
-        recalibration,
-        blackbox,
-        notes,
-        calibrated,
-        traces,
-    })
+    Verdict {
+        subsystem,
+        subsystems: flagged_subsystems(&findings, where_),
+        effect: effect_name(&first),
+        ranking: ranking(rounds.first(), chans),
+        ambiguous_with,
+        outside_library_depends_on: outside
+            .iter()
+            .flat_map(|x| x.depends_on.iter().cloned())
+            .collect(),
+        explanation: explain(&findings, unexplained_pct),
+        findings,
+        unexplained_pct,
+        not_checkable,
+        rounds: rounds
+            .iter()
+            .map(|r| (r.kept.map(|k| r.candidates[k].class), r.ambiguous.clone()))
+            .collect(),
+    }
 }
 
 /// The channels the fit can use and the validation can check.
