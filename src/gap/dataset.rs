@@ -933,114 +933,17 @@ fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
         return Err(DatasetError::Empty { file: file.into() });
     };
     let (hline, header) = first?;
-    let names: Vec<&str> = header.iter().collect();
-    let mut map: Vec<Option<Col>> = Vec::with_capacity(names.len());
-    let mut time_idx = None;
-    let mut seen = [false; NCOL];
-    let mut stats = LoadStats::default();
-    for (j, name) in names.iter().enumerate() {
-        if *name == "time_s" {
-            if time_idx.is_some() {
-                return Err(DatasetError::DuplicateColumn {
-                    file: file.into(),
-                    line: hline,
-                    index: j + 1,
-                    column: name.to_string(),
-                });
-            }
-            time_idx = Some(j);
-            map.push(None);
-            continue;
-        }
-        match Col::from_name(name) {
-            Some(c) => {
-                if seen[c.idx()] {
-                    return Err(DatasetError::DuplicateColumn {
-                        file: file.into(),
-                        line: hline,
-                        index: j + 1,
-                        column: name.to_string(),
-                    });
-                }
-                seen[c.idx()] = true;
-                map.push(Some(c));
-            }
-            None => {
-                stats.ignored_columns.push(name.to_string());
-                map.push(None);
-            }
-        }
-    }
-    let Some(time_idx) = time_idx else {
-        return Err(DatasetError::MissingColumn {
-            file: file.into(),
-            line: hline,
-            column: "time_s".into(),
-        });
+    let mut columns = csv_columns(file, hline, &header)?;
+    let mut stats = LoadStats {
+        ignored_columns: std::mem::take(&mut columns.ignored),
+        ..LoadStats::default()
     };
-    for c in Col::ALL.iter().filter(|c| c.required()) {
-        if !seen[c.idx()] {
-            return Err(DatasetError::MissingColumn {
-                file: file.into(),
-                line: hline,
-                column: c.name().into(),
-            });
-        }
-    }
     let mut t = Vec::new();
     let mut row_lines = Vec::new();
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); NCOL];
     for r in records {
         let (line, fields) = r?;
-        if fields.len() != names.len() {
-            return Err(DatasetError::FieldCount {
-                file: file.into(),
-                line,
-                expected: names.len(),
-                found: fields.len(),
-            });
-        }
-        for (j, f) in fields.iter().enumerate() {
-            let column = match map[j] {
-                Some(c) => c.name(),
-                None if j == time_idx => "time_s",
-                None => continue,
-            };
-            let v = parse_num(f).ok_or_else(|| DatasetError::BadNumber {
-                file: file.into(),
-                line,
-                index: j + 1,
-                column: column.into(),
-                text: f.to_string(),
-            })?;
-            let Some(c) = map[j] else {
-                if let Some(&previous) = t.last() {
-                    if v < previous {
-                        return Err(DatasetError::TimeOrder {
-                            file: file.into(),
-                            line,
-                            index: j + 1,
-                            value: v,
-                            previous,
-                        });
-                    }
-                    // Relative tolerance: a 0.1 ms step written with 4 decimals still passes.
-                    if v - previous < MIN_STEP_S * (1.0 - 1e-6) {
-                        return Err(DatasetError::TimeStep {
-                            file: file.into(),
-                            line,
-                            index: j + 1,
-                            value: v,
-                            previous,
-                        });
-                    }
-                }
-                t.push(v);
-                continue;
-            };
-            c.check(v).map_err(|e| e.at(file, line, j + 1, c, v))?;
-            cols[c.idx()].push(v);
-        }
+        csv_row(file, line, &fields, &columns, &mut t, &mut cols)?;
         row_lines.push(line);
         stats.records += 1;
     }
@@ -1051,17 +954,12 @@ fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
             min: 2,
         });
     }
-    // Keep the file's own step when it is uniform, else resample at its median step (every step
-    // is at least MIN_STEP_S, so is the median).
-    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    let dt = steps[steps.len() / 2];
-    drop(steps);
+    let dt = median_step(&t);
     let hold = (dt * 5.5).max(MAX_HOLD_S);
     Ok(RawRecord {
         cols: Col::ALL
             .iter()
-            .map(|c| seen[c.idx()].then(|| (0, std::mem::take(&mut cols[c.idx()]))))
+            .map(|c| columns.seen[c.idx()].then(|| (0, std::mem::take(&mut cols[c.idx()]))))
             .collect(),
         times: vec![t],
         clock: 0,
@@ -1071,6 +969,165 @@ fn parse_csv(file: &str, text: &str) -> Result<RawRecord, DatasetError> {
         cycles: false,
         stats,
     })
+}
+
+/// A CSV header's columns.
+struct CsvColumns {
+    /// Number of fields.
+    len: usize,
+    /// The known column of each field (`None` for the time and the ignored ones).
+    map: Vec<Option<Col>>,
+    /// The time column's field.
+    time: usize,
+    /// The known columns present.
+    seen: [bool; NCOL],
+    /// Names of the unknown fields, ignored.
+    ignored: Vec<String>,
+}
+
+/// The header's column map: each field's column, the time column, the unknown ones; an error
+/// for a column named twice or a required one missing.
+fn csv_columns(
+    file: &str,
+    hline: usize,
+    header: &csv::StringRecord,
+) -> Result<CsvColumns, DatasetError> {
+    let names: Vec<&str> = header.iter().collect();
+    let mut map: Vec<Option<Col>> = Vec::with_capacity(names.len());
+    let mut time_idx = None;
+    let mut seen = [false; NCOL];
+    let mut ignored = Vec::new();
+    let duplicate = |j: usize, name: &str| DatasetError::DuplicateColumn {
+        file: file.into(),
+        line: hline,
+        index: j + 1,
+        column: name.to_string(),
+    };
+    for (j, name) in names.iter().enumerate() {
+        if *name == "time_s" {
+            if time_idx.is_some() {
+                return Err(duplicate(j, name));
+            }
+            time_idx = Some(j);
+            map.push(None);
+            continue;
+        }
+        match Col::from_name(name) {
+            Some(c) => {
+                if seen[c.idx()] {
+                    return Err(duplicate(j, name));
+                }
+                seen[c.idx()] = true;
+                map.push(Some(c));
+            }
+            None => {
+                ignored.push(name.to_string());
+                map.push(None);
+            }
+        }
+    }
+    let missing = |column: &str| DatasetError::MissingColumn {
+        file: file.into(),
+        line: hline,
+        column: column.into(),
+    };
+    let Some(time) = time_idx else {
+        return Err(missing("time_s"));
+    };
+    if let Some(c) = Col::ALL.iter().find(|c| c.required() && !seen[c.idx()]) {
+        return Err(missing(c.name()));
+    }
+    Ok(CsvColumns {
+        len: names.len(),
+        map,
+        time,
+        seen,
+        ignored,
+    })
+}
+
+/// One row's fields: each number parsed and checked, the time appended to `t`, every known
+/// column's value to its column of `cols`; an error for a wrong field count or a bad value.
+fn csv_row(
+    file: &str,
+    line: usize,
+    fields: &csv::StringRecord,
+    columns: &CsvColumns,
+    t: &mut Vec<f64>,
+    cols: &mut [Vec<f64>],
+) -> Result<(), DatasetError> {
+    if fields.len() != columns.len {
+        return Err(DatasetError::FieldCount {
+            file: file.into(),
+            line,
+            expected: columns.len,
+            found: fields.len(),
+        });
+    }
+    for (j, f) in fields.iter().enumerate() {
+        let column = match columns.map[j] {
+            Some(c) => c.name(),
+            None if j == columns.time => "time_s",
+            None => continue,
+        };
+        let v = parse_num(f).ok_or_else(|| DatasetError::BadNumber {
+            file: file.into(),
+            line,
+            index: j + 1,
+            column: column.into(),
+            text: f.to_string(),
+        })?;
+        let Some(c) = columns.map[j] else {
+            check_time(file, line, j + 1, v, t.last().copied())?;
+            t.push(v);
+            continue;
+        };
+        c.check(v).map_err(|e| e.at(file, line, j + 1, c, v))?;
+        cols[c.idx()].push(v);
+    }
+    Ok(())
+}
+
+/// The time column's checks: a time `v` (field `index` of `line`) is not before the `previous`
+/// one and at least [`MIN_STEP_S`] after it.
+fn check_time(
+    file: &str,
+    line: usize,
+    index: usize,
+    v: f64,
+    previous: Option<f64>,
+) -> Result<(), DatasetError> {
+    let Some(previous) = previous else {
+        return Ok(());
+    };
+    if v < previous {
+        return Err(DatasetError::TimeOrder {
+            file: file.into(),
+            line,
+            index,
+            value: v,
+            previous,
+        });
+    }
+    // Relative tolerance: a 0.1 ms step written with 4 decimals still passes.
+    if v - previous < MIN_STEP_S * (1.0 - 1e-6) {
+        return Err(DatasetError::TimeStep {
+            file: file.into(),
+            line,
+            index,
+            value: v,
+            previous,
+        });
+    }
+    Ok(())
+}
+
+/// The step a CSV record keeps: the file's own step when it is uniform, else its median step to
+/// resample at (every step is at least [`MIN_STEP_S`], so is the median).
+fn median_step(t: &[f64]) -> f64 {
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    steps[steps.len() / 2]
 }
 
 /// `text` for the CSV reader: line ends as `\n`, each comment or blank line replaced by `#`, a
