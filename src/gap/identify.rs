@@ -607,7 +607,6 @@ pub fn identify(
     }
     let ms = Measured::sequence(train, initial, &opts.seg);
     let mut notes = Vec::new();
-    let mut estimates: Vec<Estimate> = Vec::new();
     let mut p = *initial;
 
     // 1. λ0 and x_to,max.
@@ -620,7 +619,64 @@ pub fn identify(
     let step1 = estimates_from(&fit1, initial, "1: first engagement");
 
     // 2. Convective terms on the cooling phase.
-    let (fp, fc, phases) = cooling_fit(&ms, opts);
+    let (step2, thermal_keys) = cooling_step(&mut p, initial, &ms, opts, &mut notes);
+
+    // 3–4, repeated.
+    let torque_keys = torque_keys(reaches_max);
+    let (fit3, fit4) =
+        thermal_and_torque_fits(&mut p, initial, &ms, &thermal_keys, &torque_keys, opts);
+    // 5. Joint refinement.
+    let fit5 = match (&fit3, &fit4) {
+        (Some(f3), Some(f4)) if opts.joint => {
+            let keys5: Vec<&'static str> = thermal_keys
+                .iter()
+                .chain(&opts.disk_keys)
+                .chain(&torque_keys)
+                .copied()
+                .collect();
+            let sigmas = (f3.rms(), f4.rms());
+            Some(joint_refinement(
+                &mut p, initial, &ms, &keys5, sigmas, opts, &mut notes,
+            ))
+        }
+        _ => None,
+    };
+    // Step 1's λ0 (and x_to,max) are the start values that step 4 refines: both are reported.
+    let mut estimates: Vec<Estimate> = step1;
+    estimates.extend(step2);
+    for (fit, step) in [
+        (&fit3, "3: thermal NLS (θ_pp, θ_cd)"),
+        (&fit4, "4: torque NLS (whole acquisition)"),
+        (&fit5, "5: joint (temperatures + torque)"),
+    ] {
+        if let Some(f) = fit {
+            estimates.extend(estimates_from(f, initial, step));
+        }
+    }
+    p.validate()?;
+    let training = output_fits(&p, &Nominal, &ms);
+    let vs = Measured::sequence(validate, &p, &opts.seg);
+    let validation = output_fits(&p, &Nominal, &vs);
+    Ok(Identification {
+        params: p,
+        estimates,
+        training,
+        validation,
+        notes,
+    })
+}
+
+/// Step 2: the convective terms α2 and α8 fitted on the cooling phases and set in `p`; a term
+/// without a usable cooling phase joins the thermal keys step 3 fits. Returns the estimates and
+/// the thermal keys.
+fn cooling_step(
+    p: &mut Params,
+    initial: &Params,
+    ms: &[Measured],
+    opts: &IdentifyOptions,
+    notes: &mut Vec<String>,
+) -> (Vec<Estimate>, Vec<&'static str>) {
+    let (fp, fc, phases) = cooling_fit(ms, opts);
     let mut thermal_keys: Vec<&'static str> = opts.thermal_keys.clone();
     let mut step2 = Vec::new();
     for (key, fit) in [
@@ -629,7 +685,7 @@ pub fn identify(
     ] {
         match fit {
             Some(f) if phases > 0 && f.beta[0] > 0.0 && f.std_err[0].is_finite() => {
-                keys::set(&mut p, key, f.beta[0]);
+                keys::set(p, key, f.beta[0]);
                 step2.push(Estimate {
                     key: key.to_string(),
                     unit: keys::unit(key).to_string(),
@@ -654,8 +710,12 @@ pub fn identify(
     if phases > 0 {
         notes.push(format!("step 2: {phases} cooling phase(s) used"));
     }
+    (step2, thermal_keys)
+}
 
-    // 3–4, repeated.
+/// Step 4's keys: the kiss point's polynomial in temperature, and x_to,max when the first
+/// engagement reaches it.
+fn torque_keys(reaches_max: bool) -> Vec<&'static str> {
     let mut torque_keys: Vec<&'static str> = vec![
         "clutch.x_isp0_mm",
         "clutch.x_isp1_mm_per_c",
@@ -664,95 +724,90 @@ pub fn identify(
     if reaches_max {
         torque_keys.push("clutch.x_to_max_mm");
     }
+    torque_keys
+}
+
+/// Steps 3–4, repeated `outer_iterations` times (at least once): the thermal fit, then the
+/// torque fit, each setting its values in `p`. Returns the last of each.
+fn thermal_and_torque_fits(
+    p: &mut Params,
+    initial: &Params,
+    ms: &[Measured],
+    thermal_keys: &[&'static str],
+    torque_keys: &[&'static str],
+    opts: &IdentifyOptions,
+) -> (Option<lsq::Fit>, Option<lsq::Fit>) {
     let mut fit3 = None;
     let mut fit4 = None;
     for _ in 0..opts.outer_iterations.max(1) {
-        let f3 = thermal_fit(&p, initial, &ms, &thermal_keys, opts.thermal_decimate);
+        let f3 = thermal_fit(p, initial, ms, thermal_keys, opts.thermal_decimate);
         for (k, v) in f3.names.iter().zip(&f3.p) {
-            keys::set(&mut p, k, *v);
+            keys::set(p, k, *v);
         }
-        let f4 = torque_fit(&p, initial, &ms, &torque_keys);
-        if let Some(q) = with_values(&p, &torque_keys, &f4.p) {
-            p = q;
+        let f4 = torque_fit(p, initial, ms, torque_keys);
+        if let Some(q) = with_values(p, torque_keys, &f4.p) {
+            *p = q;
         }
         fit3 = Some(f3);
         fit4 = Some(f4);
     }
-    // 5. Joint refinement.
-    let mut fit5 = None;
-    if opts.joint {
-        if let (Some(f3), Some(f4)) = (&fit3, &fit4) {
-            let keys5: Vec<&'static str> = thermal_keys
-                .iter()
-                .chain(&opts.disk_keys)
-                .chain(&torque_keys)
-                .copied()
-                .collect();
-            let (st, sq) = (f3.rms(), f4.rms());
-            let dec = opts.thermal_decimate;
-            let mut f5 = joint_fit(&p, initial, &ms, &keys5, dec, st, sq, None, 200);
-            notes.push(format!(
-                "step 5: {} iterations, {}, weighted rms {:.4}, largest parameter correlation {:.3}",
-                f5.iterations,
-                if f5.converged { "converged" } else { "iteration limit" },
-                f5.rms(),
-                f5.max_abs_correlation()
-            ));
-            if let Some(q) = with_values(&p, &keys5, &f5.p) {
-                p = q;
-            }
-            // Split-half refits (odd and even engagement blocks) from the solution: their spread
-            // measures how much the estimate depends on which engagements it saw, which the
-            // residual-based interval misses when the residuals are not pure sensor noise.
-            if opts.split_half {
-                let a = joint_fit(&p, initial, &ms, &keys5, dec, st, sq, Some(0), 40);
-                let b = joint_fit(&p, initial, &ms, &keys5, dec, st, sq, Some(1), 40);
-                for j in 0..f5.p.len() {
-                    let half = 0.5 * (a.p[j] - b.p[j]);
-                    let se = (f5.std_err[j].powi(2) + half * half).sqrt();
-                    f5.std_err[j] = se;
-                    f5.ci95[j] = (f5.p[j] - lsq::Z95 * se, f5.p[j] + lsq::Z95 * se);
-                }
-                notes.push(
-                    "step 5: intervals combine the residual-based (cluster-robust) covariance with the \
-                     spread of split-half refits on odd and even engagement blocks"
-                        .into(),
-                );
-            }
-            fit5 = Some(f5);
-        }
+    (fit3, fit4)
+}
+
+/// Step 5: the joint refinement of `keys5` from `p` (the temperatures and the torque weighted
+/// by step 3's and 4's residual RMS, `sigmas`), its values set in `p`; with
+/// `opts.split_half`, its intervals widened by split-half refits.
+fn joint_refinement(
+    p: &mut Params,
+    initial: &Params,
+    ms: &[Measured],
+    keys5: &[&'static str],
+    sigmas: (f64, f64),
+    opts: &IdentifyOptions,
+    notes: &mut Vec<String>,
+) -> lsq::Fit {
+    let (st, sq) = sigmas;
+    let dec = opts.thermal_decimate;
+    let mut f5 = joint_fit(p, initial, ms, keys5, dec, st, sq, None, 200);
+    notes.push(format!(
+        "step 5: {} iterations, {}, weighted rms {:.4}, largest parameter correlation {:.3}",
+        f5.iterations,
+        if f5.converged {
+            "converged"
+        } else {
+            "iteration limit"
+        },
+        f5.rms(),
+        f5.max_abs_correlation()
+    ));
+    if let Some(q) = with_values(p, keys5, &f5.p) {
+        *p = q;
     }
-    // Step 1's λ0 (and x_to,max) are the start values that step 4 refines: both are reported.
-    estimates.extend(step1);
-    estimates.extend(step2);
-    if let Some(f3) = &fit3 {
-        estimates.extend(estimates_from(f3, initial, "3: thermal NLS (θ_pp, θ_cd)"));
+    // Split-half refits (odd and even engagement blocks) from the solution: their spread
+    // measures how much the estimate depends on which engagements it saw, which the
+    // residual-based interval misses when the residuals are not pure sensor noise.
+    if opts.split_half {
+        let a = joint_fit(p, initial, ms, keys5, dec, st, sq, Some(0), 40);
+        let b = joint_fit(p, initial, ms, keys5, dec, st, sq, Some(1), 40);
+        widen_by_split_half(&mut f5, &a, &b);
+        notes.push(
+            "step 5: intervals combine the residual-based (cluster-robust) covariance with the \
+             spread of split-half refits on odd and even engagement blocks"
+                .into(),
+        );
     }
-    if let Some(f4) = &fit4 {
-        estimates.extend(estimates_from(
-            f4,
-            initial,
-            "4: torque NLS (whole acquisition)",
-        ));
+    f5
+}
+
+/// Widens a fit's standard errors and intervals by half the spread of two split-half refits
+/// `a` and `b` (added in quadrature).
+fn widen_by_split_half(f5: &mut lsq::Fit, a: &lsq::Fit, b: &lsq::Fit) {
+    for j in 0..f5.p.len() {
+        let half = 0.5 * (a.p[j] - b.p[j]);
+        let se = (f5.std_err[j].powi(2) + half * half).sqrt();
+        f5.std_err[j] = se;
+        f5.ci95[j] = (f5.p[j] - lsq::Z95 * se, f5.p[j] + lsq::Z95 * se);
     }
-    if let Some(f5) = &fit5 {
-        estimates.extend(estimates_from(
-            f5,
-            initial,
-            "5: joint (temperatures + torque)",
-        ));
-    }
-    p.validate()?;
-    let training = output_fits(&p, &Nominal, &ms);
-    let vs = Measured::sequence(validate, &p, &opts.seg);
-    let validation = output_fits(&p, &Nominal, &vs);
-    Ok(Identification {
-        params: p,
-        estimates,
-        training,
-        validation,
-        notes,
-    })
 }
 
 #[cfg(test)]
