@@ -713,8 +713,13 @@ pub fn corrects_inputs(t: &Terms) -> bool {
     t.temp_lag_s > 0.0 || t.temp_sensor.is_some() || t.torque_sensor.is_some()
 }
 
+/// Whether `chans` asks for channel `c` and `s` has samples of it.
+fn wanted(s: &Samples, chans: &[Channel], c: Channel) -> bool {
+    chans.contains(&c) && !s.get(c).is_empty()
+}
+
 fn want_torque(s: &Samples, chans: &[Channel]) -> bool {
-    (0..2).any(|i| chans.contains(&Channel::Torque(i)) && !s.get(Channel::Torque(i)).is_empty())
+    (0..2).any(|i| wanted(s, chans, Channel::Torque(i)))
 }
 
 /// The predictions of `model` on `m` with the disk replay `disk`.
@@ -726,142 +731,196 @@ fn predict_inner(
     disk: Option<&[Vec<f64>; 2]>,
     mut reuse: Reuse<'_>,
 ) -> Predictions {
-    let p = &model.p;
-    let h = SetHooks::of(model);
-    let t = &model.terms;
     let mut y = vec![Vec::new(); Channel::ALL.len()];
-    let want = |c: Channel| chans.contains(&c) && !s.get(c).is_empty();
     if let Some(dk) = disk {
-        let bearing = bearing_sequence(&model.set, m);
-        let surface = surface_of(model).map(|sf| {
-            let make = || Arc::new(surface_temperatures(&sf, m, dk));
-            match reuse.surface.as_deref_mut() {
-                Some(kept) => {
-                    let on = [0, 1].map(|i| (dk[i].as_ptr() as usize, dk[i].len()));
-                    recall(kept, (sf, on), |_| make()).clone()
-                }
-                None => make(),
-            }
-        });
-        let slide =
-            t.mu.iter()
-                .flatten()
-                .any(|(v, _)| *v == super::class::Variable::SlidingAcceleration)
-                .then(|| m.slides.get(m));
-        let skew = t.torque_skew_s / m.dt;
-        let shapes = m.slip_shapes.get(&p.clutch, m);
-        for i in 0..2 {
-            let c = Channel::Torque(i);
-            if !want(c) {
-                continue;
-            }
-            let at = |k: usize| {
-                torque_at(
-                    model,
-                    m,
-                    dk,
-                    bearing.as_ref(),
-                    surface.as_deref(),
-                    slide.as_deref().map(|s| &s.acc),
-                    &shapes,
-                    i,
-                    k,
-                )
-            };
-            let mut v = vector(&mut reuse.spare, c, s, m.n);
-            for &k in s.get(c) {
-                let tq = if skew == 0.0 {
-                    at(k)
-                } else {
-                    // Recorded late by the skew: the sample at k shows the torque at k − skew.
-                    let x = (k as f64 - skew).clamp(0.0, (m.n - 1) as f64);
-                    let (a, f) = (x.floor() as usize, x - x.floor());
-                    let b = (a + 1).min(m.n - 1);
-                    if f == 0.0 {
-                        at(a)
-                    } else {
-                        (1.0 - f) * at(a) + f * at(b)
-                    }
-                };
-                v[k] = t.measured_torque(tq);
-            }
-            y[c.index()] = v;
-        }
+        predict_torques(model, m, s, chans, dk, &mut reuse, &mut y);
     }
-    if (0..3).any(|j| want(Channel::Temp(j))) {
-        // The temperatures are read at every `stride`-th sample: the replay steps by it.
-        let stride = s.temp_stride;
-        let tr = super::windows::thermal_replay_fast(p, &h, m, stride);
-        for j in 0..3 {
-            let c = Channel::Temp(j);
-            if !want(c) {
-                continue;
-            }
-            let mut series: Vec<f64> = tr.iter().map(|s| [s.pp1, s.pp2, s.cd][j]).collect();
-            if t.temp_lag_s > 0.0 {
-                series = terms::lag2(
-                    &series,
-                    t.temp_lag_s,
-                    t.temp_lag2_share,
-                    stride as f64 * m.dt,
-                );
-            }
-            let mut v = vector(&mut reuse.spare, c, s, m.n);
-            for &k in s.get(c) {
-                debug_assert_eq!(k % stride, 0, "a temperature sample off the replay's grid");
-                let x = series[k / stride];
-                v[k] = match &t.temp_sensor {
-                    Some(g) => g.apply(x),
-                    None => x,
-                };
-            }
-            y[c.index()] = v;
-        }
+    if (0..3).any(|j| wanted(s, chans, Channel::Temp(j))) {
+        predict_temperatures(model, m, s, chans, &mut reuse.spare, &mut y);
     }
+    predict_positions(model, m, s, chans, &mut reuse, &mut y);
+    if wanted(s, chans, Channel::Engine) {
+        y[Channel::Engine.index()] = predict_engine(model, m, s, &mut reuse.spare);
+    }
+    Predictions { y, disk: None }
+}
+
+/// The clutch torques' predictions (into `y`) with the disk replay `dk`: the torque at each
+/// sample (read late by the model's torque skew, interpolated), as the torque sensor reads it.
+fn predict_torques(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    chans: &[Channel],
+    dk: &[Vec<f64>; 2],
+    reuse: &mut Reuse<'_>,
+    y: &mut [Vec<f64>],
+) {
+    let p = &model.p;
+    let t = &model.terms;
+    let bearing = bearing_sequence(&model.set, m);
+    let surface = surface_of(model).map(|sf| {
+        let make = || Arc::new(surface_temperatures(&sf, m, dk));
+        match reuse.surface.as_deref_mut() {
+            Some(kept) => {
+                let on = [0, 1].map(|i| (dk[i].as_ptr() as usize, dk[i].len()));
+                recall(kept, (sf, on), |_| make()).clone()
+            }
+            None => make(),
+        }
+    });
+    let slide =
+        t.mu.iter()
+            .flatten()
+            .any(|(v, _)| *v == super::class::Variable::SlidingAcceleration)
+            .then(|| m.slides.get(m));
+    let skew = t.torque_skew_s / m.dt;
+    let shapes = m.slip_shapes.get(&p.clutch, m);
     for i in 0..2 {
-        let Some(xr) = &m.x_req[i] else { continue };
-        {
-            let c = Channel::Pos(i);
-            if !want(c) {
-                continue;
-            }
-            let x0 = t
-                .pos_sensor
-                .map_or(m.x[i][0], |g| g.invert(m.x[i][0], X_REF_MM));
-            let fresh;
-            let xs: &[f64] = match reuse.actuator.as_deref_mut() {
-                Some(memo) => memo.positions(i, &p.actuator, &model.set, xr, x0, m.dt),
-                None => {
-                    let req = delayed_requests(&model.set, xr, m.dt);
-                    fresh = replay::actuator_replay(&p.actuator, &req, x0, m.dt);
-                    &fresh
-                }
-            };
-            let mut v = vector(&mut reuse.spare, c, s, m.n);
-            for &k in s.get(c) {
-                v[k] = match &t.pos_sensor {
-                    Some(g) => g.apply(xs[k], X_REF_MM),
-                    None => xs[k],
-                };
-            }
-            y[c.index()] = v;
+        let c = Channel::Torque(i);
+        if !wanted(s, chans, c) {
+            continue;
         }
-    }
-    if want(Channel::Engine) {
-        let c = Channel::Engine;
-        let w = ENGINE_WINDOW;
+        let at = |k: usize| {
+            torque_at(
+                model,
+                m,
+                dk,
+                bearing.as_ref(),
+                surface.as_deref(),
+                slide.as_deref().map(|s| &s.acc),
+                &shapes,
+                i,
+                k,
+            )
+        };
         let mut v = vector(&mut reuse.spare, c, s, m.n);
         for &k in s.get(c) {
-            // Mean real engine torque over the window: J_eq·Δω_f/Δt + mean clutch torques.
-            let dw = m.w_f[k + w] - m.w_f[k];
-            let real = p.driveline.j_eq_kgm2 * dw / (w as f64 * m.dt)
-                + window_mean(&m.torque[0], k)
-                + window_mean(&m.torque[1], k);
-            v[k] = effects::engine_map_estimate(&model.set, real);
+            let tq = if skew == 0.0 {
+                at(k)
+            } else {
+                // Recorded late by the skew: the sample at k shows the torque at k − skew.
+                let x = (k as f64 - skew).clamp(0.0, (m.n - 1) as f64);
+                let (a, f) = (x.floor() as usize, x - x.floor());
+                let b = (a + 1).min(m.n - 1);
+                if f == 0.0 {
+                    at(a)
+                } else {
+                    (1.0 - f) * at(a) + f * at(b)
+                }
+            };
+            v[k] = t.measured_torque(tq);
         }
         y[c.index()] = v;
     }
-    Predictions { y, disk: None }
+}
+
+/// The temperatures' predictions (into `y`): the thermal replay, lagged by the thermocouple's
+/// lag, as the temperature sensor reads it.
+fn predict_temperatures(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    chans: &[Channel],
+    spare: &mut Option<&mut Spare>,
+    y: &mut [Vec<f64>],
+) {
+    let p = &model.p;
+    let h = SetHooks::of(model);
+    let t = &model.terms;
+    // The temperatures are read at every `stride`-th sample: the replay steps by it.
+    let stride = s.temp_stride;
+    let tr = super::windows::thermal_replay_fast(p, &h, m, stride);
+    for j in 0..3 {
+        let c = Channel::Temp(j);
+        if !wanted(s, chans, c) {
+            continue;
+        }
+        let mut series: Vec<f64> = tr.iter().map(|s| [s.pp1, s.pp2, s.cd][j]).collect();
+        if t.temp_lag_s > 0.0 {
+            series = terms::lag2(
+                &series,
+                t.temp_lag_s,
+                t.temp_lag2_share,
+                stride as f64 * m.dt,
+            );
+        }
+        let mut v = vector(spare, c, s, m.n);
+        for &k in s.get(c) {
+            debug_assert_eq!(k % stride, 0, "a temperature sample off the replay's grid");
+            let x = series[k / stride];
+            v[k] = match &t.temp_sensor {
+                Some(g) => g.apply(x),
+                None => x,
+            };
+        }
+        y[c.index()] = v;
+    }
+}
+
+/// The bearing positions' predictions (into `y`) of each clutch with requests: the actuator
+/// replay from the requests (the dead time's delay, from the first reading as the position
+/// sensor's inverse gives it), as the position sensor reads it.
+fn predict_positions(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    chans: &[Channel],
+    reuse: &mut Reuse<'_>,
+    y: &mut [Vec<f64>],
+) {
+    let p = &model.p;
+    let t = &model.terms;
+    for i in 0..2 {
+        let Some(xr) = &m.x_req[i] else { continue };
+        let c = Channel::Pos(i);
+        if !wanted(s, chans, c) {
+            continue;
+        }
+        let x0 = t
+            .pos_sensor
+            .map_or(m.x[i][0], |g| g.invert(m.x[i][0], X_REF_MM));
+        let fresh;
+        let xs: &[f64] = match reuse.actuator.as_deref_mut() {
+            Some(memo) => memo.positions(i, &p.actuator, &model.set, xr, x0, m.dt),
+            None => {
+                let req = delayed_requests(&model.set, xr, m.dt);
+                fresh = replay::actuator_replay(&p.actuator, &req, x0, m.dt);
+                &fresh
+            }
+        };
+        let mut v = vector(&mut reuse.spare, c, s, m.n);
+        for &k in s.get(c) {
+            v[k] = match &t.pos_sensor {
+                Some(g) => g.apply(xs[k], X_REF_MM),
+                None => xs[k],
+            };
+        }
+        y[c.index()] = v;
+    }
+}
+
+/// The engine torque's prediction: the mean real engine torque over the window
+/// ([`ENGINE_WINDOW`]) through the engine map's estimate.
+fn predict_engine(
+    model: &Model,
+    m: &Measured,
+    s: &Samples,
+    spare: &mut Option<&mut Spare>,
+) -> Vec<f64> {
+    let p = &model.p;
+    let c = Channel::Engine;
+    let w = ENGINE_WINDOW;
+    let mut v = vector(spare, c, s, m.n);
+    for &k in s.get(c) {
+        // Mean real engine torque over the window: J_eq·Δω_f/Δt + mean clutch torques.
+        let dw = m.w_f[k + w] - m.w_f[k];
+        let real = p.driveline.j_eq_kgm2 * dw / (w as f64 * m.dt)
+            + window_mean(&m.torque[0], k)
+            + window_mean(&m.torque[1], k);
+        v[k] = effects::engine_map_estimate(&model.set, real);
+    }
+    v
 }
 
 /// Sliding acceleration d|ω_fc|/dt (rad/s²) by a centred difference over ±2 samples.
