@@ -91,6 +91,11 @@ fn bin(edges: &[f64], v: f64) -> Option<usize> {
     (0..edges.len() - 1).find(|&j| v >= edges[j] && v < edges[j + 1])
 }
 
+/// The index of the bias map's cell of θ_c bin `a`, slip bin `b` and x_to bin `d`.
+fn cell_index(a: usize, b: usize, d: usize) -> usize {
+    (a * (SLIP_EDGES.len() - 1) + b) * (X_EDGES.len() - 1) + d
+}
+
 /// Bias map of the torque residual of `preds` (one per file) over θ_c × slip × x_to.
 pub fn bias_map(
     files: &[&Measured],
@@ -99,6 +104,30 @@ pub fn bias_map(
     label: &str,
     q: f64,
 ) -> BiasMap {
+    let (sums, all) = binned_torque_residuals(files, samples, preds);
+    let rho = lsq::lag1_autocorrelation(&all).clamp(0.0, 0.999);
+    let infl = (1.0 - rho) / (1.0 + rho);
+    let (mut cells, ps) = bias_cells(&sums, infl);
+    let rej = stats::benjamini_hochberg(&ps, q);
+    for (c, r) in cells.iter_mut().zip(&rej) {
+        c.flagged = *r;
+    }
+    BiasMap {
+        output: "T_c (both clutches)".into(),
+        model: label.into(),
+        tested: cells.len(),
+        flagged: cells.iter().filter(|c| c.flagged).count(),
+        cells,
+    }
+}
+
+/// The finite torque residuals of `preds` with a disk replay: per cell of the bias map their
+/// count, sum and sum of squares, and all of them in order (those outside every cell too).
+fn binned_torque_residuals(
+    files: &[&Measured],
+    samples: &[&Samples],
+    preds: &[Predictions],
+) -> (Vec<(usize, f64, f64)>, Vec<f64>) {
     let nb = (THETA_EDGES.len() - 1) * (SLIP_EDGES.len() - 1) * (X_EDGES.len() - 1);
     let mut sums = vec![(0usize, 0.0f64, 0.0f64); nb];
     let mut all = Vec::new();
@@ -123,22 +152,25 @@ pub fn bias_map(
                 ) else {
                     continue;
                 };
-                let j = (a * (SLIP_EDGES.len() - 1) + b) * (X_EDGES.len() - 1) + d;
+                let j = cell_index(a, b, d);
                 sums[j].0 += 1;
                 sums[j].1 += r;
                 sums[j].2 += r * r;
             }
         }
     }
-    let rho = lsq::lag1_autocorrelation(&all).clamp(0.0, 0.999);
-    let infl = (1.0 - rho) / (1.0 + rho);
+    (sums, all)
+}
+
+/// The bias map's cells with at least 10 residuals: the mean residual's z test, its sample
+/// size inflated by `infl` for the autocorrelation (not yet flagged); and their p-values.
+fn bias_cells(sums: &[(usize, f64, f64)], infl: f64) -> (Vec<BiasCell>, Vec<f64>) {
     let mut cells = Vec::new();
     let mut ps = Vec::new();
     for a in 0..THETA_EDGES.len() - 1 {
         for b in 0..SLIP_EDGES.len() - 1 {
             for d in 0..X_EDGES.len() - 1 {
-                let j = (a * (SLIP_EDGES.len() - 1) + b) * (X_EDGES.len() - 1) + d;
-                let (n, s, s2) = sums[j];
+                let (n, s, s2) = sums[cell_index(a, b, d)];
                 if n < 10 {
                     continue;
                 }
@@ -161,17 +193,7 @@ pub fn bias_map(
             }
         }
     }
-    let rej = stats::benjamini_hochberg(&ps, q);
-    for (c, r) in cells.iter_mut().zip(&rej) {
-        c.flagged = *r;
-    }
-    BiasMap {
-        output: "T_c (both clutches)".into(),
-        model: label.into(),
-        tested: cells.len(),
-        flagged: cells.iter().filter(|c| c.flagged).count(),
-        cells,
-    }
+    (cells, ps)
 }
 
 /// Residual subsystems, bias maps and flagged segments of the recalibrated model.
@@ -184,7 +206,25 @@ pub fn locate(
     chans: &[Channel],
     q: f64,
 ) -> Where {
-    // Subsystems.
+    let subs = residual_subsystems(files, samples, preds, sigmas, chans);
+    let (flagged, tested) = flagged_segments(files, samples, preds, sigmas, chans, q);
+    Where {
+        residual_subsystems: subs,
+        bias_maps: vec![bias_map(files, samples, preds, "recalibrated", q)],
+        flagged_segments: flagged,
+        segments_tested: tested,
+    }
+}
+
+/// The subsystems with a checked channel, by decreasing excess: the mean standardized square
+/// of their residuals above 1, its z against noise only, and each output's RMS and noise.
+fn residual_subsystems(
+    files: &[&Measured],
+    samples: &[&Samples],
+    preds: &[Predictions],
+    sigmas: &[&[f64]],
+    chans: &[Channel],
+) -> Vec<ResidualSubsystem> {
     let mut subs: Vec<ResidualSubsystem> = Vec::new();
     let subsystem_names = ["torque_characteristic", "thermal", "actuator", "engine"];
     for name in subsystem_names {
@@ -201,24 +241,7 @@ pub fn locate(
         let mut neff = 0.0;
         let mut outputs = Vec::new();
         for c in &cs {
-            let mut r = Vec::new();
-            let mut z2 = 0.0;
-            let mut s2 = 0.0;
-            for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
-                let y = &pr.y[c.index()];
-                if y.is_empty() {
-                    continue;
-                }
-                let sig = sg[c.index()];
-                for &k in s.get(*c) {
-                    let e = candidates::measured(m, *c, k) - y[k];
-                    if e.is_finite() {
-                        r.push(e);
-                        z2 += e * e / (sig * sig);
-                        s2 += sig * sig;
-                    }
-                }
-            }
+            let (r, z2, s2) = channel_residuals(*c, files, samples, preds, sigmas);
             if r.is_empty() {
                 continue;
             }
@@ -247,56 +270,56 @@ pub fn locate(
         });
     }
     subs.sort_by(|a, b| b.excess_pct.total_cmp(&a.excess_pct));
-    // Segments: blocks of every file.
-    let mut segs = Vec::new();
-    let mut ps = Vec::new();
+    subs
+}
+
+/// Channel `c`'s finite residuals over every file in order, the sum of their squares over
+/// the noise variance, and the sum of the noise variance over them.
+fn channel_residuals(
+    c: Channel,
+    files: &[&Measured],
+    samples: &[&Samples],
+    preds: &[Predictions],
+    sigmas: &[&[f64]],
+) -> (Vec<f64>, f64, f64) {
+    let mut r = Vec::new();
+    let mut z2 = 0.0;
+    let mut s2 = 0.0;
     for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
-        for &(a, b) in &m.seg.blocks {
-            let mut s_std = 0.0;
-            let mut n = 0.0;
-            let mut worst = (0.0, "");
-            for c in chans {
-                let y = &pr.y[c.index()];
-                if y.is_empty() {
-                    continue;
-                }
-                let sig = sg[c.index()];
-                let idx = s.get(*c);
-                let lo = idx.partition_point(|&k| k < a);
-                let hi = idx.partition_point(|&k| k < b);
-                let mut sc = 0.0;
-                for &k in &idx[lo..hi] {
-                    let e = (candidates::measured(m, *c, k) - y[k]) / sig;
-                    if e.is_finite() {
-                        sc += e * e;
-                        n += 1.0;
-                    }
-                }
-                s_std += sc;
-                if sc > worst.0 {
-                    worst = (sc, c.name());
-                }
+        let y = &pr.y[c.index()];
+        if y.is_empty() {
+            continue;
+        }
+        let sig = sg[c.index()];
+        for &k in s.get(c) {
+            let e = candidates::measured(m, c, k) - y[k];
+            if e.is_finite() {
+                r.push(e);
+                z2 += e * e / (sig * sig);
+                s2 += sig * sig;
             }
-            if n < 20.0 {
-                continue;
-            }
-            let ms = s_std / n;
-            // Residual samples inside a block are correlated: count at most one independent
-            // sample per 10 (0.1 s).
-            let neff = (n / 10.0).max(2.0);
-            let z = (ms - 1.0) / (2.0 / neff).sqrt();
-            let p = 1.0 - stats::normal_cdf(z);
-            ps.push(p);
-            segs.push(Segment {
-                file: m.source.clone(),
-                t_start_s: m.time[a],
-                t_end_s: m.time[b.saturating_sub(1)],
-                ms_std: ms,
-                output: worst.1.to_string(),
-                p,
-            });
         }
     }
+    (r, z2, s2)
+}
+
+/// The flagged segments (at most 30, largest first) among the event blocks of every file,
+/// under Benjamini–Hochberg at `q`, and the number of blocks tested.
+fn flagged_segments(
+    files: &[&Measured],
+    samples: &[&Samples],
+    preds: &[Predictions],
+    sigmas: &[&[f64]],
+    chans: &[Channel],
+    q: f64,
+) -> (Vec<Segment>, usize) {
+    let mut segs = Vec::new();
+    for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
+        for &block in &m.seg.blocks {
+            segs.extend(block_segment(m, s, pr, sg, chans, block));
+        }
+    }
+    let ps: Vec<f64> = segs.iter().map(|s| s.p).collect();
     let rej = stats::benjamini_hochberg(&ps, q);
     let tested = segs.len();
     let mut flagged: Vec<Segment> = segs
@@ -307,10 +330,60 @@ pub fn locate(
         .collect();
     flagged.sort_by(|a, b| b.ms_std.total_cmp(&a.ms_std));
     flagged.truncate(30);
-    Where {
-        residual_subsystems: subs,
-        bias_maps: vec![bias_map(files, samples, preds, "recalibrated", q)],
-        flagged_segments: flagged,
-        segments_tested: tested,
+    (flagged, tested)
+}
+
+/// The segment of event block `[a, b)` of one file: the mean standardized square of its
+/// residuals, the output contributing most and the p-value of noise only; `None` with fewer
+/// than 20 residuals.
+fn block_segment(
+    m: &Measured,
+    s: &Samples,
+    pr: &Predictions,
+    sg: &[f64],
+    chans: &[Channel],
+    (a, b): (usize, usize),
+) -> Option<Segment> {
+    let mut s_std = 0.0;
+    let mut n = 0.0;
+    let mut worst = (0.0, "");
+    for c in chans {
+        let y = &pr.y[c.index()];
+        if y.is_empty() {
+            continue;
+        }
+        let sig = sg[c.index()];
+        let idx = s.get(*c);
+        let lo = idx.partition_point(|&k| k < a);
+        let hi = idx.partition_point(|&k| k < b);
+        let mut sc = 0.0;
+        for &k in &idx[lo..hi] {
+            let e = (candidates::measured(m, *c, k) - y[k]) / sig;
+            if e.is_finite() {
+                sc += e * e;
+                n += 1.0;
+            }
+        }
+        s_std += sc;
+        if sc > worst.0 {
+            worst = (sc, c.name());
+        }
     }
+    if n < 20.0 {
+        return None;
+    }
+    let ms = s_std / n;
+    // Residual samples inside a block are correlated: count at most one independent
+    // sample per 10 (0.1 s).
+    let neff = (n / 10.0).max(2.0);
+    let z = (ms - 1.0) / (2.0 / neff).sqrt();
+    let p = 1.0 - stats::normal_cdf(z);
+    Some(Segment {
+        file: m.source.clone(),
+        t_start_s: m.time[a],
+        t_end_s: m.time[b.saturating_sub(1)],
+        ms_std: ms,
+        output: worst.1.to_string(),
+        p,
+    })
 }
