@@ -281,17 +281,7 @@ pub fn rig_frames<H: Hooks>(
     seed: u64,
     step_s: f64,
 ) -> Result<Vec<LogRecord>, SynthError> {
-    if exp.profile.is_empty() || exp.clutches.is_empty() || exp.dyno_rpm.is_empty() {
-        return Err(SynthError::Experiment(
-            "profile, clutches and dyno_rpm must not be empty".into(),
-        ));
-    }
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    if exp.clutches.iter().any(|c| *c > 1) || !positive(exp.period_s) || !positive(step_s) {
-        return Err(SynthError::Experiment(
-            "clutches are 0 or 1; period and step must be positive".into(),
-        ));
-    }
+    check_experiment(exp, step_s)?;
     let rig = RigModel::new(*p, hooks);
     let mut rng = Rng::new(seed);
     let mut s = RigState {
@@ -315,7 +305,7 @@ pub fn rig_frames<H: Hooks>(
         if k % sample_every == 0 {
             let tq = rig.torques(&s, &u);
             let ts = t_base + Duration::from_micros((t * 1e6).round() as u64);
-            let mut frame = |id: u16, mut data: [u8; 8], protect: bool| {
+            for (id, mut data, protect) in sample_messages(&s, &u, tq, rpm, noise, &mut rng) {
                 if protect {
                     e2e.protect(id, &mut data);
                 }
@@ -327,71 +317,6 @@ pub fn rig_frames<H: Hooks>(
                         direction: None,
                     });
                 }
-            };
-            let n = |rng: &mut Rng, s: f64| s * rng.normal();
-            let d = EngStatus::def();
-            let m = EngStatus {
-                eng_speed: clamp_to(d, 0, rpm + n(&mut rng, noise.speed_rpm)),
-                eng_torque_act: clamp_to(d, 1, tq[0] + tq[1]),
-                ..Default::default()
-            };
-            if let Ok(data) = m.encode() {
-                frame(EngStatus::ID, data, true);
-            }
-            let d = DctSensors::def();
-            let m = DctSensors {
-                in_shaft1_speed: clamp_to(d, 0, n(&mut rng, noise.speed_rpm)),
-                in_shaft2_speed: clamp_to(d, 1, n(&mut rng, noise.speed_rpm)),
-                out_shaft_speed: 0.0,
-                housing_temp: clamp_to(d, 3, exp.theta_h_c),
-                ..Default::default()
-            };
-            if let Ok(data) = m.encode() {
-                frame(DctSensors::ID, data, true);
-            }
-            let d = DctActuators::def();
-            let m = DctActuators {
-                clutch1_pos: clamp_to(d, 0, s.x_mm[0] + n(&mut rng, noise.pos_mm)),
-                clutch2_pos: clamp_to(d, 1, s.x_mm[1] + n(&mut rng, noise.pos_mm)),
-                ..Default::default()
-            };
-            if let Ok(data) = m.encode() {
-                frame(DctActuators::ID, data, true);
-            }
-            let d = BenchTorque::def();
-            let m = BenchTorque {
-                clutch1_torque: clamp_to(d, 0, tq[0] + n(&mut rng, noise.torque_nm)),
-                clutch2_torque: clamp_to(d, 1, tq[1] + n(&mut rng, noise.torque_nm)),
-            };
-            if let Ok(data) = m.encode() {
-                frame(BenchTorque::ID, data, false);
-            }
-            let d = BenchTemps::def();
-            let th = s.thermal;
-            let m = BenchTemps {
-                pressure_plate1_temp: clamp_to(d, 0, th.pp1 + n(&mut rng, noise.temp_c)),
-                pressure_plate2_temp: clamp_to(d, 1, th.pp2 + n(&mut rng, noise.temp_c)),
-                central_disk_temp: clamp_to(d, 2, th.cd + n(&mut rng, noise.temp_c)),
-            };
-            if let Ok(data) = m.encode() {
-                frame(BenchTemps::ID, data, false);
-            }
-            let d = TcuClutchCmd::def();
-            let m = TcuClutchCmd {
-                clutch1_pos_req: clamp_to(d, 0, x[0]),
-                clutch2_pos_req: clamp_to(d, 1, x[1]),
-                ..Default::default()
-            };
-            if let Ok(data) = m.encode() {
-                frame(TcuClutchCmd::ID, data, true);
-            }
-            let d = SimTruth::def();
-            let m = SimTruth {
-                clutch1_temp_true: clamp_to(d, 0, th.c1),
-                clutch2_temp_true: clamp_to(d, 1, th.c2),
-            };
-            if let Ok(data) = m.encode() {
-                frame(SimTruth::ID, data, false);
             }
         }
         if k == steps {
@@ -400,6 +325,95 @@ pub fn rig_frames<H: Hooks>(
         s = rk4_step(&rig, &s, &u, step_s);
     }
     Ok(out)
+}
+
+/// The experiment's checks: a profile, clutches 0 or 1 and dyno speeds given, a positive
+/// period and integration step.
+fn check_experiment(exp: &RigExperiment, step_s: f64) -> Result<(), SynthError> {
+    if exp.profile.is_empty() || exp.clutches.is_empty() || exp.dyno_rpm.is_empty() {
+        return Err(SynthError::Experiment(
+            "profile, clutches and dyno_rpm must not be empty".into(),
+        ));
+    }
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    if exp.clutches.iter().any(|c| *c > 1) || !positive(exp.period_s) || !positive(step_s) {
+        return Err(SynthError::Experiment(
+            "clutches are 0 or 1; period and step must be positive".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// One sample's messages as (id, payload, whether E2E-protected), those that encode: the rig's
+/// state `s`, torques `tq` and dyno speed `rpm` as the sensors read them (noise drawn from
+/// `rng` in the messages' order, clamped to the contract's ranges), the requests of `u`, and the
+/// true clutch temperatures.
+fn sample_messages(
+    s: &RigState,
+    u: &RigInput,
+    tq: [f64; 2],
+    rpm: f64,
+    noise: SensorNoise,
+    rng: &mut Rng,
+) -> Vec<(u16, [u8; 8], bool)> {
+    let mut msgs = Vec::with_capacity(7);
+    let mut message = |id: u16, data: Option<[u8; 8]>, protect: bool| {
+        if let Some(data) = data {
+            msgs.push((id, data, protect));
+        }
+    };
+    let n = |rng: &mut Rng, s: f64| s * rng.normal();
+    let d = EngStatus::def();
+    let m = EngStatus {
+        eng_speed: clamp_to(d, 0, rpm + n(rng, noise.speed_rpm)),
+        eng_torque_act: clamp_to(d, 1, tq[0] + tq[1]),
+        ..Default::default()
+    };
+    message(EngStatus::ID, m.encode().ok(), true);
+    let d = DctSensors::def();
+    let m = DctSensors {
+        in_shaft1_speed: clamp_to(d, 0, n(rng, noise.speed_rpm)),
+        in_shaft2_speed: clamp_to(d, 1, n(rng, noise.speed_rpm)),
+        out_shaft_speed: 0.0,
+        housing_temp: clamp_to(d, 3, u.theta_h_c),
+        ..Default::default()
+    };
+    message(DctSensors::ID, m.encode().ok(), true);
+    let d = DctActuators::def();
+    let m = DctActuators {
+        clutch1_pos: clamp_to(d, 0, s.x_mm[0] + n(rng, noise.pos_mm)),
+        clutch2_pos: clamp_to(d, 1, s.x_mm[1] + n(rng, noise.pos_mm)),
+        ..Default::default()
+    };
+    message(DctActuators::ID, m.encode().ok(), true);
+    let d = BenchTorque::def();
+    let m = BenchTorque {
+        clutch1_torque: clamp_to(d, 0, tq[0] + n(rng, noise.torque_nm)),
+        clutch2_torque: clamp_to(d, 1, tq[1] + n(rng, noise.torque_nm)),
+    };
+    message(BenchTorque::ID, m.encode().ok(), false);
+    let d = BenchTemps::def();
+    let th = s.thermal;
+    let m = BenchTemps {
+        pressure_plate1_temp: clamp_to(d, 0, th.pp1 + n(rng, noise.temp_c)),
+        pressure_plate2_temp: clamp_to(d, 1, th.pp2 + n(rng, noise.temp_c)),
+        central_disk_temp: clamp_to(d, 2, th.cd + n(rng, noise.temp_c)),
+    };
+    message(BenchTemps::ID, m.encode().ok(), false);
+    let d = TcuClutchCmd::def();
+    let m = TcuClutchCmd {
+        clutch1_pos_req: clamp_to(d, 0, u.x_ref_mm[0]),
+        clutch2_pos_req: clamp_to(d, 1, u.x_ref_mm[1]),
+        ..Default::default()
+    };
+    message(TcuClutchCmd::ID, m.encode().ok(), true);
+    let d = SimTruth::def();
+    let m = SimTruth {
+        clutch1_temp_true: clamp_to(d, 0, th.c1),
+        clutch2_temp_true: clamp_to(d, 1, th.c2),
+    };
+    message(SimTruth::ID, m.encode().ok(), false);
+    msgs
 }
 
 /// [`rig_frames`] decoded into a dataset, as a log of the experiment would be.
