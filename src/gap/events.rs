@@ -171,57 +171,92 @@ fn runs(flags: &[bool], value: bool) -> Vec<(usize, usize)> {
 pub fn segment(d: &Dataset, o: &SegmentOptions) -> Segmentation {
     let n = d.len();
     let dt = d.dt;
-    let theta = |k: usize| (d.req(Col::Pp1)[k] + d.req(Col::Pp2)[k] + d.req(Col::Cd)[k]) / 3.0;
     let closed = [
         closed_flags(d.req(Col::T1), o, dt),
         closed_flags(d.req(Col::T2), o, dt),
     ];
     let mut events = Vec::new();
-    let min_eng = (o.min_engagement_s / dt).round() as usize;
     for i in 0..2 {
-        let slip = d.slip(i);
-        let tq = d.req(Col::torque(i));
-        for (s, e) in runs(&closed[i], true) {
-            if e - s < min_eng.max(1) {
-                continue;
-            }
-            // Split into slipping and locked pieces; short locked blips stay in the engagement.
-            let locked: Vec<bool> = (s..e).map(|k| slip[k].abs() < o.lock_slip).collect();
-            let mut pieces: Vec<(bool, usize, usize)> = Vec::new();
-            for (a, b) in runs(&locked, true) {
-                if b - a >= min_eng.max(1) {
-                    pieces.push((true, s + a, s + b));
-                }
-            }
-            let mut cursor = s;
-            let mut out = Vec::new();
-            for (_, a, b) in &pieces {
-                if *a > cursor {
-                    out.push((EventKind::Engagement, cursor, *a));
-                }
-                out.push((EventKind::Locked, *a, *b));
-                cursor = *b;
-            }
-            if cursor < e {
-                out.push((EventKind::Engagement, cursor, e));
-            }
-            for (kind, a, b) in out {
-                let peak = tq[a..b].iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                events.push(Event {
-                    kind,
-                    clutch: Some(i),
-                    start: a,
-                    end: b,
-                    peak_torque: peak,
-                    theta_start: theta(a),
-                });
-            }
-        }
+        events.extend(clutch_events(d, i, &closed[i], o));
     }
     let any_closed: Vec<bool> = (0..n).map(|k| closed[0][k] || closed[1][k]).collect();
-    let min_open = (o.min_open_s / dt).round() as usize;
-    let cooling = (o.cooling_s / dt).round() as usize;
-    for (s, e) in runs(&any_closed, false) {
+    events.extend(open_events(d, &any_closed, o));
+    events.sort_by_key(|e| (e.start, e.end));
+    let blocks = blocks(&any_closed, o, dt);
+    Segmentation {
+        events,
+        blocks,
+        closed,
+    }
+}
+
+/// The mean of the three measured temperatures at sample `k`.
+fn theta_mean(d: &Dataset, k: usize) -> f64 {
+    (d.req(Col::Pp1)[k] + d.req(Col::Pp2)[k] + d.req(Col::Cd)[k]) / 3.0
+}
+
+/// Clutch `i`'s events: each closed interval long enough, split into slipping (engagement)
+/// and locked pieces, with its peak torque and its start temperature.
+fn clutch_events(d: &Dataset, i: usize, closed: &[bool], o: &SegmentOptions) -> Vec<Event> {
+    let min_eng = (o.min_engagement_s / d.dt).round() as usize;
+    let slip = d.slip(i);
+    let tq = d.req(Col::torque(i));
+    let mut events = Vec::new();
+    for (s, e) in runs(closed, true) {
+        if e - s < min_eng.max(1) {
+            continue;
+        }
+        let locked: Vec<bool> = (s..e).map(|k| slip[k].abs() < o.lock_slip).collect();
+        for (kind, a, b) in engagement_pieces(&locked, s, e, min_eng) {
+            let peak = tq[a..b].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            events.push(Event {
+                kind,
+                clutch: Some(i),
+                start: a,
+                end: b,
+                peak_torque: peak,
+                theta_start: theta_mean(d, a),
+            });
+        }
+    }
+    events
+}
+
+/// The closed interval `[s, e)` split into slipping and locked pieces, `locked` flagging its
+/// samples; short locked blips (under `min_eng` samples) stay in the engagement.
+fn engagement_pieces(
+    locked: &[bool],
+    s: usize,
+    e: usize,
+    min_eng: usize,
+) -> Vec<(EventKind, usize, usize)> {
+    let mut pieces: Vec<(bool, usize, usize)> = Vec::new();
+    for (a, b) in runs(locked, true) {
+        if b - a >= min_eng.max(1) {
+            pieces.push((true, s + a, s + b));
+        }
+    }
+    let mut cursor = s;
+    let mut out = Vec::new();
+    for (_, a, b) in &pieces {
+        if *a > cursor {
+            out.push((EventKind::Engagement, cursor, *a));
+        }
+        out.push((EventKind::Locked, *a, *b));
+        cursor = *b;
+    }
+    if cursor < e {
+        out.push((EventKind::Engagement, cursor, e));
+    }
+    out
+}
+
+/// The open stretches (both clutches open) long enough: cooling when long, else open.
+fn open_events(d: &Dataset, any_closed: &[bool], o: &SegmentOptions) -> Vec<Event> {
+    let min_open = (o.min_open_s / d.dt).round() as usize;
+    let cooling = (o.cooling_s / d.dt).round() as usize;
+    let mut events = Vec::new();
+    for (s, e) in runs(any_closed, false) {
         if e - s >= min_open {
             events.push(Event {
                 kind: if e - s >= cooling {
@@ -233,16 +268,20 @@ pub fn segment(d: &Dataset, o: &SegmentOptions) -> Segmentation {
                 start: s,
                 end: e,
                 peak_torque: 0.0,
-                theta_start: theta(s),
+                theta_start: theta_mean(d, s),
             });
         }
     }
-    events.sort_by_key(|e| (e.start, e.end));
-    // Blocks: cut at the middle of each open stretch between closed intervals; long open stretches
-    // are blocks of their own, in pieces of `block_open_s`.
+    events
+}
+
+/// Blocks: cut at the middle of each open stretch between closed intervals; long open stretches
+/// are blocks of their own, in pieces of `block_open_s`.
+fn blocks(any_closed: &[bool], o: &SegmentOptions, dt: f64) -> Vec<(usize, usize)> {
+    let n = any_closed.len();
     let mut cuts = vec![0usize];
     let long = (o.block_open_s / dt).round().max(1.0) as usize;
-    let open_runs = runs(&any_closed, false);
+    let open_runs = runs(any_closed, false);
     for (s, e) in open_runs {
         if s == 0 && e == n {
             break;
@@ -272,16 +311,10 @@ pub fn segment(d: &Dataset, o: &SegmentOptions) -> Segmentation {
     cuts.push(n);
     cuts.sort_unstable();
     cuts.dedup();
-    let blocks = cuts
-        .windows(2)
+    cuts.windows(2)
         .filter(|w| w[1] > w[0])
         .map(|w| (w[0], w[1]))
-        .collect();
-    Segmentation {
-        events,
-        blocks,
-        closed,
-    }
+        .collect()
 }
 
 #[cfg(test)]
