@@ -1287,11 +1287,7 @@ fn decode_log(
             continue;
         }
         let start = *t0.get_or_insert(rec.timestamp);
-        // Signed seconds since the first frame (a frame older than it is reordering too).
-        let t = match rec.timestamp.checked_sub(start) {
-            Some(d) => d.as_secs_f64(),
-            None => -(start - rec.timestamp).as_secs_f64(),
-        };
+        let t = seconds_since(start, rec.timestamp);
         if t < latest - MAX_HOLD_S {
             return Err(DatasetError::LogTimeOrder {
                 file: file.into(),
@@ -1313,50 +1309,71 @@ fn decode_log(
         }
         let msg = match Message::decode(id, frame.bytes()) {
             Ok(m) => m,
-            Err(CodecError::OutOfRange {
-                message,
-                signal,
-                value,
-                min,
-                max,
-            }) if read_here(id) => {
-                let unit = message_def(id)
-                    .and_then(|d| d.signals.iter().find(|s| s.name == signal))
-                    .map_or("", |s| s.unit);
-                return Err(DatasetError::SignalRange {
-                    file: file.into(),
-                    line,
-                    signal: format!("{message}.{signal}"),
-                    value,
-                    min,
-                    max,
-                    unit: unit.into(),
-                });
-            }
-            Err(CodecError::UnknownValue {
-                message,
-                signal,
-                raw: r,
-            }) if read_here(id) => {
-                let table = message_def(id)
-                    .and_then(|d| d.signals.iter().find(|s| s.name == signal))
-                    .map_or_else(String::new, value_table);
-                return Err(DatasetError::SignalValue {
-                    file: file.into(),
-                    line,
-                    signal: format!("{message}.{signal}"),
-                    raw: r,
-                    table,
-                });
-            }
-            Err(_) => {
-                stats.undecodable += 1;
-                continue;
-            }
+            Err(e) => match signal_error(file, line, id, e) {
+                Some(e) => return Err(e),
+                None => {
+                    stats.undecodable += 1;
+                    continue;
+                }
+            },
         };
         raw.push(t, line, &msg);
     }
     raw.into_raw(file, dt, stats)
+}
+
+/// Signed seconds from `start` to `timestamp` (a frame older than the first is reordering too).
+fn seconds_since(start: std::time::Duration, timestamp: std::time::Duration) -> f64 {
+    match timestamp.checked_sub(start) {
+        Some(d) => d.as_secs_f64(),
+        None => -(start - timestamp).as_secs_f64(),
+    }
+}
+
+/// The error of a frame of message `id` (at `line`) that does not decode: a signal out of its
+/// range or without an entry in its value table, in a message the diagnosis reads; `None` for
+/// the others, which are only counted as undecodable.
+fn signal_error(file: &str, line: usize, id: u32, e: CodecError) -> Option<DatasetError> {
+    if !read_here(id) {
+        return None;
+    }
+    let def =
+        |signal: &str| message_def(id).and_then(|d| d.signals.iter().find(|s| s.name == signal));
+    match e {
+        CodecError::OutOfRange {
+            message,
+            signal,
+            value,
+            min,
+            max,
+        } => {
+            let unit = def(signal).map_or("", |s| s.unit);
+            Some(DatasetError::SignalRange {
+                file: file.into(),
+                line,
+                signal: format!("{message}.{signal}"),
+                value,
+                min,
+                max,
+                unit: unit.into(),
+            })
+        }
+        CodecError::UnknownValue {
+            message,
+            signal,
+            raw: r,
+        } => {
+            let table = def(signal).map_or_else(String::new, value_table);
+            Some(DatasetError::SignalValue {
+                file: file.into(),
+                line,
+                signal: format!("{message}.{signal}"),
+                raw: r,
+                table,
+            })
+        }
+        _ => None,
+    }
 }
 
 /// One signal's samples at its own times.
@@ -1651,6 +1668,49 @@ fn resample(
     mut stats: LoadStats,
     cycles: bool,
 ) -> Result<Dataset, DatasetError> {
+    let (t_start, t_end) = grid_span(file, series, dt, cycles)?;
+    let n = ((t_end - t_start) / dt + 1e-9).floor() as usize + 1;
+    if n < 2 {
+        return Err(DatasetError::TooShort {
+            file: file.into(),
+            rows: n,
+            min: 2,
+        });
+    }
+    let grid: Vec<f64> = (0..n).map(|k| t_start + k as f64 * dt).collect();
+    let mut valid = vec![true; n];
+    let mut cols: Vec<Option<Vec<f64>>> = vec![None; NCOL];
+    for c in Col::ALL {
+        let Some(s) = series[c.idx()].as_ref() else {
+            continue;
+        };
+        if s.t.is_empty() {
+            // An optional signal silent in this segment: absent here.
+            continue;
+        }
+        cols[c.idx()] = Some(on_grid(c, s, &grid, dt, hold, cycles, &mut valid));
+    }
+    stats.invalid_points = valid.iter().filter(|v| !**v).count();
+    Ok(Dataset {
+        source: file.into(),
+        time: grid.iter().map(|t| t - t_start).collect(),
+        dt,
+        cols,
+        valid,
+        stats,
+        start_s: t_start,
+    })
+}
+
+/// The grid's span: the common span of the required series (with `cycles`, anchored at the
+/// cycle clock's first time in it and extended by half a step); an error when a required series
+/// is too short or the span is empty.
+fn grid_span(
+    file: &str,
+    series: &[Option<SeriesRef>],
+    dt: f64,
+    cycles: bool,
+) -> Result<(f64, f64), DatasetError> {
     let mut t_start = f64::NEG_INFINITY;
     let mut t_end = f64::INFINITY;
     for c in Col::ALL.iter().filter(|c| c.required()) {
@@ -1682,75 +1742,59 @@ fn resample(
     if t_end.partial_cmp(&t_start) != Some(std::cmp::Ordering::Greater) {
         return Err(DatasetError::NoOverlap { file: file.into() });
     }
-    let n = ((t_end - t_start) / dt + 1e-9).floor() as usize + 1;
-    if n < 2 {
-        return Err(DatasetError::TooShort {
-            file: file.into(),
-            rows: n,
-            min: 2,
-        });
-    }
-    let grid: Vec<f64> = (0..n).map(|k| t_start + k as f64 * dt).collect();
-    let mut valid = vec![true; n];
-    let mut cols: Vec<Option<Vec<f64>>> = vec![None; NCOL];
-    for c in Col::ALL {
-        let Some(s) = series[c.idx()].as_ref() else {
-            continue;
+    Ok((t_start, t_end))
+}
+
+/// Column `c`'s series `s` (not empty) on the grid, as [`resample`] describes; a grid point
+/// where a required column has no fresh finite value is marked invalid in `valid`.
+fn on_grid(
+    c: Col,
+    s: &SeriesRef,
+    grid: &[f64],
+    dt: f64,
+    hold: f64,
+    cycles: bool,
+    valid: &mut [bool],
+) -> Vec<f64> {
+    let mut out = Vec::with_capacity(grid.len());
+    let mut j = 0usize;
+    for (k, &t) in grid.iter().enumerate() {
+        while j + 1 < s.t.len() && s.t[j + 1] <= t {
+            j += 1;
+        }
+        // s.t[j] <= t < s.t[j+1] (or t before the first / after the last sample).
+        let nearest = cycles && !c.command() && !c.discrete();
+        let (v, fresh) = if nearest && {
+            let d0 = (s.t[j] - t).abs();
+            let d1 = s.t.get(j + 1).map_or(f64::INFINITY, |&tb| (tb - t).abs());
+            d0.min(d1) <= 0.5 * dt
+        } {
+            // The sample of this cycle.
+            let d0 = (s.t[j] - t).abs();
+            let d1 = s.t.get(j + 1).map_or(f64::INFINITY, |&tb| (tb - t).abs());
+            (if d1 < d0 { s.v[j + 1] } else { s.v[j] }, true)
+        } else if t < s.t[0] {
+            (s.v[0], s.t[0] - t <= hold)
+        } else if j + 1 >= s.t.len() || c.discrete() || (cycles && c.command()) {
+            let next = s.t.get(j + 1).copied().unwrap_or(f64::INFINITY);
+            (s.v[j], next - s.t[j] <= hold || t - s.t[j] <= hold)
+        } else {
+            let (ta, tb) = (s.t[j], s.t[j + 1]);
+            let v = s.v[j] + (s.v[j + 1] - s.v[j]) * (t - ta) / (tb - ta);
+            (v, tb - ta <= hold)
         };
-        if s.t.is_empty() {
-            // An optional signal silent in this segment: absent here.
-            continue;
+        if (!fresh || !v.is_finite()) && c.required() {
+            valid[k] = false;
         }
-        let mut out = Vec::with_capacity(n);
-        let mut j = 0usize;
-        for (k, &t) in grid.iter().enumerate() {
-            while j + 1 < s.t.len() && s.t[j + 1] <= t {
-                j += 1;
-            }
-            // s.t[j] <= t < s.t[j+1] (or t before the first / after the last sample).
-            let nearest = cycles && !c.command() && !c.discrete();
-            let (v, fresh) = if nearest && {
-                let d0 = (s.t[j] - t).abs();
-                let d1 = s.t.get(j + 1).map_or(f64::INFINITY, |&tb| (tb - t).abs());
-                d0.min(d1) <= 0.5 * dt
-            } {
-                // The sample of this cycle.
-                let d0 = (s.t[j] - t).abs();
-                let d1 = s.t.get(j + 1).map_or(f64::INFINITY, |&tb| (tb - t).abs());
-                (if d1 < d0 { s.v[j + 1] } else { s.v[j] }, true)
-            } else if t < s.t[0] {
-                (s.v[0], s.t[0] - t <= hold)
-            } else if j + 1 >= s.t.len() || c.discrete() || (cycles && c.command()) {
-                let next = s.t.get(j + 1).copied().unwrap_or(f64::INFINITY);
-                (s.v[j], next - s.t[j] <= hold || t - s.t[j] <= hold)
-            } else {
-                let (ta, tb) = (s.t[j], s.t[j + 1]);
-                let v = s.v[j] + (s.v[j + 1] - s.v[j]) * (t - ta) / (tb - ta);
-                (v, tb - ta <= hold)
-            };
-            if (!fresh || !v.is_finite()) && c.required() {
-                valid[k] = false;
-            }
-            // A clipped (NaN) sample holds the last finite value of the column.
-            let v = if v.is_finite() {
-                v
-            } else {
-                out.last().copied().unwrap_or(0.0)
-            };
-            out.push(v);
-        }
-        cols[c.idx()] = Some(out);
+        // A clipped (NaN) sample holds the last finite value of the column.
+        let v = if v.is_finite() {
+            v
+        } else {
+            out.last().copied().unwrap_or(0.0)
+        };
+        out.push(v);
     }
-    stats.invalid_points = valid.iter().filter(|v| !**v).count();
-    Ok(Dataset {
-        source: file.into(),
-        time: grid.iter().map(|t| t - t_start).collect(),
-        dt,
-        cols,
-        valid,
-        stats,
-        start_s: t_start,
-    })
+    out
 }
 
 #[cfg(test)]
