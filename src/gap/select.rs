@@ -191,20 +191,7 @@ pub fn fit(
     knots: &Knots,
     threads: usize,
 ) -> (Model, Option<Fit>) {
-    // The classes' parameters first (one slice each), then the recalibration's.
-    let mut specs: Vec<ParamSpec> = Vec::new();
-    let mut slices = Vec::new();
-    for c in &job.classes {
-        let p = classfit::params_in(*c, base, job.form);
-        slices.push((*c, specs.len(), specs.len() + p.len()));
-        specs.extend(p);
-    }
-    let nc = specs.len();
-    specs.extend(
-        job.recal
-            .iter()
-            .map(|k| recal_spec(k, base, nominal, job.wide)),
-    );
+    let (specs, slices, nc) = job_specs(base, nominal, job);
     let n: usize = files.iter().map(|f| f.fit.count(&job.chans)).sum();
     if specs.is_empty() || n == 0 {
         return (*base, None);
@@ -233,26 +220,7 @@ pub fn fit(
     // recalibration: refitted as a monotone curve in the direction of its total change, from no
     // effect, jointly with the same recalibration.
     if job.form == classfit::Form::Flexible {
-        let mut sp = specs.clone();
-        let mut refit = false;
-        for (c, a, _) in &slices {
-            let Some(r) = classfit::increments(*c) else {
-                continue;
-            };
-            let r = a + r.start..a + r.end;
-            if let Some(sign) = classfit::zigzag_sign(&fit.p[r.clone()]) {
-                refit = true;
-                for s in &mut sp[r] {
-                    if sign > 0.0 {
-                        s.lo = s.lo.max(0.0);
-                    } else {
-                        s.hi = s.hi.min(0.0);
-                    }
-                    s.init = s.init.clamp(s.lo, s.hi);
-                }
-            }
-        }
-        if refit {
+        if let Some(sp) = monotone_specs(&specs, &slices, &fit.p) {
             fit = lsq::solve(&mut f, n, &sp, opts, None);
         }
         // Classes whose least squares has more than one basin start again from each of their
@@ -273,6 +241,59 @@ pub fn fit(
     }
     let model = problem.build(&fit.p).unwrap_or(*base);
     (model, Some(fit))
+}
+
+/// A fit's parameter specs: the classes' parameters first (one slice each, as (class, start,
+/// end)), then the recalibration's; and the number of the classes' parameters.
+fn job_specs(
+    base: &Model,
+    nominal: &Params,
+    job: &Job,
+) -> (Vec<ParamSpec>, Vec<(ClassId, usize, usize)>, usize) {
+    let mut specs: Vec<ParamSpec> = Vec::new();
+    let mut slices = Vec::new();
+    for c in &job.classes {
+        let p = classfit::params_in(*c, base, job.form);
+        slices.push((*c, specs.len(), specs.len() + p.len()));
+        specs.extend(p);
+    }
+    let nc = specs.len();
+    specs.extend(
+        job.recal
+            .iter()
+            .map(|k| recal_spec(k, base, nominal, job.wide)),
+    );
+    (specs, slices, nc)
+}
+
+/// The specs with each zigzagging shape of the fitted parameters `p` (turning more than once)
+/// bounded to a monotone curve in the direction of its total change; `None` when no shape
+/// zigzags.
+fn monotone_specs(
+    specs: &[ParamSpec],
+    slices: &[(ClassId, usize, usize)],
+    p: &[f64],
+) -> Option<Vec<ParamSpec>> {
+    let mut sp = specs.to_vec();
+    let mut refit = false;
+    for (c, a, _) in slices {
+        let Some(r) = classfit::increments(*c) else {
+            continue;
+        };
+        let r = a + r.start..a + r.end;
+        if let Some(sign) = classfit::zigzag_sign(&p[r.clone()]) {
+            refit = true;
+            for s in &mut sp[r] {
+                if sign > 0.0 {
+                    s.lo = s.lo.max(0.0);
+                } else {
+                    s.hi = s.hi.min(0.0);
+                }
+                s.init = s.init.clamp(s.lo, s.hi);
+            }
+        }
+    }
+    refit.then_some(sp)
 }
 
 /// The channels whose predictions a class changes (a thermal class changes the disk
@@ -531,31 +552,10 @@ fn candidate(
     // third of the gain (a point estimate: the few validation blocks of the thermocouples make
     // their own interval wide).
     if class == ClassId::SensorTemperature && gain > 0.0 {
-        let own: Vec<Channel> = classfit::channels(class)
-            .into_iter()
-            .filter(|c| s.chans.contains(c))
-            .collect();
-        let own_gain: f64 = base_val.unit_gain_to(&val, &own).iter().sum();
-        if own_gain < gain / 3.0 {
-            why.push(format!(
-                "its own readings carry {own_gain:.1} of the gain {gain:.1} (less than a third): the gain is the torque's"
-            ));
-        }
+        why.extend(torque_gain(s, class, base_val, &val, gain));
     }
     if gain < need {
-        why.push(if gain >= s.min_gain * excess && gain < half_tol {
-            format!(
-                "closes {:.1} % of the gap left, but {gain:.1} is less than half the practical \
-                 tolerance {tol:.1} (an implementation difference, not an effect)",
-                100.0 * gain / excess.max(1e-9)
-            )
-        } else {
-            format!(
-                "closes {:.1} % < {:.0} % of the validation gap left",
-                100.0 * gain / excess.max(1e-9),
-                100.0 * s.min_gain
-            )
-        });
+        why.push(short_gain(gain, excess, s.min_gain, half_tol, tol));
     }
     Some(Candidate {
         class,
@@ -568,18 +568,68 @@ fn candidate(
         unit_gain,
         excess_before: excess,
         credited: why.is_empty(),
-        note: if why.is_empty() {
-            match absorbed {
-                Some((e, _, unit)) if gain < 0.5 * tol => format!(
-                    "credited: a reading error of {e:.2} {unit} over the channel's range, largely \
-                     absorbed by the recalibration (ambiguous with it on these records)"
-                ),
-                _ => "credited".into(),
-            }
-        } else {
-            why.join("; ")
-        },
+        note: candidate_note(&why, absorbed, gain, tol),
     })
+}
+
+/// Why a thermocouple class is not credited when its own readings carry less than a third of
+/// its validation gain `gain` (the rest being the torque's); `None` otherwise.
+fn torque_gain(
+    s: &Setup,
+    class: ClassId,
+    base_val: &Scores,
+    val: &Scores,
+    gain: f64,
+) -> Option<String> {
+    let own: Vec<Channel> = classfit::channels(class)
+        .into_iter()
+        .filter(|c| s.chans.contains(c))
+        .collect();
+    let own_gain: f64 = base_val.unit_gain_to(val, &own).iter().sum();
+    (own_gain < gain / 3.0).then(|| {
+        format!(
+            "its own readings carry {own_gain:.1} of the gain {gain:.1} (less than a third): the gain is the torque's"
+        )
+    })
+}
+
+/// Why a class's validation gain `gain` is too small: under half the practical tolerance `tol`
+/// though it closes its share `min_gain` of the gap left `excess`, or short of that share.
+fn short_gain(gain: f64, excess: f64, min_gain: f64, half_tol: f64, tol: f64) -> String {
+    if gain >= min_gain * excess && gain < half_tol {
+        format!(
+            "closes {:.1} % of the gap left, but {gain:.1} is less than half the practical \
+             tolerance {tol:.1} (an implementation difference, not an effect)",
+            100.0 * gain / excess.max(1e-9)
+        )
+    } else {
+        format!(
+            "closes {:.1} % < {:.0} % of the validation gap left",
+            100.0 * gain / excess.max(1e-9),
+            100.0 * min_gain
+        )
+    }
+}
+
+/// A candidate's note: "credited" (with the reading error the recalibration largely absorbs,
+/// when its gain is under half the tolerance `tol`), else the reasons `why` it is not.
+fn candidate_note(
+    why: &[String],
+    absorbed: Option<(f64, f64, &'static str)>,
+    gain: f64,
+    tol: f64,
+) -> String {
+    if why.is_empty() {
+        match absorbed {
+            Some((e, _, unit)) if gain < 0.5 * tol => format!(
+                "credited: a reading error of {e:.2} {unit} over the channel's range, largely \
+                 absorbed by the recalibration (ambiguous with it on these records)"
+            ),
+            _ => "credited".into(),
+        }
+    } else {
+        why.join("; ")
+    }
 }
 
 /// The largest reading error of a fitted sensor class over its channel's working range
