@@ -206,8 +206,14 @@ pub fn locate(
     chans: &[Channel],
     q: f64,
 ) -> Where {
-    let subs = residual_subsystems(files, samples, preds, sigmas, chans);
-    let (flagged, tested) = flagged_segments(files, samples, preds, sigmas, chans, q);
+    let records = Records {
+        files,
+        samples,
+        preds,
+        sigmas,
+    };
+    let subs = residual_subsystems(&records, chans);
+    let (flagged, tested) = flagged_segments(&records, chans, q);
     Where {
         residual_subsystems: subs,
         bias_maps: vec![bias_map(files, samples, preds, "recalibrated", q)],
@@ -216,15 +222,30 @@ pub fn locate(
     }
 }
 
+/// The records [`locate`] reads: each file's measured quantities, score samples, predictions
+/// and noise floor σ per channel.
+struct Records<'a> {
+    files: &'a [&'a Measured],
+    samples: &'a [&'a Samples],
+    preds: &'a [Predictions],
+    sigmas: &'a [&'a [f64]],
+}
+
+impl Records<'_> {
+    /// Each file's measured quantities, samples, predictions and noise floors.
+    fn each(&self) -> impl Iterator<Item = (&Measured, &Samples, &Predictions, &[f64])> {
+        self.files
+            .iter()
+            .zip(self.samples)
+            .zip(self.preds)
+            .zip(self.sigmas)
+            .map(|(((m, s), pr), sg)| (*m, *s, pr, *sg))
+    }
+}
+
 /// The subsystems with a checked channel, by decreasing excess: the mean standardized square
 /// of their residuals above 1, its z against noise only, and each output's RMS and noise.
-fn residual_subsystems(
-    files: &[&Measured],
-    samples: &[&Samples],
-    preds: &[Predictions],
-    sigmas: &[&[f64]],
-    chans: &[Channel],
-) -> Vec<ResidualSubsystem> {
+fn residual_subsystems(records: &Records, chans: &[Channel]) -> Vec<ResidualSubsystem> {
     let mut subs: Vec<ResidualSubsystem> = Vec::new();
     let subsystem_names = ["torque_characteristic", "thermal", "actuator", "engine"];
     for name in subsystem_names {
@@ -241,7 +262,7 @@ fn residual_subsystems(
         let mut neff = 0.0;
         let mut outputs = Vec::new();
         for c in &cs {
-            let (r, z2, s2) = channel_residuals(*c, files, samples, preds, sigmas);
+            let (r, z2, s2) = channel_residuals(*c, records);
             if r.is_empty() {
                 continue;
             }
@@ -275,17 +296,11 @@ fn residual_subsystems(
 
 /// Channel `c`'s finite residuals over every file in order, the sum of their squares over
 /// the noise variance, and the sum of the noise variance over them.
-fn channel_residuals(
-    c: Channel,
-    files: &[&Measured],
-    samples: &[&Samples],
-    preds: &[Predictions],
-    sigmas: &[&[f64]],
-) -> (Vec<f64>, f64, f64) {
+fn channel_residuals(c: Channel, records: &Records) -> (Vec<f64>, f64, f64) {
     let mut r = Vec::new();
     let mut z2 = 0.0;
     let mut s2 = 0.0;
-    for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
+    for (m, s, pr, sg) in records.each() {
         let y = &pr.y[c.index()];
         if y.is_empty() {
             continue;
@@ -305,16 +320,9 @@ fn channel_residuals(
 
 /// The flagged segments (at most 30, largest first) among the event blocks of every file,
 /// under Benjamini–Hochberg at `q`, and the number of blocks tested.
-fn flagged_segments(
-    files: &[&Measured],
-    samples: &[&Samples],
-    preds: &[Predictions],
-    sigmas: &[&[f64]],
-    chans: &[Channel],
-    q: f64,
-) -> (Vec<Segment>, usize) {
+fn flagged_segments(records: &Records, chans: &[Channel], q: f64) -> (Vec<Segment>, usize) {
     let mut segs = Vec::new();
-    for (((m, s), pr), sg) in files.iter().zip(samples).zip(preds).zip(sigmas) {
+    for (m, s, pr, sg) in records.each() {
         for &block in &m.seg.blocks {
             segs.extend(block_segment(m, s, pr, sg, chans, block));
         }
