@@ -6,7 +6,7 @@
 //! and the effect in the library's `[effects.<id>]` form, plus a TCU calibration pointing at both
 //! when a template is given). Pure: returns the texts; the CLI writes them.
 
-use super::diagnose::Diagnosis;
+use super::diagnose::{Diagnosis, Verdict};
 use super::finding::Finding;
 use super::where_::BiasMap;
 use crate::plot::{Figure, Panel, Series, Style};
@@ -120,6 +120,13 @@ fn verdict_section(s: &mut String, d: &Diagnosis) {
         "\nUnexplained: {} % of the recalibrated validation gap above the practical tolerance.\n",
         f(v.unexplained_pct, 1)
     );
+    fitted_shapes(s, v);
+    not_checkable_list(s, v);
+    first_finding_summary(s, d);
+}
+
+/// The fitted shape of every class finding with one, over its variable.
+fn fitted_shapes(s: &mut String, v: &Verdict) {
     for fd in &v.findings {
         if let Some(c) = fd.class() {
             if !c.shape.is_empty() {
@@ -138,6 +145,10 @@ fn verdict_section(s: &mut String, d: &Diagnosis) {
             }
         }
     }
+}
+
+/// The classes these records cannot check, with why (nothing when every class can be checked).
+fn not_checkable_list(s: &mut String, v: &Verdict) {
     if !v.not_checkable.is_empty() {
         let _ = writeln!(s, "\nClasses these records cannot check:\n");
         for n in &v.not_checkable {
@@ -145,6 +156,12 @@ fn verdict_section(s: &mut String, d: &Diagnosis) {
         }
         let _ = writeln!(s);
     }
+}
+
+/// The first finding, its subsystems, the explanation, what it is ambiguous with, what the
+/// missing physics depends on, and how far it closes the gap.
+fn first_finding_summary(s: &mut String, d: &Diagnosis) {
+    let v = &d.verdict;
     let _ = writeln!(s, "- **first finding: `{}`**", v.effect);
     let _ = writeln!(
         s,
