@@ -9,6 +9,7 @@ pub mod bench;
 pub mod blind;
 pub mod can;
 pub mod daemon;
+pub mod diag;
 pub mod error_chain;
 pub mod gap;
 pub mod io_error;
