@@ -223,7 +223,7 @@ fn input_stream() -> impl Strategy<Value = Vec<(Duration, CanFrame)>> {
 }
 
 /// Frames (or lines, or CSV files) fed per property, for the campaign's report.
-static FED: [AtomicU64; 4] = [const { AtomicU64::new(0) }; 4];
+static FED: [AtomicU64; 5] = [const { AtomicU64::new(0) }; 5];
 
 fn fed(k: usize, n: usize) {
     FED[k].fetch_add(n as u64, Ordering::Relaxed);
@@ -597,4 +597,65 @@ fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
             std::fs::copy(&p, &dest).unwrap();
         }
     }
+}
+
+/// Frames an ISO-TP endpoint may see, with the time before each (µs): every PCI nibble (0–3 and
+/// two invalid ones), any low nibble and 0–7 more bytes, so that single, first, consecutive and
+/// flow-control frames of every length — valid, truncated, out of sequence — all occur.
+fn isotp_stream() -> impl Strategy<Value = Vec<(u64, Vec<u8>)>> {
+    let frame = (0u8..6, 0u8..16, prop::collection::vec(any::<u8>(), 0..=7)).prop_map(
+        |(pci, low, rest)| {
+            let mut f = vec![pci << 4 | low];
+            f.extend(rest);
+            f
+        },
+    );
+    prop::collection::vec((0u64..1_500_000, frame), 0..120)
+}
+
+/// Feeds a stream to a receiver and to a sender in the middle of a 100-byte message: nothing
+/// panics, a received message is 1–4 095 bytes, and the sender's consecutive frames carry
+/// sequence numbers 1, 2, … and are never more than the message needs.
+fn isotp_over(stream: &[(u64, Vec<u8>)]) -> Result<(), TestCaseError> {
+    use ddct::diag::isotp::{IsoTp, IsoTpConfig, MAX_PAYLOAD};
+    let cfg = IsoTpConfig {
+        block_size: 2,
+        st_min: 1,
+        ..IsoTpConfig::default()
+    };
+    let (mut rx, mut tx) = (IsoTp::new(cfg), IsoTp::new(cfg));
+    let mut now = Duration::ZERO;
+    tx.send(now, &[0x5A; 100])
+        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let (mut sn, mut cfs) = (1u8, 0usize);
+    for (gap, f) in stream {
+        now += Duration::from_micros(*gap);
+        rx.handle_timeout(now);
+        tx.handle_timeout(now);
+        if let Some(m) = rx.handle_frame(now, f).or_else(|| rx.handle_functional(f)) {
+            prop_assert!((1..=MAX_PAYLOAD).contains(&m.len()), "{} bytes", m.len());
+        }
+        tx.handle_frame(now, f);
+        while rx.poll_transmit(now).is_some() {}
+        while let Some(out) = tx.poll_transmit(now) {
+            let b = out.bytes();
+            if b[0] >> 4 == 2 {
+                prop_assert_eq!(b[0] & 0x0F, sn);
+                sn = (sn + 1) & 0x0F;
+                cfs += 1;
+            }
+        }
+        // 100 − 6 bytes after the first frame: 14 consecutive frames at most.
+        prop_assert!(cfs <= 14, "{cfs} consecutive frames");
+    }
+    fed(4, stream.len());
+    Ok(())
+}
+
+#[test]
+fn the_isotp_transport_takes_any_frames() {
+    runner()
+        .run(&isotp_stream(), |s| isotp_over(&s))
+        .unwrap_or_else(|e| panic!("{e}"));
+    report(4, "ISO-TP frames");
 }
