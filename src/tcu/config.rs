@@ -124,6 +124,9 @@ pub struct SafetyCfg {
     pub antistall_zero_idle_fraction: f64,
     /// ... from this share of the engine's full-load torque.
     pub antistall_max_share: f64,
+    /// Below this fraction of idle an engine torque request asking less than the driver's demand
+    /// is dropped, so the engine's own idle governor brings the engine back (every mode).
+    pub antistall_release_idle_fraction: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -152,6 +155,16 @@ pub struct ControlCfg {
     pub engine_integral_limit_nm: f64,
     /// Time constant of the output-shaft acceleration filter (s).
     pub accel_filter_s: f64,
+    /// The lead terms (actuator and engine lag) differentiate over the time between two steps;
+    /// steps closer than this (a burst of late frames) get no lead rather than a huge one (s).
+    pub min_lead_dt_s: f64,
+    /// Drive: cycles in a row above `slip_alarm_radps` before the clamp capacity is boosted.
+    pub slip_alarm_cycles: u32,
+    /// Drive: factor on `clamp_margin` and `clamp_offset_nm` while the slip alarm holds.
+    pub slip_alarm_boost: f64,
+    /// Drive: the engine request blending to the driver's demand is released within this of it
+    /// (N·m).
+    pub blend_release_nm: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -167,6 +180,17 @@ pub struct CreepCfg {
     pub release_rate_nm_per_s: f64,
     /// The clutch-speed reference stays within this of the measured clutch speed (rad/s).
     pub reference_window_radps: f64,
+    /// Largest rise of the creep torque, so the engine's idle governor keeps up (N·m/s).
+    pub torque_rise_nm_per_s: f64,
+    /// Share of the launch's PI_c gains creep uses (the creep torque sits near the kiss point,
+    /// where the actuator lag matters most).
+    pub gain_share: f64,
+    /// A creep torque being released (brake on) is still applied above this; below it the clutch
+    /// goes to standby (N·m).
+    pub min_hold_torque_nm: f64,
+    /// Drive, any gear: the engine below this fraction of idle (about to stall) opens the clutch
+    /// and goes to creep.
+    pub stall_idle_fraction: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -187,6 +211,17 @@ pub struct LaunchCfg {
     pub engine_profile_s: f64,
     /// Share of the engine's full-load torque the clutch may draw on in a launch.
     pub engine_torque_share: f64,
+    /// After the synchronisation profile a slip still above zero is pulled down further at this
+    /// rate (rad/s²) ...
+    pub sync_tail_rate_radps2: f64,
+    /// ... up to this far below zero, so that the slip crosses and the clutch locks (rad/s).
+    pub sync_tail_max_radps: f64,
+    /// The clutch acceleration target is cut to what the engine has left, but not below this
+    /// share of it.
+    pub min_accel_share: f64,
+    /// The engine-speed target lies at least this many `sync_slip_radps` above the clutch speed at
+    /// the launch's start.
+    pub target_min_sync_slips: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -198,6 +233,42 @@ pub struct ShiftCfg {
     pub engine_authority: f64,
     pub downshift_offgoing_fraction: f64,
     pub min_interval_s: f64,
+    /// Drive: time in the gear (after lock-up) before a scheduled shift may start (s).
+    pub settle_s: f64,
+    /// Drive: a scheduled downshift with the engine below this fraction of idle (lugging) starts
+    /// at once, without waiting for `settle_s`, `min_interval_s` or the request's blend.
+    pub lugging_idle_fraction: f64,
+    /// A shift is abandoned (both clutches open, creep in the start gear) when the on-coming
+    /// clutch shaft falls below this fraction of idle (hard braking toward a stop) ...
+    pub abort_clutch_idle_fraction: f64,
+    /// ... or the engine below this fraction of idle.
+    pub abort_engine_idle_fraction: f64,
+    /// Upshift, inertia phase: the on-coming clutch's least torque, which pulls the engine down
+    /// with the pedal off (N·m).
+    pub min_oncoming_nm: f64,
+    /// Inertia-phase duration: the engine torque available for the speed change is taken as at
+    /// least this (N·m).
+    pub min_authority_nm: f64,
+    /// Upshift, inertia phase: the engine torque counts as recovered within the larger of this
+    /// share of the on-coming clutch's torque ...
+    pub release_torque_share: f64,
+    /// ... and this (N·m); then the held slip is released toward lock-up ...
+    pub release_torque_nm: f64,
+    /// ... or at the latest this long after the smoothstep's end (s) ...
+    pub release_timeout_s: f64,
+    /// ... along a ramp of this duration (s).
+    pub release_ramp_s: f64,
+    /// Downshift: the inertia phase hands over to the torque phase once the on-coming slip is
+    /// within this of its end value (rad/s) ...
+    pub downshift_sync_radps: f64,
+    /// ... or at the latest this long after the smoothstep's end (s).
+    pub downshift_sync_timeout_s: f64,
+    /// A shift running longer than this (s) ...
+    pub fallback_lock_s: f64,
+    /// ... with the on-coming slip below this counts as locked: drive in the new gear (rad/s).
+    pub fallback_lock_slip_radps: f64,
+    /// A shift not completed in this time is abandoned: a fresh start from the measurements (s).
+    pub abort_s: f64,
     pub up_kmh_0: [f64; 5],
     pub up_kmh_100: [f64; 5],
     pub down_kmh_0: [f64; 5],
@@ -261,6 +332,7 @@ crate::ranges!(SafetyCfg as s, "safety" {
     antistall_free_idle_fraction: [0.1, 2.0],
     antistall_zero_idle_fraction: [0.0, s.antistall_free_idle_fraction - 0.01],
     antistall_max_share: [0.0, 1.0],
+    antistall_release_idle_fraction: [0.5, 2.0],
 });
 crate::ranges!(ControlCfg as _k, "control" {
     clutch_kp_per_s: [0.0, 200.0],
@@ -283,6 +355,10 @@ crate::ranges!(ControlCfg as _k, "control" {
     clutch_integral_limit_nm: [0.0, 5000.0],
     engine_integral_limit_nm: [0.0, 5000.0],
     accel_filter_s: [0.0, 1.0],
+    min_lead_dt_s: [0.0, 0.01],
+    slip_alarm_cycles: [1.0, 100.0],
+    slip_alarm_boost: [1.0, 5.0],
+    blend_release_nm: [0.01, 50.0],
 });
 crate::ranges!(CreepCfg as _c, "creep" {
     pedal_on_pct: [0.0, 50.0],
@@ -293,6 +369,10 @@ crate::ranges!(CreepCfg as _c, "creep" {
     stop_engine_rpm: [0.0, 5000.0],
     release_rate_nm_per_s: [1.0, 1e4],
     reference_window_radps: [0.1, 200.0],
+    torque_rise_nm_per_s: [1.0, 1e4],
+    gain_share: [0.05, 1.0],
+    min_hold_torque_nm: [0.0, 10.0],
+    stall_idle_fraction: [0.3, 1.0],
 });
 crate::ranges!(LaunchCfg as l, "launch" {
     engine_rpm_0: [500.0, 8000.0],
@@ -306,6 +386,10 @@ crate::ranges!(LaunchCfg as l, "launch" {
     pedal_off_s: [0.0, 10.0],
     engine_profile_s: [0.01, 2.0],
     engine_torque_share: [0.1, 1.0],
+    sync_tail_rate_radps2: [0.5, 100.0],
+    sync_tail_max_radps: [0.5, 50.0],
+    min_accel_share: [0.0, 1.0],
+    target_min_sync_slips: [1.0, 10.0],
 });
 crate::ranges!(ShiftCfg as h, "shift" {
     torque_phase_s: [0.01, 5.0],
@@ -314,6 +398,21 @@ crate::ranges!(ShiftCfg as h, "shift" {
     engine_authority: [0.05, 1.0],
     downshift_offgoing_fraction: [0.0, 1.0],
     min_interval_s: [0.0, 60.0],
+    settle_s: [0.0, 5.0],
+    lugging_idle_fraction: [0.5, 3.0],
+    abort_clutch_idle_fraction: [0.3, 0.99],
+    abort_engine_idle_fraction: [0.3, 0.99],
+    min_oncoming_nm: [0.0, 200.0],
+    min_authority_nm: [0.5, 100.0],
+    release_torque_share: [0.0, 1.0],
+    release_torque_nm: [0.0, 100.0],
+    release_timeout_s: [0.0, 5.0],
+    release_ramp_s: [0.01, 1.0],
+    downshift_sync_radps: [0.1, 50.0],
+    downshift_sync_timeout_s: [0.0, 5.0],
+    fallback_lock_s: [0.5, 20.0],
+    fallback_lock_slip_radps: [0.1, 20.0],
+    abort_s: [0.5, 30.0],
     up_kmh_0: [0.0, 400.0],
     up_kmh_100: [0.0, 400.0],
     down_kmh_0: [0.0, 400.0],
@@ -395,17 +494,39 @@ impl TcuConfig {
         self.consistency()
     }
 
-    /// Rules between keys: the housing's plausible band is not empty, and every downshift speed
-    /// lies below its upshift speed (hysteresis).
+    /// Rules between keys: the housing's plausible band is not empty, a drive stall opens the
+    /// clutch below the engine speed of a lugging downshift, a shift's fallback lock comes before
+    /// its abort, and every downshift speed lies below its upshift speed (hysteresis).
     fn consistency(&self) -> Result<(), TcuConfigError> {
         let i = &self.inputs;
-        if i.housing_temp_min_c >= i.housing_temp_max_c {
-            return Err(TcuConfigError::Inconsistent {
-                key: "inputs.housing_temp_min_c".into(),
-                reason: "must be below inputs.housing_temp_max_c".into(),
-            });
-        }
         let h = &self.shift;
+        for (below, above, key, reason) in [
+            (
+                i.housing_temp_min_c,
+                i.housing_temp_max_c,
+                "inputs.housing_temp_min_c",
+                "must be below inputs.housing_temp_max_c",
+            ),
+            (
+                self.creep.stall_idle_fraction,
+                h.lugging_idle_fraction,
+                "creep.stall_idle_fraction",
+                "must be below shift.lugging_idle_fraction (a lugging engine downshifts before it stalls)",
+            ),
+            (
+                h.fallback_lock_s,
+                h.abort_s,
+                "shift.fallback_lock_s",
+                "must be below shift.abort_s (a nearly locked shift completes before it is abandoned)",
+            ),
+        ] {
+            if below >= above {
+                return Err(TcuConfigError::Inconsistent {
+                    key: key.into(),
+                    reason: reason.into(),
+                });
+            }
+        }
         for g in 0..h.up_kmh_0.len() {
             for (down, up, name) in [
                 (h.down_kmh_0[g], h.up_kmh_0[g], "down_kmh_0"),
@@ -487,6 +608,99 @@ mod tests {
             crate::error_chain::chain(&e).contains("shift.down_kmh_0[0]"),
             "{e}"
         );
+    }
+
+    /// The default calibration with the value of `key` (a key whose name is unique in the file)
+    /// replaced by `value`.
+    fn with_value(key: &str, value: &str) -> String {
+        let lines: Vec<&str> = DEFAULT_TOML
+            .lines()
+            .filter(|l| l.trim_start().starts_with(&format!("{key} =")))
+            .collect();
+        assert_eq!(lines.len(), 1, "{key} once in config/tcu.toml");
+        let line = lines[0];
+        let comment = line.find('#').map_or("", |i| &line[i..]);
+        DEFAULT_TOML.replace(line, &format!("{key} = {value} {comment}"))
+    }
+
+    /// The chain of a calibration's error (`from_toml_str`), or `None` when it loads.
+    fn load_error(text: &str) -> Option<String> {
+        TcuConfig::from_toml_str(text, Path::new("x.toml"))
+            .err()
+            .map(|e| crate::error_chain::chain(&e))
+    }
+
+    #[test]
+    fn strategy_tunables_out_of_range_are_refused_naming_the_key() {
+        // Each key of issue 15's second part with a value just outside its range.
+        for (key, bad) in [
+            ("safety.antistall_release_idle_fraction", "2.5"),
+            ("control.min_lead_dt_s", "0.05"),
+            ("control.slip_alarm_cycles", "0"),
+            ("control.slip_alarm_boost", "0.5"),
+            ("control.blend_release_nm", "0.0"),
+            ("creep.torque_rise_nm_per_s", "0.0"),
+            ("creep.gain_share", "1.5"),
+            ("creep.min_hold_torque_nm", "-0.5"),
+            ("creep.stall_idle_fraction", "1.1"),
+            ("launch.sync_tail_rate_radps2", "0.0"),
+            ("launch.sync_tail_max_radps", "100.0"),
+            ("launch.min_accel_share", "1.1"),
+            ("launch.target_min_sync_slips", "0.5"),
+            ("shift.settle_s", "-0.1"),
+            ("shift.lugging_idle_fraction", "12.0"),
+            ("shift.abort_clutch_idle_fraction", "1.0"),
+            ("shift.abort_engine_idle_fraction", "1.0"),
+            ("shift.min_oncoming_nm", "-1.0"),
+            ("shift.min_authority_nm", "0.0"),
+            ("shift.release_torque_share", "1.5"),
+            ("shift.release_torque_nm", "800.0"),
+            ("shift.release_timeout_s", "30.0"),
+            ("shift.release_ramp_s", "0.0"),
+            ("shift.downshift_sync_radps", "0.0"),
+            ("shift.downshift_sync_timeout_s", "-0.5"),
+            ("shift.fallback_lock_s", "0.0"),
+            ("shift.fallback_lock_slip_radps", "0.0"),
+            ("shift.abort_s", "40.0"),
+        ] {
+            let name = key.split_once('.').unwrap().1;
+            let e = load_error(&with_value(name, bad)).unwrap_or_else(|| panic!("{key} = {bad}"));
+            assert!(e.contains(&format!("`{key}` = ")), "{key}: {e}");
+            // NaN fails every range (an integer key refuses it as a type error).
+            let nan = load_error(&with_value(name, "nan"));
+            assert!(
+                nan.is_some_and(|e| e.contains(key) || key == "control.slip_alarm_cycles"),
+                "{key} = nan"
+            );
+        }
+    }
+
+    #[test]
+    fn a_stall_opens_below_the_lugging_downshift() {
+        let ok = with_value("stall_idle_fraction", "0.95");
+        assert_eq!(load_error(&ok), None);
+        let bad = with_value("stall_idle_fraction", "0.95")
+            .replace("lugging_idle_fraction = 1.2", "lugging_idle_fraction = 0.9");
+        let e = load_error(&bad).expect("stall above lugging");
+        assert!(
+            e.contains("inconsistent `creep.stall_idle_fraction`")
+                && e.contains("shift.lugging_idle_fraction"),
+            "{e}"
+        );
+        let equal = with_value("lugging_idle_fraction", "0.85");
+        assert!(load_error(&equal).is_some_and(|e| e.contains("creep.stall_idle_fraction")));
+    }
+
+    #[test]
+    fn the_fallback_lock_comes_before_the_shift_abort() {
+        assert_eq!(load_error(&with_value("abort_s", "3.5")), None);
+        for abort in ["3.0", "2.0"] {
+            let e = load_error(&with_value("abort_s", abort)).expect("abort before fallback");
+            assert!(
+                e.contains("inconsistent `shift.fallback_lock_s`") && e.contains("shift.abort_s"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

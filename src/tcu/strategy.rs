@@ -26,7 +26,7 @@
 //!
 //! Everything is computed from measurements and the estimated temperatures; time is an argument.
 
-use super::config::TcuConfig;
+use super::config::{LaunchCfg, TcuConfig};
 use super::control::{
     approach, driver_demand, engine_range, load_estimate, ClutchModel, Pi, Reduced,
 };
@@ -164,13 +164,6 @@ pub fn start_gear(lever: GearLever) -> Option<Gear> {
     }
 }
 
-/// The lead terms differentiate over the time between two steps; steps closer than this (a burst
-/// of late frames) get no lead rather than a huge one (s).
-const MIN_LEAD_DT_S: f64 = 0.005;
-
-/// Smallest on-coming clutch torque in an upshift's inertia phase (N·m).
-const MIN_ONCOMING_NM: f64 = 10.0;
-
 /// What one shift phase commands this cycle: clutch torque references and positions, the engine
 /// request and speed reference, and the phase's name.
 struct PhaseOut {
@@ -222,9 +215,6 @@ fn shift_command(ctx: &Ctx, s: &Shift, out: &PhaseOut) -> Command {
         phase: out.phase,
     }
 }
-
-/// Largest rise of the creep torque (N·m/s).
-const CREEP_TORQUE_RATE_NM_PER_S: f64 = 80.0;
 
 fn shaft(gear: Gear) -> usize {
     gear.shaft().unwrap_or(0)
@@ -403,7 +393,10 @@ impl Strategy {
         self.lead_prev[i] = Some((self.steps, x_des));
         match prev {
             Some((k, p))
-                if k + 1 == self.steps && p > kiss && x_des > kiss && ctx.dt >= MIN_LEAD_DT_S =>
+                if k + 1 == self.steps
+                    && p > kiss
+                    && x_des > kiss
+                    && ctx.dt >= ctx.cfg.control.min_lead_dt_s =>
             {
                 let tau = ctx.cfg.physics.actuator.tau_s + ctx.cfg.control.command_delay_s;
                 x_des + tau * (x_des - p) / ctx.dt
@@ -487,9 +480,9 @@ impl Strategy {
             Mode::Drive(d) => self.drive(ctx, d),
             Mode::Shift(s) => self.shift(ctx, s),
         };
-        // Anti-stall: near idle the engine's own idle governor gets the engine back unless the
-        // request asks for more than the driver would.
-        if ctx.m.w_e < 1.05 * ctx.idle()
+        // Anti-stall: near idle (`safety.antistall_release_idle_fraction`) the engine's own idle
+        // governor gets the engine back unless the request asks for more than the driver would.
+        if ctx.m.w_e < ctx.cfg.safety.antistall_release_idle_fraction * ctx.idle()
             && cmd.engine_req.is_some_and(|t| t < ctx.demand().max(0.0))
         {
             cmd.engine_req = None;
@@ -579,13 +572,13 @@ impl Strategy {
 
     /// Creep torque released at `creep.release_rate_nm_per_s` (brake pressed or gear not
     /// engaged): the reference follows the clutch, the integrator is reset; the torque still
-    /// applied, nothing below 0.5 N·m or without the gear.
+    /// applied, nothing below `creep.min_hold_torque_nm` or without the gear.
     fn creep_release(&mut self, ctx: &Ctx, c: &mut Creep, engaged: bool) -> f64 {
         let a = c.a;
         c.w_c_ref = ctx.m.w_c[a];
         c.t_ref = approach(c.t_ref, 0.0, ctx.cfg.creep.release_rate_nm_per_s, ctx.dt);
         self.pi_c[a].reset(0.0);
-        if c.t_ref > 0.5 && engaged {
+        if c.t_ref > ctx.cfg.creep.min_hold_torque_nm && engaged {
             c.t_ref
         } else {
             0.0
@@ -593,9 +586,9 @@ impl Strategy {
     }
 
     /// Creep torque that brings the clutch speed toward idle minus the creep slip at the creep
-    /// acceleration, with half the launch gains (the creep torque sits near the kiss point, where
-    /// the actuator lag matters most); the torque rises at most at the creep torque rate so the
-    /// idle governor keeps up.
+    /// acceleration, with `creep.gain_share` of the launch gains (the creep torque sits near the
+    /// kiss point, where the actuator lag matters most); the torque rises at most at
+    /// `creep.torque_rise_nm_per_s` so the idle governor keeps up.
     fn creep_torque(&mut self, ctx: &Ctx, c: &mut Creep) -> f64 {
         let cfg = ctx.cfg;
         let a = c.a;
@@ -613,14 +606,14 @@ impl Strategy {
         };
         let e = c.w_c_ref - ctx.m.w_c[a];
         let pi = self.pi_c[a];
-        let w_dot_cmd = w_dot_ref + 0.5 * (pi.kp * e + pi.integral);
+        let w_dot_cmd = w_dot_ref + cfg.creep.gain_share * (pi.kp * e + pi.integral);
         let r = ctx.reduced();
         let raw = r.decouple(a, r.v_c_for(a, w_dot_cmd), 0.0, ctx.load());
         let hi = cfg
             .creep
             .max_torque_nm
             .min(ctx.t_max(a))
-            .min(c.t_ref + CREEP_TORQUE_RATE_NM_PER_S * ctx.dt)
+            .min(c.t_ref + cfg.creep.torque_rise_nm_per_s * ctx.dt)
             .min(ctx.stall_limit());
         let t = raw.clamp(0.0, hi.max(0.0));
         self.pi_c[a].integrate(e, ctx.dt, raw >= hi, raw <= 0.0);
@@ -790,8 +783,9 @@ impl Strategy {
         cmd
     }
 
-    /// Shift decision. A downshift whose engine would otherwise lug toward idle does not wait
-    /// for the interval since the last shift nor for the engine-request blend; no upshift while
+    /// Shift decision, once `shift.settle_s` in the gear. A downshift whose engine would otherwise
+    /// lug toward idle (`shift.lugging_idle_fraction`) does not wait for that, the interval since
+    /// the last shift nor the engine-request blend; no upshift while
     /// braking; the next gear must be engaged on the other shaft.
     fn shift_if_scheduled(&mut self, ctx: &Ctx, d: Drive) {
         if d.gear.is_reverse() {
@@ -800,9 +794,10 @@ impl Strategy {
         let cfg = ctx.cfg;
         let o = 1 - d.a;
         let g = scheduled_gear(cfg, d.gear, ctx.v_kmh(), ctx.m.pedal);
-        let urgent = d.gear.above(g) && ctx.m.w_e < 1.2 * ctx.idle();
-        let settled =
-            d.since_s > 0.3 && self.since_shift_s > cfg.shift.min_interval_s && d.blend.is_none();
+        let urgent = d.gear.above(g) && ctx.m.w_e < cfg.shift.lugging_idle_fraction * ctx.idle();
+        let settled = d.since_s > cfg.shift.settle_s
+            && self.since_shift_s > cfg.shift.min_interval_s
+            && d.blend.is_none();
         let braking_up = g.above(d.gear) && ctx.m.brake;
         if (settled || urgent) && g != d.gear && !braking_up && ctx.m.gear[o] == g && shaft(g) == o
         {
@@ -853,7 +848,8 @@ impl Strategy {
     }
 
     /// Inertia-phase duration: the smoothstep's peak engine acceleration 1.5·|s0|/T must stay
-    /// within `engine_authority` of what the engine torque range leaves after the clutch torque.
+    /// within `engine_authority` of what the engine torque range leaves after the clutch torque
+    /// (taken as at least `shift.min_authority_nm`).
     fn begin_inertia(ctx: &Ctx, s: &mut Shift) {
         let cfg = ctx.cfg;
         let w_co = ctx.m.w_c[s.o];
@@ -869,7 +865,7 @@ impl Strategy {
             // Engine pushed up: full load minus what the off-going clutch keeps.
             hi - cfg.shift.downshift_offgoing_fraction * s.t_tr
         }
-        .max(5.0);
+        .max(cfg.shift.min_authority_nm);
         let t_needed = 1.5 * s.s0.abs() * j / (cfg.shift.engine_authority * avail);
         s.duration = t_needed.clamp(cfg.shift.min_inertia_phase_s, cfg.shift.max_inertia_phase_s);
         s.t_a0 = if s.up {
@@ -884,7 +880,10 @@ impl Strategy {
         s.total_s += ctx.dt;
         // The vehicle is slowing too fast for the shift (hard braking toward a stop): open both
         // clutches and let creep/hold take over in the start gear.
-        if ctx.m.w_c[s.o] < 0.9 * ctx.idle() || ctx.m.w_e < 0.8 * ctx.idle() {
+        let h = &ctx.cfg.shift;
+        if ctx.m.w_c[s.o] < h.abort_clutch_idle_fraction * ctx.idle()
+            || ctx.m.w_e < h.abort_engine_idle_fraction * ctx.idle()
+        {
             let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
             self.since_shift_s = 0.0;
             self.mode = Mode::Creep(Creep {
@@ -935,29 +934,36 @@ impl Strategy {
 
     /// Upshift, inertia phase: the off-going clutch open, the on-coming one carries the demand;
     /// PI_e pulls the engine down along a smoothstep to a small positive slip, holds it until the
-    /// engine torque is back near the on-coming clutch's torque (so lock-up does not drop the
-    /// acceleration), then lets the slip cross zero. (At least a little torque: with the pedal
-    /// off the on-coming clutch still has to pull the engine down to its shaft.)
+    /// engine torque is back near the on-coming clutch's torque (`shift.release_torque_*`, at the
+    /// latest `release_timeout_s` after the smoothstep; so lock-up does not drop the
+    /// acceleration), then lets the slip cross zero over `release_ramp_s`. (At least
+    /// `min_oncoming_nm`: with the pedal off the on-coming clutch still has to pull the engine
+    /// down to its shaft.)
     fn upshift_inertia(&mut self, ctx: &Ctx, s: &mut Shift) -> PhaseOut {
-        let k = &ctx.cfg.control;
+        let (k, h) = (&ctx.cfg.control, &ctx.cfg.shift);
         let o = s.o;
         let r = ctx.reduced();
         let (w_co, alpha_co) = (ctx.m.w_c[o], r.k[o] * ctx.w_out_dot);
         let delta = k.lock_undershoot_radps;
         let mut out = PhaseOut::standby(ctx, "upshift-inertia");
-        out.t[o] = s.t_tr.max(MIN_ONCOMING_NM).min(ctx.t_max(o));
+        out.t[o] = s.t_tr.max(h.min_oncoming_nm).min(ctx.t_max(o));
         out.x[o] = self.lead(ctx, o, ctx.x_slip(o, out.t[o]));
         let hold = k.lock_hold_slip_radps;
         let (mut s_ref, mut ds) = smoothstep(s.s0, hold, s.tau, s.duration);
         if s.tau >= s.duration {
-            let recovered = ctx.m.t_e >= out.t[o] - (0.1 * out.t[o]).max(8.0);
-            if s.release.is_none() && (recovered || s.tau >= s.duration + 0.3) {
+            let recovered = ctx.m.t_e
+                >= out.t[o] - (h.release_torque_share * out.t[o]).max(h.release_torque_nm);
+            if s.release.is_none() && (recovered || s.tau >= s.duration + h.release_timeout_s) {
                 s.release = Some(s.tau);
             }
             if let Some(t_rel) = s.release {
-                let u = ((s.tau - t_rel) / 0.08).min(1.0);
+                let u = ((s.tau - t_rel) / h.release_ramp_s).min(1.0);
                 s_ref = hold - (hold + delta) * u;
-                ds = if u < 1.0 { -(hold + delta) / 0.08 } else { 0.0 };
+                ds = if u < 1.0 {
+                    -(hold + delta) / h.release_ramp_s
+                } else {
+                    0.0
+                };
             }
         }
         out.w_e_ref = w_co + s_ref;
@@ -969,7 +975,9 @@ impl Strategy {
     }
 
     /// Downshift, inertia phase: the off-going clutch keeps part of the demand while the engine
-    /// rises to the new shaft; the torque phase follows near synchronism.
+    /// rises to the new shaft; the torque phase follows near synchronism
+    /// (`shift.downshift_sync_radps`, at the latest `downshift_sync_timeout_s` after the
+    /// smoothstep).
     fn downshift_inertia(&mut self, ctx: &Ctx, s: &mut Shift) -> PhaseOut {
         let (a, o) = (s.a, s.o);
         let r = ctx.reduced();
@@ -989,7 +997,10 @@ impl Strategy {
         let t_e = self.engine_law(ctx, &r, out.w_e_ref, w_e_dot_ref, out.t[a]);
         s.t_e_req = t_e;
         out.engine_req = Some(t_e);
-        if s.tau >= s.duration && (slip_o - delta).abs() < 3.0 || s.tau >= s.duration + 0.5 {
+        let h = &ctx.cfg.shift;
+        if s.tau >= s.duration && (slip_o - delta).abs() < h.downshift_sync_radps
+            || s.tau >= s.duration + h.downshift_sync_timeout_s
+        {
             s.phase = ShiftPhase::Torque;
             s.tau = 0.0;
         }
@@ -1022,12 +1033,16 @@ impl Strategy {
     }
 
     /// The mode after a shift's cycle: drive in the new gear once the on-coming clutch has been
-    /// locked for `lock_cycles` cycles (or nearly so after 3 s), a fresh start from the
-    /// measurements when the shift has not completed in 4 s, else the shift goes on. `t_o`: the
-    /// on-coming clutch's torque reference this cycle.
+    /// locked for `lock_cycles` cycles (or nearly so, `shift.fallback_lock_slip_radps`, after
+    /// `fallback_lock_s`), a fresh start from the measurements when the shift has not completed in
+    /// `abort_s`, else the shift goes on. `t_o`: the on-coming clutch's torque reference this
+    /// cycle.
     fn after_shift_cycle(&mut self, ctx: &Ctx, s: Shift, t_o: f64) {
         let slip_o = ctx.m.slip(s.o);
-        if s.lock_count >= ctx.cfg.control.lock_cycles || (s.total_s > 3.0 && slip_o.abs() < 2.0) {
+        let h = &ctx.cfg.shift;
+        if s.lock_count >= ctx.cfg.control.lock_cycles
+            || (s.total_s > h.fallback_lock_s && slip_o.abs() < h.fallback_lock_slip_radps)
+        {
             self.since_shift_s = 0.0;
             self.mode = Mode::Drive(Drive {
                 a: s.o,
@@ -1037,7 +1052,7 @@ impl Strategy {
                 since_s: 0.0,
                 slip_count: 0,
             });
-        } else if s.total_s > 4.0 {
+        } else if s.total_s > h.abort_s {
             // The shift did not complete: re-engage an engaged gear like a launch (or creep when
             // slow), from the measurements.
             self.since_shift_s = 0.0;
@@ -1057,7 +1072,7 @@ impl Strategy {
         let e = w_ref - ctx.m.w_e;
         let ff = r.j_eq * w_dot_ref + t_c;
         let lead = match self.ff_prev {
-            Some(prev) if ctx.dt >= MIN_LEAD_DT_S => {
+            Some(prev) if ctx.dt >= ctx.cfg.control.min_lead_dt_s => {
                 (ctx.cfg.physics.engine.torque_lag_s + ctx.cfg.control.command_delay_s)
                     * (ff - prev)
                     / ctx.dt
@@ -1099,15 +1114,16 @@ fn scheduled_from_speed(ctx: &Ctx) -> Gear {
 
 impl Drive {
     /// One cycle of the engaged clutch: the engine request blended toward the driver's demand at
-    /// `blend_rate_nm_per_s` and released within 1 N·m of it; the slip alarm counted; the clamp
-    /// capacity raised at once to (1 + margin·boost)·|T_e| + offset·boost (boost 2 after two
-    /// cycles of slip alarm), lowered at `clamp_rate_nm_per_s`, at most `max_torque_nm`.
+    /// `blend_rate_nm_per_s` and released within `blend_release_nm` of it; the slip alarm
+    /// counted; the clamp capacity raised at once to (1 + margin·boost)·|T_e| + offset·boost
+    /// (boost `slip_alarm_boost` after `slip_alarm_cycles` cycles of slip alarm, else 1), lowered
+    /// at `clamp_rate_nm_per_s`, at most `max_torque_nm`.
     fn advance(&mut self, ctx: &Ctx) {
         let k = &ctx.cfg.control;
         let demand = ctx.demand();
         if let Some(req) = self.blend {
             let next = approach(req, demand, k.blend_rate_nm_per_s, ctx.dt);
-            self.blend = if (next - demand).abs() < 1.0 {
+            self.blend = if (next - demand).abs() < k.blend_release_nm {
                 None
             } else {
                 Some(next)
@@ -1118,7 +1134,11 @@ impl Drive {
         } else {
             self.slip_count = 0;
         }
-        let boost = if self.slip_count >= 2 { 2.0 } else { 1.0 };
+        let boost = if self.slip_count >= k.slip_alarm_cycles {
+            k.slip_alarm_boost
+        } else {
+            1.0
+        };
         let t_e = ctx
             .m
             .t_e
@@ -1135,12 +1155,15 @@ impl Drive {
 
     /// The creep a stop leads to: in the start gear with the pedal off and the engine near idle
     /// (`creep.stop_engine_rpm`), keeping the clamp torque up to the creep torque; in any gear
-    /// with the engine near stalling, open (creep waits for the start gear).
+    /// with the engine near stalling (`creep.stall_idle_fraction`), open (creep waits for the start
+    /// gear).
     fn stop(&self, ctx: &Ctx) -> Option<Creep> {
         let cfg = ctx.cfg;
         let start = start_gear(ctx.m.lever).unwrap_or(Gear::G1);
         let low = ctx.m.w_e < cfg.creep.stop_engine_rpm * RPM;
-        if (self.gear == start && low && !ctx.pedal_on()) || ctx.m.w_e < 0.85 * ctx.idle() {
+        if (self.gear == start && low && !ctx.pedal_on())
+            || ctx.m.w_e < cfg.creep.stall_idle_fraction * ctx.idle()
+        {
             return Some(Creep {
                 a: shaft(start),
                 gear: start,
@@ -1159,16 +1182,17 @@ impl Drive {
 impl Sync {
     /// Advances the synchronisation by `dt`: the slip reference falls as a parabola from `s0` to
     /// `delta` below zero over `duration`, and its rate. After the profile, a slip still above
-    /// zero is pulled down further at 5 rad/s² (up to 10 rad/s below zero) so that it crosses
-    /// and the clutch locks.
-    fn advance(&mut self, dt: f64, delta: f64) -> (f64, f64) {
+    /// zero is pulled down further at `launch.sync_tail_rate_radps2` (up to
+    /// `sync_tail_max_radps` below zero) so that it crosses and the clutch locks.
+    fn advance(&mut self, dt: f64, delta: f64, l: &LaunchCfg) -> (f64, f64) {
+        let (rate, max) = (l.sync_tail_rate_radps2, l.sync_tail_max_radps);
         self.tau += dt;
         let u = (self.tau / self.duration).min(1.0);
         let tail = (self.tau - self.duration).max(0.0);
-        let s_ref = (self.s0 + delta) * (1.0 - u) * (1.0 - u) - delta - (5.0 * tail).min(10.0);
+        let s_ref = (self.s0 + delta) * (1.0 - u) * (1.0 - u) - delta - (rate * tail).min(max);
         let ds = -2.0 * (self.s0 + delta) * (1.0 - u) / self.duration
-            - if tail > 0.0 && 5.0 * tail < 10.0 {
-                5.0
+            - if tail > 0.0 && rate * tail < max {
+                rate
             } else {
                 0.0
             };
@@ -1201,7 +1225,8 @@ impl Launch {
     }
 
     /// The jerk-limited clutch acceleration reference toward `alpha_tgt`, capped by what the
-    /// engine has left after following its own profile (the engine flares first):
+    /// engine has left after following its own profile (the engine flares first), but not below
+    /// `launch.min_accel_share` of it:
     /// α ≤ (share·T_full(ω_e) − J_eq ω̇_prof − T̂_L/k)·k²/J_eq2; the clutch-speed reference
     /// integrates it, kept within `reference_window_radps` of the measured clutch speed.
     fn advance_clutch_reference(
@@ -1217,7 +1242,7 @@ impl Launch {
         let share = cfg.launch.engine_torque_share;
         let alpha_avail =
             (share * t_full - r.j_eq * w_dot_prof.max(0.0) - ctx.load() / k) * k * k / r.j_eq2;
-        let alpha_tgt = alpha_tgt.min(alpha_avail.max(0.1 * alpha_tgt));
+        let alpha_tgt = alpha_tgt.min(alpha_avail.max(cfg.launch.min_accel_share * alpha_tgt));
         let jerk = alpha_tgt.max(1.0) / cfg.launch.jerk_time_s.max(1e-3);
         self.alpha = approach(self.alpha, alpha_tgt, jerk, ctx.dt);
         self.w_c_ref += self.alpha * ctx.dt;
@@ -1251,7 +1276,7 @@ impl Launch {
         let delta = ctx.cfg.control.lock_undershoot_radps;
         match self.sync.as_mut() {
             Some(s) => {
-                let (s_ref, ds) = s.advance(ctx.dt, delta);
+                let (s_ref, ds) = s.advance(ctx.dt, delta, &ctx.cfg.launch);
                 (w_c + s_ref, self.alpha + ds)
             }
             None => (self.w_e_prof, w_e_dot_ref),
@@ -1268,9 +1293,10 @@ impl Launch {
     }
 
     /// Engine-speed target and clutch acceleration target of a launch at the current pedal:
-    /// target n(p); acceleration the larger of the pedal-consistent one (the driver's demand at
-    /// the target speed would hold it after lock-up) and the one that locks up in
-    /// `lockup_time_s` from the clutch speed `w_c0` at the start.
+    /// target n(p), at least `target_min_sync_slips`·`sync_slip_radps` above `w_c0`; acceleration
+    /// the larger of the pedal-consistent one (the driver's demand at the target speed would hold
+    /// it after lock-up) and the one that locks up in `lockup_time_s` from the clutch speed `w_c0`
+    /// at the start.
     fn targets(ctx: &Ctx, a: usize, gear: Gear, w_c0: f64) -> (f64, f64) {
         let cfg = ctx.cfg;
         let l = &cfg.launch;
@@ -1280,7 +1306,7 @@ impl Launch {
         } else {
             l.engine_rpm_0 + (l.engine_rpm_100 - l.engine_rpm_0) * p
         };
-        let w_tgt = (n * RPM).max(w_c0 + 2.0 * l.sync_slip_radps);
+        let w_tgt = (n * RPM).max(w_c0 + l.target_min_sync_slips * l.sync_slip_radps);
         let r = Reduced::new(
             &cfg.physics.driveline,
             if a == 0 { gear } else { Gear::N },
