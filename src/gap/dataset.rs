@@ -422,11 +422,12 @@ pub enum DatasetError {
         rows: usize,
         min: usize,
     },
-    #[error("{file}:{line}: malformed candump line: {message}")]
+    #[error("{file}:{line}: malformed candump line")]
     LogLine {
         file: String,
         line: usize,
-        message: String,
+        #[source]
+        source: LineError,
     },
     #[error("{file}: no valid {message} frame in the log: column(s) {columns} unavailable")]
     MissingMessage {
@@ -1172,7 +1173,7 @@ fn candump_lines<'a>(
                     DatasetError::LogLine {
                         file: file.into(),
                         line,
-                        message: LineError::Timestamp.to_string(),
+                        source: LineError::Timestamp,
                     }
                 } else {
                     DatasetError::Io {
@@ -1213,7 +1214,7 @@ fn candump_line(file: &str, line: usize, l: &str) -> Result<Stamped, DatasetErro
         .map_err(|kind| DatasetError::LogLine {
             file: file.into(),
             line,
-            message: kind.to_string(),
+            source: kind,
         })
 }
 
