@@ -294,16 +294,12 @@ impl IsoTp {
             return Err(SendError::Busy);
         }
         if payload.len() <= SF_MAX {
-            let mut head = vec![payload.len() as u8];
-            head.extend_from_slice(payload);
-            self.queue(&head);
+            self.queue(&[payload.len() as u8], payload);
             self.counters.messages_sent += 1;
             return Ok(());
         }
         let len = payload.len();
-        let mut head = vec![0x10 | (len >> 8) as u8, len as u8];
-        head.extend_from_slice(&payload[..FF_DATA]);
-        self.queue(&head);
+        self.queue(&[0x10 | (len >> 8) as u8, len as u8], &payload[..FF_DATA]);
         self.tx = Some(Tx {
             payload: payload.to_vec(),
             pos: FF_DATA,
@@ -381,8 +377,11 @@ impl IsoTp {
             return None;
         }
         let end = (tx.pos + CF_DATA).min(tx.payload.len());
-        let mut head = vec![0x20 | tx.next_sn];
-        head.extend_from_slice(&tx.payload[tx.pos..end]);
+        let f = frame(
+            self.cfg.padding,
+            &[0x20 | tx.next_sn],
+            &tx.payload[tx.pos..end],
+        );
         tx.pos = end;
         tx.next_sn = (tx.next_sn + 1) & 0x0F;
         tx.last_cf = Some(now);
@@ -404,7 +403,7 @@ impl IsoTp {
             self.tx = None;
             self.counters.messages_sent += 1;
         }
-        Some(self.frame(&head))
+        Some(f)
     }
 
     /// When the core next needs to run without a received frame: at once when a frame is
@@ -447,7 +446,7 @@ impl IsoTp {
     fn first_frame(&mut self, now: Duration, len: usize, data: &[u8]) {
         if len > MAX_PAYLOAD {
             self.counters.overflows_sent += 1;
-            self.queue(&[0x32, 0, 0]);
+            self.queue(&[0x32, 0, 0], &[]);
             return;
         }
         let mut buf = Vec::with_capacity(len);
@@ -538,26 +537,26 @@ impl IsoTp {
     /// Queues a flow control "continue to send" with this side's block size and STmin.
     fn queue_continue(&mut self) {
         let fc = [0x30, self.cfg.block_size, self.cfg.st_min];
-        self.queue(&fc);
+        self.queue(&fc, &[]);
     }
 
-    fn queue(&mut self, bytes: &[u8]) {
-        let f = self.frame(bytes);
+    /// Queues the frame of `pci` and `data`.
+    fn queue(&mut self, pci: &[u8], data: &[u8]) {
+        let f = frame(self.cfg.padding, pci, data);
         self.out.push_back(f);
     }
+}
 
-    /// A frame of `bytes`, padded to 8 with the configured byte.
-    fn frame(&self, bytes: &[u8]) -> TxFrame {
-        let mut data = [self.cfg.padding.unwrap_or(0); 8];
-        data[..bytes.len()].copy_from_slice(bytes);
-        TxFrame {
-            data,
-            len: if self.cfg.padding.is_some() {
-                8
-            } else {
-                bytes.len()
-            },
-        }
+/// The frame of the protocol control bytes `pci` and then `data` (8 bytes at most in all),
+/// padded to 8 with `padding` when there is one; no allocation.
+fn frame(padding: Option<u8>, pci: &[u8], data: &[u8]) -> TxFrame {
+    let len = pci.len() + data.len();
+    let mut bytes = [padding.unwrap_or(0); 8];
+    bytes[..pci.len()].copy_from_slice(pci);
+    bytes[pci.len()..len].copy_from_slice(data);
+    TxFrame {
+        data: bytes,
+        len: if padding.is_some() { 8 } else { len },
     }
 }
 
