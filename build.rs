@@ -85,7 +85,13 @@ fn generate(messages: &[DbcMessage]) -> Result<String, std::fmt::Error> {
     let mut enum_names = Vec::new();
     let mut enums = String::new();
     let mut structs = String::new();
-    for (mi, m) in messages.iter().enumerate() {
+    // A message without signals (the ISO-TP and XCP transport ids) has its id and table row
+    // only: its bytes are a protocol's, not signals.
+    for (mi, m) in messages
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| !m.signals.is_empty())
+    {
         let mut fields = Vec::new();
         for (si, s) in m.signals.iter().enumerate() {
             let k = kind(m, s, &mut enum_names);
@@ -350,14 +356,15 @@ fn message_enum(o: &mut String, messages: &[DbcMessage]) -> std::fmt::Result {
         o,
         "#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]\npub enum Message {{"
     )?;
-    for m in messages {
+    let messages: Vec<&DbcMessage> = messages.iter().filter(|m| !m.signals.is_empty()).collect();
+    for m in &messages {
         writeln!(o, "    {}({}),", camel(&m.name), camel(&m.name))?;
     }
     writeln!(o, "}}\n")?;
     writeln!(o, "impl Message {{")?;
     writeln!(o, "    /// Decodes a frame of the contract by its id.")?;
     writeln!(o, "    pub fn decode(id: u32, data: &[u8]) -> Result<Self, CodecError> {{\n        match id {{")?;
-    for m in messages {
+    for m in &messages {
         let c = camel(&m.name);
         writeln!(
             o,
@@ -370,7 +377,7 @@ fn message_enum(o: &mut String, messages: &[DbcMessage]) -> std::fmt::Result {
         "            _ => Err(CodecError::UnknownId {{ id }}),\n        }}\n    }}"
     )?;
     writeln!(o, "    /// The CAN id of this message.\n    pub fn id(&self) -> u16 {{\n        match self {{")?;
-    for m in messages {
+    for m in &messages {
         writeln!(
             o,
             "            Message::{}(_) => {:#x},",
@@ -380,7 +387,7 @@ fn message_enum(o: &mut String, messages: &[DbcMessage]) -> std::fmt::Result {
     }
     writeln!(o, "        }}\n    }}")?;
     writeln!(o, "    /// Encodes the payload.\n    pub fn encode(&self) -> Result<[u8; 8], CodecError> {{\n        match self {{")?;
-    for m in messages {
+    for m in &messages {
         writeln!(
             o,
             "            Message::{}(m) => m.encode(),",

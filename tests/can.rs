@@ -28,7 +28,7 @@ impl Rng {
 }
 
 #[test]
-fn contract_has_the_thirteen_messages() {
+fn contract_has_thirteen_signal_messages_and_five_transport_ids() {
     let want = [
         (0x100, "ENG_Status", true),
         (0x110, "DRV_Pedal", true),
@@ -44,8 +44,31 @@ fn contract_has_the_thirteen_messages() {
         (0x142, "BENCH_Vehicle", false),
         (0x1F0, "SIM_Truth", false),
     ];
-    assert_eq!(MESSAGES.len(), want.len());
-    for (m, (id, name, e2e)) in MESSAGES.iter().zip(want) {
+    // The diagnostic transport ids (ISO 15765-2 for UDS, XCP on CAN): event frames, no signals.
+    let transport = [
+        (0x7DF, "DIAG_FunctionalReq", "BENCH"),
+        (0x7E1, "TCU_DiagReq", "BENCH"),
+        (0x7E9, "TCU_DiagResp", "TCU"),
+        (0x7F0, "TCU_XcpCro", "BENCH"),
+        (0x7F1, "TCU_XcpDto", "TCU"),
+    ];
+    assert_eq!(MESSAGES.len(), want.len() + transport.len());
+    let (signal_messages, transport_messages) = MESSAGES.split_at(want.len());
+    for (m, (id, name, sender)) in transport_messages.iter().zip(transport) {
+        assert_eq!(
+            (
+                m.id,
+                m.name,
+                m.sender,
+                m.e2e,
+                m.cycle_ms,
+                m.dlc,
+                m.signals.len()
+            ),
+            (id, name, sender, false, 0, 8, 0)
+        );
+    }
+    for (m, (id, name, e2e)) in signal_messages.iter().zip(want) {
         assert_eq!(
             (m.id, m.name, m.e2e, m.cycle_ms, m.dlc),
             (id, name, e2e, 10, 8)
@@ -102,7 +125,7 @@ fn every_signal_round_trips_at_min_mid_max() {
     let frames = sample_frames();
     assert_eq!(
         frames.len(),
-        MESSAGES.len() * 3,
+        MESSAGES.iter().filter(|m| !m.signals.is_empty()).count() * 3,
         "a sample for every message and case"
     );
     for f in &frames {

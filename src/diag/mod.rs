@@ -1,4 +1,6 @@
-//! Diagnostics on the bus (issue 16): the ISO 15765-2 transport (`isotp`), a pure core like the
-//! TCU's. The UDS server (ISO 14229-1) and the XCP slave build on it.
+//! Diagnostics on the bus (issue 16): the ISO 15765-2 transport (`isotp`), the table of the
+//! TCU's measurements and calibrations reachable on the bus (`values`); the UDS server
+//! (ISO 14229-1) and the XCP slave build on them. Pure cores like the TCU's.
 
 pub mod isotp;
+pub mod values;

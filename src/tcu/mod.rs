@@ -212,6 +212,40 @@ impl Tcu {
         self.est.clutch_temps(f64::NAN)
     }
 
+    /// Kiss points x_ISP(θ̂) (9) of the TCU's clutch model at the estimated temperatures (mm).
+    pub fn kiss_points(&self) -> [f64; 2] {
+        self.temperatures().map(|t| self.model.kiss_point(t))
+    }
+
+    /// Sets one calibration on the bus (UDS WriteDataByIdentifier, XCP DOWNLOAD): the whole
+    /// calibration is validated with the new value (its key's range and the rules between keys)
+    /// and, if valid, takes effect at the next step — the clutch model is rebuilt, the controller
+    /// gains change with their integrators kept. A switch takes exactly 0 or 1. On an error
+    /// nothing changes.
+    pub fn set_calibration(
+        &mut self,
+        cal: crate::diag::values::Calibration,
+        value: f64,
+    ) -> Result<(), TcuConfigError> {
+        if cal.is_switch() && value != 0.0 && value != 1.0 {
+            return Err(TcuConfigError::Inconsistent {
+                key: cal.meta().name.into(),
+                reason: format!("{value} is not a switch value (0 or 1)"),
+            });
+        }
+        let mut c = self.cfg.clone();
+        cal.put(&mut c, value);
+        c.validate()?;
+        self.cfg = c;
+        self.model = ClutchModel::with_effects(
+            self.cfg.physics.clutch,
+            self.cfg.compensation,
+            self.cfg.effect_set,
+        );
+        self.strategy.set_gains(&self.cfg);
+        Ok(())
+    }
+
     /// When the core must next run without a new DCT_Sensors frame: at once before its first
     /// step; [`SENSOR_SILENCE`] after the last step that had one; every [`CYCLE`] after its
     /// previous step while the sensors are silent (or were never seen).

@@ -381,6 +381,20 @@ impl Strategy {
         }
     }
 
+    /// The controller gains of `cfg` (a calibration written on the bus); the integrators keep
+    /// their state.
+    pub fn set_gains(&mut self, cfg: &TcuConfig) {
+        let k = &cfg.control;
+        for pi in &mut self.pi_c {
+            pi.kp = k.clutch_kp_per_s;
+            pi.ki = k.clutch_ki_per_s2;
+            pi.integral_max = k.clutch_integral_limit_nm;
+        }
+        self.pi_e.kp = k.engine_kp_per_s;
+        self.pi_e.ki = k.engine_ki_per_s2;
+        self.pi_e.integral_max = k.engine_integral_limit_nm;
+    }
+
     /// Lead on the position request of a slipping clutch, x + (τ_a + d)·ẋ, cancelling the
     /// actuator's first-order lag τ_a (the nominal actuator of the parameter file) and, to first
     /// order, the command delay d (`control.command_delay_s`), so the torque follows the
