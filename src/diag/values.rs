@@ -514,7 +514,7 @@ mod tests {
         }
         for c in Calibration::ALL {
             assert_eq!(Calibration::at(c.address()), Some(c));
-            assert_eq!(Calibration::get(c, &TcuConfig::default()).is_finite(), true);
+            assert!(Calibration::get(c, &TcuConfig::default()).is_finite());
         }
         assert_eq!(Measurement::at(MEASUREMENT_BASE + 4 * 19), None);
     }
