@@ -76,12 +76,20 @@ fn run(sc: &SimScenario, shift_mm: f64, act: &mut dyn FnMut(f64, &mut Tcu) -> St
             }
         },
     );
+    // The plant's true clutch temperatures (SIM_Truth, 0.1 °C) in the routine's last cycle (a
+    // hot clutch cools while the routine runs), else at the end.
     let th = plant.state().thermal;
+    let theta = trace
+        .rows
+        .iter()
+        .rev()
+        .find(|r| r.phase.starts_with("kiss"))
+        .map_or([th.c1, th.c2], |r| r.theta_true_c);
     let p = &plant_cfg.params.clutch;
     Outcome {
         state: tcu.kiss_point_routine(),
         learned: tcu.learned_kiss_points(),
-        plant_kiss: [clutch::x_isp(p, th.c1), clutch::x_isp(p, th.c2)],
+        plant_kiss: theta.map(|t| clutch::x_isp(p, t)),
         model_kiss: tcu.kiss_points(),
         start,
         rows: trace.rows,
@@ -107,11 +115,12 @@ fn start_at(
 /// Learns `clutch`'s kiss point with the plant's λ0 shifted by `shift_mm`; returns the error
 /// against the plant (mm) and the learned value's distance to the TCU model's kiss point.
 fn learn(clutch: usize, shift_mm: f64, lever: &str) -> (f64, f64) {
-    let out = run(
-        &standstill(lever, 35.0),
-        shift_mm,
-        &mut start_at(clutch, 2.0),
-    );
+    learn_in(&standstill(lever, 35.0), clutch, shift_mm, lever)
+}
+
+/// [`learn`] in the scenario `sc` (lever `lever`).
+fn learn_in(sc: &SimScenario, clutch: usize, shift_mm: f64, lever: &str) -> (f64, f64) {
+    let out = run(sc, shift_mm, &mut start_at(clutch, 2.0));
     assert_eq!(out.start, Some(Ok(())), "start refused");
     let RoutineState::Done { clutch: c, kiss_mm } = out.state else {
         panic!("clutch {clutch}, shift {shift_mm}: {:?}", out.state);
@@ -127,9 +136,17 @@ fn learn(clutch: usize, shift_mm: f64, lever: &str) -> (f64, f64) {
         .map(|r| r.t_s)
         .collect();
     let took = busy.last().unwrap() - busy.first().unwrap();
+    // For comparison: the measured position at the detection, without the onset fit.
+    let at_detection = out
+        .rows
+        .iter()
+        .rev()
+        .find(|r| r.phase.starts_with("kiss"))
+        .map_or(f64::NAN, |r| r.x_mm[clutch] - out.plant_kiss[clutch]);
     eprintln!(
-        "clutch {clutch} lever {lever} λ0 shift {shift_mm:+.2} mm: learned {kiss_mm:.4} mm, plant \
-         {:.4} mm, model {:.4} mm, error {err:+.4} mm, routine {took:.1} s",
+        "clutch {clutch} lever {lever} λ0 shift {shift_mm:+.2} mm: learned {kiss_mm:.4} mm, \
+         plant {:.4} mm, model {:.4} mm, error {err:+.4} mm (uncorrected position at the \
+         detection {at_detection:+.4} mm), routine {took:.1} s",
         out.plant_kiss[clutch], out.model_kiss[clutch]
     );
     assert!(took <= out_cfg_timeout(), "took {took} s");
@@ -173,6 +190,17 @@ fn learns_a_kiss_point_the_model_does_not_have() {
             "clutch {clutch}: {off_model} mm from the model, the plant is {shift} mm away"
         );
     }
+}
+
+/// A hot plant (120 °C clutches, x_ISP of (9) about 0.27 mm before its room-temperature value)
+/// with the TCU's estimator starting from its own initial temperature: the learned value follows
+/// the plant's temperature-dependent kiss point.
+#[test]
+fn learns_a_hot_clutch_kiss_point() {
+    let mut sc = standstill("N", 35.0);
+    sc.plant.initial.temperature_c = 120.0;
+    let (err, _) = learn_in(&sc, 0, 0.0, "N");
+    assert!(err.abs() <= TOLERANCE_MM, "error {err} mm");
 }
 
 #[test]
