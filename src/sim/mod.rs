@@ -321,6 +321,18 @@ pub fn run_with(
     duration: Duration,
     opts: &SimOptions,
 ) -> SimTrace {
+    run_with_hook(plant, tcu, duration, opts, &mut |_, _| {})
+}
+
+/// [`run_with`], calling `before_step(t, tcu)` before each TCU computation at `t`: a tester
+/// acting on the TCU core during the run (starting or stopping a diagnostic routine).
+pub fn run_with_hook(
+    plant: &mut dyn PlantNode,
+    tcu: &mut Tcu,
+    duration: Duration,
+    opts: &SimOptions,
+    before_step: &mut dyn FnMut(Duration, &mut Tcu),
+) -> SimTrace {
     let ms = Duration::from_millis(1);
     let mut to_plant: Vec<Received> = Vec::new();
     let mut pending: Vec<(Duration, CanFrame)> = Vec::new();
@@ -355,6 +367,7 @@ pub fn run_with(
         }
         let fallback = t >= tcu.poll_timeout();
         if sync || fallback {
+            before_step(t, tcu);
             let o = tcu.step(t, &TcuInputs { frames: &inbox });
             inbox.clear();
             for f in &o.frames {

@@ -1,6 +1,7 @@
 //! The TCU's calibration (`config/tcu.toml`): compensation switches of the torque inverse (paper
 //! Sect. 6), estimator, input checks, safety thresholds, the gains of the decoupling controller
-//! (23)–(27), creep, launch and shift strategy. The physical parameters the TCU's models use
+//! (23)–(27), creep, launch and shift strategy, the kiss-point adaptation routine (x_ISP of (9)
+//! learned where the torque of (13) starts, [`super::routine`]). The physical parameters the TCU's models use
 //! (clutch (13), thermal (17), driveline (22), engine map) come from the parameter file the
 //! calibration names (`params = "params.toml"`, relative to the calibration file).
 //!
@@ -275,6 +276,61 @@ pub struct ShiftCfg {
     pub down_kmh_100: [f64; 5],
 }
 
+/// `[kiss_routine]`: the kiss-point adaptation routine ([`super::routine`], UDS RoutineControl
+/// 0x0201). Optional in a calibration file: a missing table or key takes the default below.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct KissRoutineCfg {
+    /// Standstill: the vehicle below this speed (km/h) to start and to keep running.
+    pub max_vehicle_kmh: f64,
+    /// Engine running: its speed above this fraction of idle.
+    pub engine_running_idle_fraction: f64,
+    /// Settling with the clutch open and the shaft in neutral: the mean input-shaft speed of one
+    /// window of this length (s) ...
+    pub settle_window_s: f64,
+    /// ... within this of the previous window's (rpm) counts as settled (spun down or steady).
+    pub steady_rpm: f64,
+    /// Approach from open to the ramp's start at this rate (mm/s) ...
+    pub approach_rate_mm_per_s: f64,
+    /// ... the start lying this far before the model's kiss point x_ISP(θ̂) of (9) (mm) ...
+    pub start_before_kiss_mm: f64,
+    /// ... held this long there while the speed baseline is measured (s).
+    pub hold_s: f64,
+    /// The slow ramp's rate (mm/s).
+    pub ramp_rate_mm_per_s: f64,
+    /// The ramp ends this far beyond the model's kiss point: the shaft did not move (mm).
+    pub end_beyond_kiss_mm: f64,
+    /// The shaft counts as turning once its speed left the baseline by this (rpm); the onset fit
+    /// uses the samples between `fit_floor_rpm` and this.
+    pub detect_rpm: f64,
+    /// Lower bound of the onset fit's samples (rpm above the baseline).
+    pub fit_floor_rpm: f64,
+    /// The measured position is fitted over this window before the onset (s).
+    pub position_fit_s: f64,
+    /// The whole routine is aborted after this (s).
+    pub timeout_s: f64,
+}
+
+impl Default for KissRoutineCfg {
+    fn default() -> Self {
+        Self {
+            max_vehicle_kmh: 0.5,
+            engine_running_idle_fraction: 0.7,
+            settle_window_s: 0.5,
+            steady_rpm: 2.0,
+            approach_rate_mm_per_s: 10.0,
+            start_before_kiss_mm: 0.8,
+            hold_s: 0.5,
+            ramp_rate_mm_per_s: 0.1,
+            end_beyond_kiss_mm: 1.0,
+            detect_rpm: 40.0,
+            fit_floor_rpm: 4.0,
+            position_fit_s: 1.0,
+            timeout_s: 30.0,
+        }
+    }
+}
+
 /// The whole calibration plus the physical parameters it names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -293,6 +349,9 @@ pub struct TcuConfig {
     pub creep: CreepCfg,
     pub launch: LaunchCfg,
     pub shift: ShiftCfg,
+    /// The kiss-point adaptation routine (optional table: defaults without it).
+    #[serde(default)]
+    pub kiss_routine: KissRoutineCfg,
     /// The physical parameters (loaded from `params`).
     #[serde(skip)]
     pub physics: Params,
@@ -418,6 +477,21 @@ crate::ranges!(ShiftCfg as h, "shift" {
     down_kmh_0: [0.0, 400.0],
     down_kmh_100: [0.0, 400.0],
 });
+crate::ranges!(KissRoutineCfg as r, "kiss_routine" {
+    max_vehicle_kmh: [0.0, 5.0],
+    engine_running_idle_fraction: [0.1, 1.0],
+    settle_window_s: [0.05, 5.0],
+    steady_rpm: [0.1, 100.0],
+    approach_rate_mm_per_s: [0.1, 100.0],
+    start_before_kiss_mm: [0.05, 5.0],
+    hold_s: [0.0, 5.0],
+    ramp_rate_mm_per_s: [0.005, 2.0],
+    end_beyond_kiss_mm: [0.05, 5.0],
+    detect_rpm: [r.fit_floor_rpm + 1.0, 1000.0],
+    fit_floor_rpm: [0.5, 500.0],
+    position_fit_s: [0.05, 10.0],
+    timeout_s: [1.0, 600.0],
+});
 
 impl Default for TcuConfig {
     fn default() -> Self {
@@ -491,6 +565,7 @@ impl TcuConfig {
         self.creep.check_ranges()?;
         self.launch.check_ranges()?;
         self.shift.check_ranges()?;
+        self.kiss_routine.check_ranges()?;
         self.consistency()
     }
 
@@ -700,6 +775,32 @@ mod tests {
                 e.contains("inconsistent `shift.fallback_lock_s`") && e.contains("shift.abort_s"),
                 "{e}"
             );
+        }
+    }
+
+    /// `[kiss_routine]` is optional (a calibration without it loads with the defaults, which are
+    /// the file's), and each of its keys is range-checked naming the key.
+    #[test]
+    fn the_kiss_routine_table_is_optional_and_range_checked() {
+        let start = DEFAULT_TOML
+            .find("\n[kiss_routine]")
+            .expect("table in config/tcu.toml");
+        let end = DEFAULT_TOML[start + 1..]
+            .find("\n[")
+            .map_or(DEFAULT_TOML.len(), |e| start + 1 + e);
+        let without = format!("{}{}", &DEFAULT_TOML[..start], &DEFAULT_TOML[end..]);
+        let c = TcuConfig::from_toml_str(&without, Path::new("x.toml")).unwrap();
+        assert_eq!(c.kiss_routine, KissRoutineCfg::default());
+        assert_eq!(TcuConfig::default().kiss_routine, KissRoutineCfg::default());
+        for (key, bad) in [
+            ("kiss_routine.ramp_rate_mm_per_s", "0.0"),
+            ("kiss_routine.detect_rpm", "4.5"),
+            ("kiss_routine.timeout_s", "nan"),
+            ("kiss_routine.start_before_kiss_mm", "-1.0"),
+        ] {
+            let name = key.split_once('.').unwrap().1;
+            let e = load_error(&with_value(name, bad)).unwrap_or_else(|| panic!("{key} = {bad}"));
+            assert!(e.contains(&format!("`{key}` = ")), "{key}: {e}");
         }
     }
 

@@ -21,6 +21,11 @@
 //!    FaultCode InternalNonFinite and holds the previous finite command), encoded and E2E
 //!    protected.
 //!
+//! While the kiss-point adaptation routine runs ([`routine`], UDS RoutineControl 0x0201; started
+//! with [`Tcu::start_kiss_point_routine`]), step 5's command is the strategy's with the routine's
+//! clutch position, its shaft in neutral and the other clutch open; the strategy keeps running
+//! underneath (Neutral: the lever is in P or N) and takes over when the routine ends.
+//!
 //! No clock, no socket: `now` is the time since the TCU started, and frames carry their arrival
 //! time on the same time base.
 //!
@@ -35,6 +40,7 @@ pub mod config;
 pub mod control;
 pub mod estimator;
 pub mod inputs;
+pub mod routine;
 pub mod sender;
 pub mod strategy;
 
@@ -72,6 +78,7 @@ use crate::can::CanFrame;
 use control::{approach, ClutchModel};
 use estimator::{EstimatorInputs, ThermalEstimator};
 use inputs::{Health, InputCounters, InputMonitor};
+use routine::{KissRoutine, RoutineInputs, RoutineRefusal, RoutineState};
 use std::time::Duration;
 use strategy::{Command, Ctx, Strategy};
 
@@ -128,6 +135,7 @@ pub struct Tcu {
     inputs: InputMonitor,
     est: ThermalEstimator,
     strategy: Strategy,
+    routine: KissRoutine,
     tx: E2eSender,
     top: Top,
     last_now: Option<Duration>,
@@ -158,6 +166,7 @@ impl Tcu {
                 cfg.estimator.slip_deadband_radps,
             ),
             strategy: Strategy::new(&cfg),
+            routine: KissRoutine::default(),
             tx: E2eSender::new(),
             top: Top::Init,
             last_now: None,
@@ -215,6 +224,31 @@ impl Tcu {
     /// Kiss points x_ISP(θ̂) (9) of the TCU's clutch model at the estimated temperatures (mm).
     pub fn kiss_points(&self) -> [f64; 2] {
         self.temperatures().map(|t| self.model.kiss_point(t))
+    }
+
+    /// Starts the kiss-point adaptation routine ([`routine`]) for `clutch` (0 odd, 1 even),
+    /// checked against the latest measurements: the TCU running without a fault, standstill,
+    /// lever P or N, engine running, pedal released. It acts from the next step.
+    pub fn start_kiss_point_routine(&mut self, clutch: usize) -> Result<(), RoutineRefusal> {
+        let healthy = self.top == Top::Run;
+        self.routine
+            .start(clutch, &self.cfg, self.inputs.measurements(), healthy)
+    }
+
+    /// Stops a running kiss-point routine (aborted, stopped by the tester): the strategy reopens
+    /// the clutch from the next step.
+    pub fn stop_kiss_point_routine(&mut self) {
+        self.routine.stop();
+    }
+
+    /// The kiss-point routine's state.
+    pub fn kiss_point_routine(&self) -> RoutineState {
+        self.routine.state()
+    }
+
+    /// The kiss points the routine has learned (mm), per clutch.
+    pub fn learned_kiss_points(&self) -> [Option<f64>; 2] {
+        self.routine.learned()
     }
 
     /// Sets one calibration on the bus (UDS WriteDataByIdentifier, XCP DOWNLOAD): the whole
@@ -302,6 +336,7 @@ impl Tcu {
             Top::Safe => self.safe_command(dt),
             Top::Run => self.strategy.step(&ctx),
         };
+        let cmd = self.apply_routine(cmd, &m, theta, now);
         let cmd = self.finite_and_in_range(cmd);
         let fault = self.fault_code(grace, &health);
         let trace = TcuTrace {
@@ -400,6 +435,38 @@ impl Tcu {
                 health.recovered
             }
         }
+    }
+
+    /// A running kiss-point routine's cycle (aborted outside the run state): its clutch at the
+    /// routine's position with its shaft in neutral, the other clutch open; remembered as the
+    /// strategy's last command.
+    fn apply_routine(
+        &mut self,
+        mut cmd: Command,
+        m: &Measurements,
+        theta: [f64; 2],
+        now: Duration,
+    ) -> Command {
+        let RoutineState::Running { clutch } = self.routine.state() else {
+            return cmd;
+        };
+        let u = RoutineInputs {
+            cfg: &self.cfg,
+            m,
+            now_s: now.as_secs_f64(),
+            model_kiss_mm: self.model.kiss_point(theta[clutch]),
+            healthy: self.top == Top::Run,
+        };
+        let Some(r) = self.routine.step(&u) else {
+            return cmd;
+        };
+        cmd.x_ref[r.clutch] = r.x_ref_mm;
+        cmd.x_ref[1 - r.clutch] = self.cfg.control.open_position_mm;
+        cmd.t_ref = [0.0; 2];
+        cmd.gear_req[r.clutch] = crate::model::gear::Gear::N;
+        cmd.phase = r.phase;
+        self.strategy.override_last(&cmd);
+        cmd
     }
 
     /// The safe state's command: both clutches opened at the safe rate, the gears as they were.

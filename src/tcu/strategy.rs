@@ -429,6 +429,13 @@ impl Strategy {
         &self.last
     }
 
+    /// Makes `cmd` the last command: what was sent instead of this step's own command (the
+    /// kiss-point routine's clutch and neutral shaft), so the gear requests that follow hold a
+    /// shaft's gear until its clutch is open ([`Self::safe_gear_req`]).
+    pub fn override_last(&mut self, cmd: &Command) {
+        self.last = *cmd;
+    }
+
     /// Restarts from the measurements (after Init or the safe state): the mode follows the lever
     /// and the vehicle speed; integrators are cleared.
     pub fn restart(&mut self, ctx: &Ctx) {
