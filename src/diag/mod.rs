@@ -4,3 +4,4 @@
 
 pub mod isotp;
 pub mod values;
+pub mod xcp;
