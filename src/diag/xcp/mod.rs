@@ -10,7 +10,8 @@
 //! - [`daq`]: dynamic DAQ lists, their allocation and the DAQ packets (DTO).
 //! - [`slave`]: the command processor.
 //!
-//! Written against the master pyxcp 0.29 (its `Master` and `DaqProcessor.setup`): CONNECT,
+//! Written against the master pyxcp 0.29.14 (source at christoph2/pyxcp 22b6c60; its `Master`
+//! and `DaqProcessor.setup`; PyPI's latest is 0.29.20, to be pinned and checked): CONNECT,
 //! GET_STATUS, GET_COMM_MODE_INFO, GET_ID + UPLOAD, SET_MTA + UPLOAD, SHORT_UPLOAD, DOWNLOAD; the
 //! DAQ setup GET_DAQ_PROCESSOR_INFO, GET_DAQ_RESOLUTION_INFO, FREE_DAQ, ALLOC_DAQ, ALLOC_ODT
 //! (each list), ALLOC_ODT_ENTRY (each ODT), SET_DAQ_PTR + WRITE_DAQ (each non-empty ODT),
