@@ -91,6 +91,11 @@ impl Dtc {
         }
     }
 
+    /// The DTC of a 2-byte SAE J2012 code (e.g. 0xC100 for U0100) and a failure type byte.
+    pub const fn sae(code: u16, failure_type: u8) -> Dtc {
+        Dtc(((code as u32) << 8) | failure_type as u32)
+    }
+
     /// Its value (0 ..= 0xFFFFFF).
     pub const fn value(self) -> u32 {
         self.0
@@ -124,28 +129,28 @@ impl fmt::Display for Dtc {
 
 /// Fault code → DTC (the table of docs/diagnostics.md "Fault memory").
 pub const TABLE: [(FaultCode, Dtc); 22] = [
-    (FaultCode::EngStatusTimeout, Dtc(0xC1_00_87)), // U0100-87
-    (FaultCode::EngStatusCrc, Dtc(0xC4_01_83)),     // U0401-83
-    (FaultCode::EngStatusCounter, Dtc(0xC4_01_82)), // U0401-82
-    (FaultCode::SensorsTimeout, Dtc(0xD1_00_87)),   // U1100-87
-    (FaultCode::SensorsCrc, Dtc(0xD4_01_83)),       // U1401-83
-    (FaultCode::SensorsCounter, Dtc(0xD4_01_82)),   // U1401-82
-    (FaultCode::ActuatorsTimeout, Dtc(0xD1_01_87)), // U1101-87
-    (FaultCode::ActuatorsCrc, Dtc(0xD4_02_83)),     // U1402-83
-    (FaultCode::ActuatorsCounter, Dtc(0xD4_02_82)), // U1402-82
-    (FaultCode::PedalTimeout, Dtc(0xD1_02_87)),     // U1102-87
-    (FaultCode::PedalCrc, Dtc(0xD4_03_83)),         // U1403-83
-    (FaultCode::PedalCounter, Dtc(0xD4_03_82)),     // U1403-82
-    (FaultCode::ImplausibleSpeed, Dtc(0x07_15_64)), // P0715-64
-    (FaultCode::ImplausibleTemp, Dtc(0x07_11_64)),  // P0711-64
-    (FaultCode::ImplausiblePosition, Dtc(0x08_06_64)), // P0806-64
-    (FaultCode::ClutchOverTempWarning, Dtc(0x02_18_4B)), // P0218-4B
-    (FaultCode::ClutchOverTempLimit, Dtc(0x02_18_98)), // P0218-98
-    (FaultCode::InternalNonFinite, Dtc(0x06_13_49)), // P0613-49
-    (FaultCode::SensorsStaleTime, Dtc(0xD4_01_81)), // U1401-81
-    (FaultCode::ImplausibleGear, Dtc(0x07_30_64)),  // P0730-64
-    (FaultCode::ImplausibleLever, Dtc(0x07_05_64)), // P0705-64
-    (FaultCode::SecondSender, Dtc(0xC0_01_81)),     // U0001-81
+    (FaultCode::EngStatusTimeout, Dtc::sae(0xC100, 0x87)), // U0100-87
+    (FaultCode::EngStatusCrc, Dtc::sae(0xC401, 0x83)),     // U0401-83
+    (FaultCode::EngStatusCounter, Dtc::sae(0xC401, 0x82)), // U0401-82
+    (FaultCode::SensorsTimeout, Dtc::sae(0xD100, 0x87)),   // U1100-87
+    (FaultCode::SensorsCrc, Dtc::sae(0xD401, 0x83)),       // U1401-83
+    (FaultCode::SensorsCounter, Dtc::sae(0xD401, 0x82)),   // U1401-82
+    (FaultCode::ActuatorsTimeout, Dtc::sae(0xD101, 0x87)), // U1101-87
+    (FaultCode::ActuatorsCrc, Dtc::sae(0xD402, 0x83)),     // U1402-83
+    (FaultCode::ActuatorsCounter, Dtc::sae(0xD402, 0x82)), // U1402-82
+    (FaultCode::PedalTimeout, Dtc::sae(0xD102, 0x87)),     // U1102-87
+    (FaultCode::PedalCrc, Dtc::sae(0xD403, 0x83)),         // U1403-83
+    (FaultCode::PedalCounter, Dtc::sae(0xD403, 0x82)),     // U1403-82
+    (FaultCode::ImplausibleSpeed, Dtc::sae(0x0715, 0x64)), // P0715-64
+    (FaultCode::ImplausibleTemp, Dtc::sae(0x0711, 0x64)),  // P0711-64
+    (FaultCode::ImplausiblePosition, Dtc::sae(0x0806, 0x64)), // P0806-64
+    (FaultCode::ClutchOverTempWarning, Dtc::sae(0x0218, 0x4B)), // P0218-4B
+    (FaultCode::ClutchOverTempLimit, Dtc::sae(0x0218, 0x98)), // P0218-98
+    (FaultCode::InternalNonFinite, Dtc::sae(0x0613, 0x49)), // P0613-49
+    (FaultCode::SensorsStaleTime, Dtc::sae(0xD401, 0x81)), // U1401-81
+    (FaultCode::ImplausibleGear, Dtc::sae(0x0730, 0x64)),  // P0730-64
+    (FaultCode::ImplausibleLever, Dtc::sae(0x0705, 0x64)), // P0705-64
+    (FaultCode::SecondSender, Dtc::sae(0xC001, 0x81)),     // U0001-81
 ];
 
 /// The DTC of a fault code (`None` for [`FaultCode::None`]).

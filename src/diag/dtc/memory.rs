@@ -91,7 +91,12 @@ impl FaultMemory {
                 r.failing_since = None;
                 continue;
             }
-            let before = (r.status & !TEST_FAILED, r.occurrences, r.aging, r.freeze);
+            let before = (
+                r.status & !TEST_FAILED,
+                r.occurrences,
+                r.aging,
+                r.freeze.is_some(),
+            );
             r.status &=
                 !(TEST_NOT_COMPLETED_SINCE_LAST_CLEAR | TEST_NOT_COMPLETED_THIS_OPERATION_CYCLE);
             if failed {
@@ -100,7 +105,12 @@ impl FaultMemory {
                 r.status &= !TEST_FAILED;
                 r.failing_since = None;
             }
-            let after = (r.status & !TEST_FAILED, r.occurrences, r.aging, r.freeze);
+            let after = (
+                r.status & !TEST_FAILED,
+                r.occurrences,
+                r.aging,
+                r.freeze.is_some(),
+            );
             self.dirty |= before != after;
         }
         self.last_update = Some(now);

@@ -76,7 +76,7 @@ fn status_sequence_over_operation_cycles() {
     assert_eq!(m.status_of(F), Some(0x6C));
     m.update(ms(10), FaultCode::None, true, &snap(0.0));
     assert_eq!(m.status_of(F), Some(0x2C));
-    let rec = m.record(Dtc(0xC1_00_87)).copied();
+    let rec = m.record(Dtc::sae(0xC100, 0x87)).copied();
     assert_eq!(rec.map(|r| (r.occurrences, r.aging)), Some((1, 0)));
     // Aging: 40 completed cycles without failure.
     for cycle in 1..=40u8 {
@@ -84,7 +84,7 @@ fn status_sequence_over_operation_cycles() {
         let expected = if cycle < 40 { 0x68 } else { 0x60 };
         assert_eq!(m.status_of(F), Some(expected), "cycle {cycle}");
         m.update(ms(0), FaultCode::None, true, &snap(0.0));
-        let aging = m.record(Dtc(0xC1_00_87)).map(|r| r.aging);
+        let aging = m.record(Dtc::sae(0xC100, 0x87)).map(|r| r.aging);
         assert_eq!(aging, Some(if cycle < 40 { cycle } else { 0 }));
     }
     assert_eq!(m.status_of(F), Some(0x20));
@@ -106,7 +106,7 @@ fn short_failures_stay_pending_and_count_cycles() {
     m.start_operation_cycle();
     assert_eq!(m.status_of(F), Some(0x60));
     m.update(ms(0), F, true, &snap(0.0));
-    let rec = m.record(Dtc(0xC1_00_87)).copied();
+    let rec = m.record(Dtc::sae(0xC100, 0x87)).copied();
     assert_eq!(rec.map(|r| r.occurrences), Some(2));
     // The snapshot is the first failure's.
     assert_eq!(rec.and_then(|r| r.freeze).map(|f| f.t_s), Some(0.0));
@@ -118,16 +118,16 @@ fn freeze_frame_and_clear() {
     assert!(!m.is_dirty());
     m.update(ms(0), FaultCode::ImplausibleSpeed, false, &snap(12.5));
     assert!(m.is_dirty());
-    let d = Dtc(0x07_15_64);
+    let d = Dtc::sae(0x0715, 0x64);
     let f = m.record(d).and_then(|r| r.freeze);
     assert_eq!(
         f.map(|f| (f.t_s, f.engine_rpm, f.gear, f.state)),
         Some((12.5, 2000.0, 2, 4))
     );
     m.mark_saved();
-    assert!(m.clear(0x07_15_65).is_err());
+    assert!(m.clear(0x0007_1565).is_err());
     assert!(!m.is_dirty());
-    assert!(m.clear(0x07_15_64).is_ok());
+    assert!(m.clear(0x0007_1564).is_ok());
     assert_eq!(
         m.record(d).map(|r| (r.status, r.freeze)),
         Some((0x50, None))
@@ -144,6 +144,11 @@ fn serialization_round_trip_keeps_nan_and_checks_version() {
     let mut s = snap(3.0);
     s.pedal_pct = f64::NAN;
     m.update(ms(0), F, true, &s);
+    m.mark_saved();
+    // Failing on in the same cycle with a NaN in the snapshot changes nothing stored.
+    m.update(ms(10), F, true, &s);
+    m.update(ms(20), FaultCode::None, true, &s);
+    assert!(!m.is_dirty());
     let bytes = m.to_bytes().unwrap();
     let back = FaultMemory::from_bytes(&bytes).unwrap();
     assert!(!back.is_dirty());
@@ -155,7 +160,7 @@ fn serialization_round_trip_keeps_nan_and_checks_version() {
         assert_eq!(a.freeze.map(|f| f.t_s), b.freeze.map(|f| f.t_s));
     }
     let pedal = back
-        .record(Dtc(0xC1_00_87))
+        .record(Dtc::sae(0xC100, 0x87))
         .and_then(|r| r.freeze)
         .map(|f| f.pedal_pct);
     assert!(pedal.is_some_and(f64::is_nan));
