@@ -29,8 +29,10 @@ pub(super) fn read_data(req: &Request, ecu: &impl UdsEcu) -> Result<Vec<u8>, Nrc
     let mut response = vec![req.sid.response()];
     let mut any = false;
     for pair in dids.chunks_exact(2) {
-        let n = u16::from_be_bytes([pair[0], pair[1]]);
-        let Some(did) = Did::from_u16(n) else {
+        let &[hi, lo] = pair else {
+            continue;
+        };
+        let Some(did) = Did::from_u16(u16::from_be_bytes([hi, lo])) else {
             continue;
         };
         any = true;
