@@ -34,6 +34,7 @@ pub use nrc::{Nrc, Sid};
 pub use security::Security;
 
 use crate::diag::dtc::FaultMemory;
+use data::read_data;
 
 /// S3: a non-default session without requests falls back to the default session after this.
 pub const S3: Duration = Duration::from_secs(5);
@@ -308,5 +309,3 @@ fn tester_present(req: &Request) -> Result<Vec<u8>, Nrc> {
     }
     Ok(vec![req.sid.response(), 0x00])
 }
-
-use data::read_data;
