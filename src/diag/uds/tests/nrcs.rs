@@ -1,0 +1,263 @@
+//! Every NRC of the doc's table, with the exact request.
+
+use super::*;
+
+#[test]
+fn nrc_11_service_not_supported() {
+    let mut r = Rig::new();
+    assert_eq!(r.req(&[0x23, 0x00]), nrc(0x23, 0x11));
+    assert_eq!(r.req(&[0xAA]), nrc(0xAA, 0x11));
+}
+
+#[test]
+fn nrc_12_sub_function_not_supported() {
+    let mut r = Rig::new();
+    assert_eq!(r.req(&[0x10, 0x02]), nrc(0x10, 0x12));
+    assert_eq!(
+        r.req(&[0x10, 0x82]),
+        nrc(0x10, 0x12),
+        "suppress bit: the NRC is sent"
+    );
+    assert_eq!(r.req(&[0x11, 0x02]), nrc(0x11, 0x12));
+    assert_eq!(r.req(&[0x3E, 0x01]), nrc(0x3E, 0x12));
+    assert_eq!(r.req(&[0x19, 0x03]), nrc(0x19, 0x12));
+    r.extended();
+    assert_eq!(r.req(&[0x27, 0x03]), nrc(0x27, 0x12));
+    assert_eq!(r.req(&[0x31, 0x04, 0x02, 0x01]), nrc(0x31, 0x12));
+}
+
+#[test]
+fn nrc_13_incorrect_length() {
+    let mut r = Rig::new();
+    assert_eq!(r.req(&[0x10]), nrc(0x10, 0x13));
+    assert_eq!(r.req(&[0x10, 0x01, 0x00]), nrc(0x10, 0x13));
+    assert_eq!(r.req(&[0x3E, 0x00, 0x00]), nrc(0x3E, 0x13));
+    assert_eq!(r.req(&[0x11, 0x03, 0x00]), nrc(0x11, 0x13));
+    assert_eq!(r.req(&[0x22]), nrc(0x22, 0x13));
+    assert_eq!(r.req(&[0x22, 0xF1]), nrc(0x22, 0x13));
+    assert_eq!(r.req(&[0x22, 0xF1, 0x97, 0x01]), nrc(0x22, 0x13));
+    assert_eq!(r.req(&[0x19, 0x02]), nrc(0x19, 0x13));
+    assert_eq!(r.req(&[0x19, 0x0A, 0xFF]), nrc(0x19, 0x13));
+    assert_eq!(r.req(&[0x19, 0x04, 0xC1, 0x00, 0x87]), nrc(0x19, 0x13));
+    assert_eq!(r.req(&[0x14, 0xFF, 0xFF]), nrc(0x14, 0x13));
+    r.extended();
+    assert_eq!(r.req(&[0x27, 0x01, 0x00]), nrc(0x27, 0x13));
+    assert_eq!(r.req(&[0x27, 0x02, 0x38, 0x01, 0x1D]), nrc(0x27, 0x13));
+    assert_eq!(r.req(&[0x31, 0x01, 0x02]), nrc(0x31, 0x13));
+    assert_eq!(r.req(&[0x31, 0x01, 0x02, 0x01]), nrc(0x31, 0x13));
+    assert_eq!(r.req(&[0x31, 0x03, 0x02, 0x01, 0x01]), nrc(0x31, 0x13));
+    assert_eq!(r.req(&[0x2E, 0x02, 0x00]), nrc(0x2E, 0x13));
+    r.unlock();
+    assert_eq!(
+        r.req(&[0x2E, 0x02, 0x00, 0x42, 0xC8, 0x00]),
+        nrc(0x2E, 0x13)
+    );
+}
+
+#[test]
+fn nrc_14_response_too_long() {
+    let mut r = Rig::new();
+    // 300 serial numbers: 1 + 300 × (2 + 16) bytes > 4095.
+    let mut req = vec![0x22];
+    for _ in 0..300 {
+        req.extend([0xF1, 0x8C]);
+    }
+    assert_eq!(r.req(&req), nrc(0x22, 0x14));
+}
+
+#[test]
+fn nrc_22_conditions_not_correct() {
+    let mut r = Rig::new();
+    r.extended();
+    r.ecu.refuse = Some(RoutineRefusal::EngineNotRunning);
+    assert_eq!(r.req(&[0x31, 0x01, 0x02, 0x01, 0x01]), nrc(0x31, 0x22));
+    assert!(r.ecu.started.is_empty());
+}
+
+#[test]
+fn nrc_24_request_sequence_error() {
+    let mut r = Rig::new();
+    r.extended();
+    assert_eq!(
+        r.req(&[0x27, 0x02, 0x38, 0x01, 0x1D, 0xAB]),
+        nrc(0x27, 0x24)
+    );
+    assert_eq!(r.req(&[0x31, 0x03, 0x02, 0x01]), nrc(0x31, 0x24));
+    assert_eq!(r.req(&[0x31, 0x02, 0x02, 0x01]), nrc(0x31, 0x24));
+    assert_eq!(r.ecu.stops, 0);
+}
+
+#[test]
+fn nrc_31_request_out_of_range() {
+    let mut r = Rig::new();
+    assert_eq!(r.req(&[0x22, 0x12, 0x34]), nrc(0x22, 0x31));
+    assert_eq!(r.req(&[0x22, 0x01, 0x13, 0x03, 0x02]), nrc(0x22, 0x31));
+    assert_eq!(
+        r.req(&[0x19, 0x04, 0x00, 0x00, 0x01, 0x01]),
+        nrc(0x19, 0x31)
+    );
+    assert_eq!(
+        r.req(&[0x19, 0x04, 0xC1, 0x00, 0x87, 0x02]),
+        nrc(0x19, 0x31)
+    );
+    assert_eq!(
+        r.req(&[0x19, 0x06, 0xC1, 0x00, 0x87, 0x03]),
+        nrc(0x19, 0x31)
+    );
+    assert_eq!(r.req(&[0x14, 0x12, 0x34, 0x56]), nrc(0x14, 0x31));
+    r.extended();
+    assert_eq!(r.req(&[0x31, 0x01, 0x02, 0x02, 0x01]), nrc(0x31, 0x31));
+    assert_eq!(r.req(&[0x31, 0x01, 0x02, 0x01, 0x03]), nrc(0x31, 0x31));
+    assert_eq!(r.req(&[0x31, 0x01, 0x02, 0x01, 0x00]), nrc(0x31, 0x31));
+    r.unlock();
+    // Not a calibration (a measurement, an unknown DID).
+    assert_eq!(
+        r.req(&[0x2E, 0x01, 0x00, 0x42, 0xC8, 0x00, 0x00]),
+        nrc(0x2E, 0x31)
+    );
+    assert_eq!(
+        r.req(&[0x2E, 0x12, 0x34, 0x42, 0xC8, 0x00, 0x00]),
+        nrc(0x2E, 0x31)
+    );
+    // ClutchKp = 250.0 > 200; NaN; the ECU's own validation (warning 250 °C > its limit).
+    assert_eq!(
+        r.req(&[0x2E, 0x02, 0x00, 0x43, 0x7A, 0x00, 0x00]),
+        nrc(0x2E, 0x31)
+    );
+    assert_eq!(
+        r.req(&[0x2E, 0x02, 0x00, 0x7F, 0xC0, 0x00, 0x00]),
+        nrc(0x2E, 0x31)
+    );
+    assert_eq!(
+        r.req(&[0x2E, 0x02, 0x05, 0x43, 0x7A, 0x00, 0x00]),
+        nrc(0x2E, 0x31)
+    );
+    assert_eq!(r.ecu.cals, FakeEcu::new().cals);
+}
+
+#[test]
+fn nrc_33_security_access_denied() {
+    let mut r = Rig::new();
+    r.extended();
+    assert_eq!(
+        r.req(&[0x2E, 0x02, 0x00, 0x42, 0xC8, 0x00, 0x00]),
+        nrc(0x2E, 0x33)
+    );
+    assert_eq!(r.ecu.cals[0], 20.0);
+}
+
+#[test]
+fn nrc_35_36_37_wrong_keys_and_the_delay() {
+    let mut r = Rig::new();
+    r.extended();
+    // Seeds 0x12345678, 0xA1B2C3D4, 1: three wrong keys in a row.
+    assert_eq!(
+        r.req(&[0x27, 0x01]),
+        Some(vec![0x67, 0x01, 0x12, 0x34, 0x56, 0x78])
+    );
+    assert_eq!(
+        r.req(&[0x27, 0x02, 0x00, 0x00, 0x00, 0x00]),
+        nrc(0x27, 0x35)
+    );
+    // The seed is used up by the wrong key.
+    assert_eq!(
+        r.req(&[0x27, 0x02, 0x38, 0x01, 0x1D, 0xAB]),
+        nrc(0x27, 0x24)
+    );
+    assert_eq!(
+        r.req(&[0x27, 0x01]),
+        Some(vec![0x67, 0x01, 0xA1, 0xB2, 0xC3, 0xD4])
+    );
+    assert_eq!(
+        r.req(&[0x27, 0x02, 0x38, 0x01, 0x1D, 0xAB]),
+        nrc(0x27, 0x35)
+    );
+    assert_eq!(
+        r.req(&[0x27, 0x01]),
+        Some(vec![0x67, 0x01, 0x00, 0x00, 0x00, 0x01])
+    );
+    r.at_ms(1000);
+    assert_eq!(
+        r.req(&[0x27, 0x02, 0x01, 0x02, 0x03, 0x04]),
+        nrc(0x27, 0x36)
+    );
+    assert_eq!(
+        r.server.poll_timeout(),
+        Some(Duration::from_millis(6000)),
+        "S3 first"
+    );
+    r.at_ms(4000);
+    assert_eq!(r.req(&[0x3E, 0x00]), Some(vec![0x7E, 0x00]));
+    assert_eq!(r.server.poll_timeout(), Some(Duration::from_millis(9000)));
+    r.at_ms(8000);
+    assert_eq!(r.req(&[0x3E, 0x00]), Some(vec![0x7E, 0x00]));
+    assert_eq!(r.server.poll_timeout(), Some(Duration::from_millis(11_000)));
+    // Within 10 s of the third wrong key, even after a session change.
+    r.at_ms(10_999);
+    r.extended();
+    assert_eq!(r.req(&[0x27, 0x01]), nrc(0x27, 0x37));
+    r.server
+        .handle_timeout(Duration::from_millis(11_000), &mut r.ecu);
+    assert_eq!(r.server.poll_timeout(), Some(Duration::from_millis(15_999)));
+    // Seed 2: key = rotl(2 ^ 0x44445443, 7) = rotl(0x44445441, 7) = 0x222A20A2.
+    r.at_ms(11_000);
+    assert_eq!(
+        r.req(&[0x27, 0x01]),
+        Some(vec![0x67, 0x01, 0x00, 0x00, 0x00, 0x02])
+    );
+    assert_eq!(
+        r.req(&[0x27, 0x02, 0x22, 0x2A, 0x20, 0xA2]),
+        Some(vec![0x67, 0x02])
+    );
+    assert!(r.server.is_unlocked());
+}
+
+#[test]
+fn nrc_37_without_handle_timeout_ends_at_10_s() {
+    let mut r = Rig::new();
+    r.extended();
+    for _ in 0..3 {
+        assert!(r.req(&[0x27, 0x01]).is_some());
+        assert!(r.req(&[0x27, 0x02, 0, 0, 0, 0]).is_some());
+    }
+    r.at_ms(9_999);
+    assert_eq!(r.req(&[0x27, 0x01]), nrc(0x27, 0x37));
+    r.at_ms(10_000);
+    assert_eq!(r.req(&[0x27, 0x01]).map(|v| v.len()), Some(6));
+}
+
+#[test]
+fn nrc_7e_sub_function_not_supported_in_session() {
+    let mut r = Rig::new();
+    assert_eq!(r.req(&[0x11, 0x01]), nrc(0x11, 0x7E));
+    assert_eq!(r.server.take_reset(), None);
+}
+
+#[test]
+fn nrc_7f_service_not_supported_in_session() {
+    let mut r = Rig::new();
+    assert_eq!(
+        r.req(&[0x2E, 0x02, 0x00, 0x42, 0xC8, 0x00, 0x00]),
+        nrc(0x2E, 0x7F)
+    );
+    assert_eq!(r.req(&[0x27, 0x01]), nrc(0x27, 0x7F));
+    assert_eq!(r.req(&[0x31, 0x01, 0x02, 0x01, 0x01]), nrc(0x31, 0x7F));
+    // The session check comes before the length check (ISO 14229-1 figure 5).
+    assert_eq!(r.req(&[0x27]), nrc(0x27, 0x7F));
+}
+
+#[test]
+fn functional_requests_suppress_some_nrcs() {
+    let mut r = Rig::new();
+    assert_eq!(r.func(&[0xAA]), None);
+    assert_eq!(r.func(&[0x10, 0x02]), None);
+    assert_eq!(r.func(&[0x22, 0x12, 0x34]), None);
+    assert_eq!(r.func(&[0x11, 0x01]), None);
+    assert_eq!(r.func(&[0x27, 0x01]), None);
+    // Other NRCs are sent.
+    assert_eq!(r.func(&[0x10, 0x01, 0x00]), nrc(0x10, 0x13));
+    // Positive responses too, unless suppressed.
+    assert_eq!(r.func(&[0x3E, 0x00]), Some(vec![0x7E, 0x00]));
+    assert_eq!(r.func(&[0x3E, 0x80]), None);
+    assert_eq!(r.func(&[]), None);
+}
