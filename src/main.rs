@@ -40,6 +40,9 @@ enum Command {
     Gap(cli::gap::GapCmd),
     /// Run the bench: plant and TCU daemons and a driver scenario, then print a summary.
     Bench(cli::bench::BenchArgs),
+    /// UDS tester of the TCU (DIDs, fault memory, kiss-point routine, calibration) and its A2L.
+    #[command(subcommand)]
+    Diag(cli::diag::DiagCmd),
 }
 
 fn main() -> ExitCode {
@@ -56,6 +59,7 @@ fn main() -> ExitCode {
         Command::Model(c) => cli::model::run(c),
         Command::Plant(a) => cli::plant::run(a),
         Command::Tcu(a) => cli::tcu::run(a),
+        Command::Diag(c) => cli::diag::run(c),
         Command::Sim(a) => cli::sim::run(a),
         Command::Identify(a) => cli::gap::run_identify(a),
         Command::Gap(c) => cli::gap::run(c),

@@ -6,6 +6,9 @@
 //! the frames on the (simulated) bus — the plant's sensor, bench and truth messages and the TCU's
 //! TCU_Status/TCU_ClutchCmd/TCU_EngineReq/TCU_Estimates.
 
+#[path = "tcu/kiss_point.rs"]
+mod kiss_point;
+
 use ddct::can::e2e::{E2eChecker, E2eConfig};
 use ddct::can::messages::{ids, FaultCode, TcuClutchCmd, TcuEngineReq, TcuState, TcuStatus};
 use ddct::can::CanFrame;
@@ -434,6 +437,7 @@ async fn daemon_launches_with_the_plant_and_detects_its_silence() {
         duration: Some(Duration::from_millis(3300)),
         log: None,
         clock: Default::default(),
+        diag: None,
     };
     let (p, t) = tokio::join!(
         run_plant(plant_ep, std::future::pending::<()>(), plant_cfg),

@@ -107,6 +107,7 @@ pub fn bench_run<S: Future<Output = ()>>(
             duration: None,
             log: None,
             clock: Default::default(),
+            diag: None,
         };
         Ok(run_tcu(bus, stopped(stop_rx), c).await?)
     });

@@ -8,11 +8,13 @@
 //! pinger) sent and the TCU's answer to the last DCT_Sensors frame ([`recorder::Recorder::settle`],
 //! bounded by a timeout for a TCU that no longer answers).
 //!
-//! [`timing`] turns the recording into the latency and cycle figures (pure).
+//! [`timing`] turns the recording into the latency and cycle figures (pure). [`tester`] is a UDS
+//! tester on the bus (`ddct diag`).
 
 pub mod harness;
 pub mod net;
 pub mod recorder;
+pub mod tester;
 pub mod timing;
 
 pub use harness::{bench_run, echo_run, BenchError, RunResult};

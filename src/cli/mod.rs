@@ -4,6 +4,7 @@
 pub mod args;
 pub mod bench;
 pub mod dbc;
+pub mod diag;
 pub mod gap;
 pub mod log;
 pub mod model;

@@ -7,9 +7,11 @@ use clap::{Args, ValueEnum};
 use ddct::can::{EndpointConfig, InProcessBus};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
 use ddct::daemon::tcu::{
-    run as run_tcu, set_nice, set_realtime_priority, TcuClock, TcuDaemonConfig, TcuReport,
-    INPUT_IDS,
+    run as run_tcu, set_nice, set_realtime_priority, DiagDaemonConfig, TcuClock, TcuDaemonConfig,
+    TcuReport, INPUT_IDS,
 };
+use ddct::diag::isotp::IsoTpConfig;
+use ddct::diag::stack::{DiagConfig, REQUEST_IDS};
 use ddct::plant::{PlantConfig, Scenario};
 use ddct::tcu::TcuConfig;
 use std::path::PathBuf;
@@ -60,6 +62,55 @@ pub struct TcuArgs {
     /// Print the exit report as JSON on stdout.
     #[arg(long)]
     json: bool,
+    /// No diagnostics on the bus: no UDS server, no XCP slave, no fault memory (the TCU then
+    /// ignores the diagnostic ids).
+    #[arg(long, conflicts_with_all = ["fault_memory", "serial"])]
+    no_diag: bool,
+    /// The fault memory file (DTCs with status, snapshot and extended data): loaded at the
+    /// start, written atomically when it changes; a corrupt file is set aside as
+    /// `PATH.corrupt` and reported. Default: the fault memory lives only as long as the daemon.
+    #[arg(long)]
+    fault_memory: Option<PathBuf>,
+    /// The ECU serial number read by UDS (DID 0xF18C), at most 16 ASCII characters.
+    #[arg(long, value_parser = serial_number, default_value = "DDCT-0001")]
+    serial: String,
+    /// ISO-TP: the block size the TCU asks of a tester sending a long request (0: no limit).
+    #[arg(long, default_value_t = 8)]
+    isotp_block_size: u8,
+    /// ISO-TP: the separation time the TCU asks of a tester between consecutive frames
+    /// (0..=127 ms).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=127))]
+    isotp_stmin: u8,
+}
+
+/// `--serial`: printable ASCII, 1 to 16 characters.
+fn serial_number(s: &str) -> Result<String, String> {
+    if s.is_empty() || s.len() > 16 || !s.bytes().all(|b| b.is_ascii_graphic() || b == b' ') {
+        return Err(format!(
+            "{s:?} is not a serial number: 1 to 16 printable ASCII characters"
+        ));
+    }
+    Ok(s.to_string())
+}
+
+/// The diagnostic side of `a`, or none with `--no-diag`. The SecurityAccess seeds are drawn
+/// from the wall clock's nanoseconds at the start.
+fn diag_config(a: &TcuArgs) -> Option<DiagDaemonConfig> {
+    let seed = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| d.as_nanos() as u64);
+    (!a.no_diag).then(|| DiagDaemonConfig {
+        diag: DiagConfig {
+            serial: a.serial.clone(),
+            seed,
+            isotp: IsoTpConfig {
+                block_size: a.isotp_block_size,
+                st_min: a.isotp_stmin,
+                ..IsoTpConfig::default()
+            },
+        },
+        fault_memory: a.fault_memory.clone(),
+    })
 }
 
 /// `--clock` values.
@@ -148,6 +199,7 @@ async fn run_with_plant(a: &TcuArgs, cfg: TcuConfig) -> anyhow::Result<TcuReport
         duration: Some(d),
         log: a.log.clone(),
         clock: Default::default(),
+        diag: diag_config(a),
     };
     let plant_ep = bus.endpoint(EndpointConfig::default());
     let tcu_ep = bus.endpoint(EndpointConfig::default());
@@ -179,12 +231,18 @@ async fn run_with_plant(a: &TcuArgs, cfg: TcuConfig) -> anyhow::Result<TcuReport
 /// `--duration`.
 async fn run_on_can(a: &TcuArgs, cfg: TcuConfig) -> anyhow::Result<TcuReport> {
     let bus = open_can(&a.iface.to_string())?;
-    bus.set_filter_ids(&INPUT_IDS)?;
+    let diag = diag_config(a);
+    let mut listen = INPUT_IDS.to_vec();
+    if diag.is_some() {
+        listen.extend(REQUEST_IDS);
+    }
+    bus.set_filter_ids(&listen)?;
     let c = TcuDaemonConfig {
         tcu: cfg,
         duration: a.duration,
         log: a.log.clone(),
         clock: a.clock.into(),
+        diag,
     };
     let stop = shutdown_signal();
     announce_ready(a.ready_file.as_deref())?;

@@ -4,6 +4,7 @@
 //! clock; the cores (`plant`, `tcu`) get `now` as an argument.
 
 pub mod clock;
+mod diag;
 pub mod plant;
 pub mod tcu;
 

@@ -36,9 +36,12 @@
 //!   the candump tap (`log`) is flushed either way.
 
 use super::clock::{BusClock, TimeBase};
+use super::diag::DiagShell;
 use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDGET, FLOOD_PACE};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
+use crate::diag::isotp::Counters as IsoTpCounters;
+use crate::diag::stack::{DiagConfig, DiagStack};
 use crate::tcu::inputs::InputCounters;
 use crate::tcu::{is_cycle_frame, is_sync_frame, Tcu, TcuConfig, TcuInputs, TimedFrame};
 use serde::Serialize;
@@ -98,13 +101,30 @@ pub struct TcuDaemonConfig {
     pub log: Option<PathBuf>,
     /// The core's time source.
     pub clock: TcuClock,
+    /// UDS, XCP and the fault memory on the bus (`None`: the TCU ignores diagnostic frames).
+    pub diag: Option<DiagDaemonConfig>,
 }
+
+/// The diagnostic side of the daemon.
+#[derive(Debug, Clone, Default)]
+pub struct DiagDaemonConfig {
+    pub diag: DiagConfig,
+    /// The fault memory file (loaded at the start, saved atomically when it changed, at most
+    /// every [`FAULT_MEMORY_SAVE_EVERY`], and at the end); `None`: kept in memory only.
+    pub fault_memory: Option<PathBuf>,
+}
+
+/// The fault memory is saved at most this often while it changes (and always at the end).
+pub const FAULT_MEMORY_SAVE_EVERY: Duration = Duration::from_secs(1);
 
 /// Errors that stop the daemon.
 #[derive(Debug, thiserror::Error)]
 pub enum TcuDaemonError {
     #[error(transparent)]
     Link(#[from] LinkError),
+    /// The fault memory file could not be read (a corrupt one is set aside instead).
+    #[error(transparent)]
+    FaultMemory(#[from] crate::diag::store::StoreError),
 }
 
 /// What the daemon did, reported at exit.
@@ -162,6 +182,25 @@ pub struct TcuReport {
     pub inputs: InputCounters,
     pub log: Option<PathBuf>,
     pub log_frames: Option<u64>,
+    /// The diagnostic side, when on.
+    pub diag: Option<DiagReport>,
+}
+
+/// What the diagnostic side did.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiagReport {
+    /// Diagnostic frames received (UDS and XCP) and sent.
+    pub frames_received: u64,
+    pub frames_sent: u64,
+    /// The ISO-TP transport's counts (dropped frames by cause, timeouts).
+    pub isotp: IsoTpCounters,
+    /// ECU resets performed.
+    pub resets: u64,
+    /// Fault memory saves, and saves that failed (the daemon goes on; the next change retries).
+    pub fault_memory_saves: u64,
+    pub fault_memory_save_errors: u64,
+    /// The fault memory file found corrupt at the start and set aside (its new name).
+    pub fault_memory_set_aside: Option<PathBuf>,
 }
 
 impl TcuReport {
@@ -252,6 +291,8 @@ struct Shell<B: Bus> {
     /// The core deadline whose wake-up has fired (each is armed once).
     core_fired: Option<Instant>,
     stall_log: Vec<(f64, f64)>,
+    /// The diagnostic side, when on.
+    diag: Option<DiagShell>,
 }
 
 impl<B: Bus> Shell<B> {
@@ -304,6 +345,13 @@ impl<B: Bus> Shell<B> {
     fn on_receive(&mut self, rx: Received) -> Result<(), TcuDaemonError> {
         self.link.received(&rx)?;
         self.cycle_frames += 1;
+        if let Some(d) = &mut self.diag {
+            if rx.frame.standard_id().is_some_and(DiagStack::handles) {
+                let now = self.time.live(self.clocks.mono);
+                d.on_frame(now, &rx.frame, &mut self.tcu);
+                return Ok(());
+            }
+        }
         let at = if let Some(bc) = &mut self.bus_clock {
             if is_cycle_frame(&rx.frame) {
                 bc.sync()
@@ -425,11 +473,11 @@ impl<B: Bus> Shell<B> {
         let syncs_in = inbox.iter().filter(|f| self.is_sync(f)).count() as u64;
         self.coalesced += syncs_in.saturating_sub(u64::from(sync.is_some()));
         let t_recv = t0.elapsed();
-        let out = self.tcu.step(now, &TcuInputs { frames: &inbox });
+        let mut out = self.tcu.step(now, &TcuInputs { frames: &inbox });
         self.last_state = (out.status.tcu_state, out.status.fault_code);
         let t_step = t0.elapsed();
         let mut slowest_send = Duration::ZERO;
-        for f in out.frames {
+        for f in std::mem::take(&mut out.frames) {
             let ts = Instant::now();
             self.send(f).await?;
             slowest_send = slowest_send.max(ts.elapsed());
@@ -466,7 +514,39 @@ impl<B: Bus> Shell<B> {
         if self.computations % 100 == 0 {
             self.link.flush()?;
         }
-        Ok(())
+        // The diagnostic side after the control frames are out: the fault memory's tests and
+        // the cycle's DAQ packets.
+        let diag_now = self.time.live(self.mono());
+        if let Some(d) = &mut self.diag {
+            d.after_step(diag_now, now, &out, &mut self.tcu);
+        }
+        self.flush_diag().await
+    }
+
+    /// Sends what the diagnostic side has due now (XCP packets, ISO-TP frames paced by the
+    /// tester's STmin and block size), then performs an ECUReset whose response is out and saves
+    /// the fault memory when due.
+    async fn flush_diag(&mut self) -> Result<(), TcuDaemonError> {
+        loop {
+            let now = self.time.live(self.mono());
+            let Some(d) = &mut self.diag else {
+                return Ok(());
+            };
+            d.core.handle_timeout(now, &mut self.tcu);
+            let Some(f) = d.core.poll_transmit(now) else {
+                d.reset_if_due(self.last_now, &mut self.tcu);
+                d.save_if_due(false);
+                return Ok(());
+            };
+            d.sent += 1;
+            self.send(f).await?;
+        }
+    }
+
+    /// When the diagnostic side next needs to run by itself, as a monotonic instant.
+    fn diag_deadline(&self) -> Option<Instant> {
+        let at = self.diag.as_ref()?.core.poll_timeout()?;
+        Some(self.start + self.time.mono_of(at))
     }
 }
 
@@ -526,11 +606,17 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
     let link = Link::open(bus, config.log.as_deref(), MAX_SEND_FAILURES)?;
     let start = Instant::now();
     let mut shell = Shell::new(link, &config, start);
+    shell.diag = match &config.diag {
+        Some(d) => Some(DiagShell::open(d, &config.tcu)?),
+        None => None,
+    };
+    let far = start + Duration::from_secs(86_400 * 365);
     let mut timer = Periodic::new(start, CYCLE);
     let mut stats = LoopStats::default();
     tokio::pin!(shutdown);
     let stopped_by = loop {
         let (core_at, core_armed) = shell.arm(timer.next_deadline());
+        let diag_at = shell.diag_deadline();
         tokio::select! {
             biased;
             _ = shutdown.as_mut() => break "shutdown",
@@ -544,6 +630,11 @@ pub async fn run<B: Bus, S: Future<Output = ()>>(
             // silence apart. Armed once per deadline.
             _ = tokio::time::sleep_until(core_at), if core_armed => {
                 shell.on_core_deadline(core_at).await?;
+            }
+            // The diagnostic side's timers (ISO-TP pacing and timeouts, the UDS session).
+            _ = tokio::time::sleep_until(diag_at.unwrap_or(far)), if diag_at.is_some() => {
+                shell.woke();
+                shell.flush_diag().await?;
             }
             // A flood: everything queued, every FLOOD_PACE.
             _ = tokio::time::sleep_until(shell.next_read()), if shell.paced => {
@@ -586,6 +677,7 @@ impl<B: Bus> Shell<B> {
             batch: Vec::with_capacity(DRAIN_BUDGET),
             core_fired: None,
             stall_log: Vec::new(),
+            diag: None,
         }
     }
 
@@ -635,6 +727,7 @@ impl<B: Bus> Shell<B> {
             // still queued: computed on this deadline.
             self.compute(None).await?;
         }
+        self.flush_diag().await?;
         Ok(false)
     }
 
@@ -654,7 +747,8 @@ impl<B: Bus> Shell<B> {
     async fn on_paced_read(&mut self) -> Result<(), TcuDaemonError> {
         self.woke();
         self.drain()?;
-        self.run_syncs().await
+        self.run_syncs().await?;
+        self.flush_diag().await
     }
 
     /// The bus woke the daemon with a frame (or a receive error): queues it with the rest of
@@ -666,7 +760,8 @@ impl<B: Bus> Shell<B> {
             Err(e) => self.recv_error(e)?,
         }
         self.drain()?;
-        self.run_syncs().await
+        self.run_syncs().await?;
+        self.flush_diag().await
     }
 
     /// The exit report (the candump tap is flushed and closed first).
@@ -678,6 +773,9 @@ impl<B: Bus> Shell<B> {
         stats: &LoopStats,
     ) -> Result<TcuReport, TcuDaemonError> {
         let (stalls, stall_total, stall_longest) = self.time.stalls();
+        if let Some(d) = &mut self.diag {
+            d.save_if_due(true);
+        }
         let log_frames = self.link.finish()?;
         Ok(TcuReport {
             iface,
@@ -713,6 +811,7 @@ impl<B: Bus> Shell<B> {
             inputs: self.tcu.input_counters(),
             log: config.log,
             log_frames,
+            diag: self.diag.as_ref().map(DiagShell::report),
         })
     }
 }
@@ -740,6 +839,7 @@ mod tests {
             duration: Some(ms(150)),
             log: None,
             clock: TcuClock::Monotonic,
+            diag: None,
         };
         let start = Instant::now();
         let plant_side = async {

@@ -281,6 +281,14 @@ impl IsoTp {
         self.tx.is_some()
     }
 
+    /// Abandons the transmission in progress, if any (counted as aborted): a new response
+    /// replaces it.
+    pub fn abort_send(&mut self) {
+        if self.tx.take().is_some() {
+            self.counters.tx_aborted += 1;
+        }
+    }
+
     /// Starts sending `payload` at `now`: a single frame, or a first frame and then consecutive
     /// frames as the receiver's flow controls allow.
     pub fn send(&mut self, now: Duration, payload: &[u8]) -> Result<(), SendError> {

@@ -251,6 +251,12 @@ impl Tcu {
         self.routine.learned()
     }
 
+    /// Kiss points learned before a restart of the core (an ECUReset keeps them, as a TCU keeps
+    /// its adaptation values in non-volatile memory).
+    pub fn restore_learned_kiss_points(&mut self, learned: [Option<f64>; 2]) {
+        self.routine.restore_learned(learned);
+    }
+
     /// Sets one calibration on the bus (UDS WriteDataByIdentifier, XCP DOWNLOAD): the whole
     /// calibration is validated with the new value (its key's range and the rules between keys)
     /// and, if valid, takes effect at the next step — the clutch model is rebuilt, the controller

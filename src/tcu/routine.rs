@@ -259,6 +259,11 @@ impl KissRoutine {
         self.learned
     }
 
+    /// Kiss points learned before a restart (the routine itself starts idle).
+    pub fn restore_learned(&mut self, learned: [Option<f64>; 2]) {
+        self.learned = learned;
+    }
+
     /// Starts for `clutch` (0 or 1) if the conditions hold (see [`check`]); a finished or aborted
     /// run is replaced.
     pub fn start(

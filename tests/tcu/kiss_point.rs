@@ -1,4 +1,4 @@
-//! The kiss-point adaptation routine (issue 16, UDS RoutineControl 0x0201) in closed loop with
+//! (in the `tcu` test binary) The kiss-point adaptation routine (issue 16, UDS RoutineControl 0x0201) in closed loop with
 //! the plant core (`ddct sim`'s lockstep runner, simulated time).
 //!
 //! The expectation is the plant's own kiss point x_ISP(θ_c) of (9), from the plant's parameters

@@ -1,0 +1,152 @@
+//! The TCU daemon's diagnostic side: the pure [`DiagStack`] (UDS on ISO-TP, XCP, the fault
+//! memory) fed by the TCU shell, and the one thing the core cannot do, the fault memory file
+//! (loaded at the start, saved atomically when it changed, at most every
+//! [`FAULT_MEMORY_SAVE_EVERY`], and at the end).
+//!
+//! Its time is the shell's live time base (monotonic, the daemon's stalls taken out), on a
+//! lockstep bench too: ISO-TP's STmin and timeouts and UDS's S3 are real-time rules of the
+//! tester's, not simulated time.
+
+use super::tcu::{DiagDaemonConfig, DiagReport, FAULT_MEMORY_SAVE_EVERY};
+use crate::can::CanFrame;
+use crate::diag::dtc::FaultMemory;
+use crate::diag::stack::DiagStack;
+use crate::diag::store;
+use crate::tcu::{Tcu, TcuConfig, TcuOutputs};
+use std::path::PathBuf;
+use std::time::Duration;
+use tokio::time::Instant;
+
+/// The diagnostic side's state in the shell.
+pub(super) struct DiagShell {
+    pub(super) core: DiagStack,
+    /// The calibration a reset restarts the core with.
+    tcu_cfg: TcuConfig,
+    fault_memory: Option<PathBuf>,
+    last_save: Option<Instant>,
+    pub(super) received: u64,
+    pub(super) sent: u64,
+    resets: u64,
+    saves: u64,
+    save_errors: u64,
+    set_aside: Option<PathBuf>,
+}
+
+impl DiagShell {
+    /// The diagnostic side with its fault memory file loaded: a missing file is an empty
+    /// memory; a corrupt one is reported, set aside and replaced by an empty memory; a file
+    /// that cannot be read at all is an error (the daemon does not start on it).
+    pub(super) fn open(
+        cfg: &DiagDaemonConfig,
+        tcu_cfg: &TcuConfig,
+    ) -> Result<Self, store::StoreError> {
+        let (memory, set_aside) = match &cfg.fault_memory {
+            Some(path) => {
+                let (memory, corrupt) = store::load(path)?;
+                if let Some(c) = &corrupt {
+                    tracing::warn!(
+                        "fault memory {} is corrupt ({}): set aside as {}, starting empty",
+                        c.path.display(),
+                        c.reason,
+                        c.moved_to.display()
+                    );
+                }
+                (memory, corrupt.map(|c| c.moved_to))
+            }
+            None => (FaultMemory::default(), None),
+        };
+        // A run of the daemon is an operation cycle (ISO 14229-1 annex D).
+        let mut memory = memory;
+        memory.start_operation_cycle();
+        Ok(DiagShell {
+            core: DiagStack::new(cfg.diag.clone(), memory),
+            tcu_cfg: tcu_cfg.clone(),
+            fault_memory: cfg.fault_memory.clone(),
+            last_save: None,
+            received: 0,
+            sent: 0,
+            resets: 0,
+            saves: 0,
+            save_errors: 0,
+            set_aside,
+        })
+    }
+
+    /// A received diagnostic frame.
+    pub(super) fn on_frame(&mut self, now: Duration, frame: &CanFrame, tcu: &mut Tcu) {
+        self.received += 1;
+        self.core.handle_frame(now, frame, tcu);
+    }
+
+    /// After a TCU step.
+    pub(super) fn after_step(
+        &mut self,
+        now: Duration,
+        core_now: Duration,
+        out: &TcuOutputs,
+        tcu: &mut Tcu,
+    ) {
+        self.core.after_step(now, core_now, out, tcu);
+    }
+
+    /// An ECUReset whose response is out: the core restarts from the calibration it started
+    /// with (a calibration written on the bus lives in RAM, as an ECU's would without a flash
+    /// write) and keeps its learned kiss points; the fault memory starts a new operation cycle.
+    pub(super) fn reset_if_due(&mut self, now: Duration, tcu: &mut Tcu) {
+        if self.core.take_reset().is_none() {
+            return;
+        }
+        let learned = tcu.learned_kiss_points();
+        *tcu = Tcu::new(self.tcu_cfg.clone(), now);
+        tcu.restore_learned_kiss_points(learned);
+        self.core.restarted();
+        self.resets += 1;
+        tracing::info!(
+            "ECU reset: TCU core restarted at {:.3} s",
+            now.as_secs_f64()
+        );
+    }
+
+    /// Saves the fault memory when it changed and the last save is [`FAULT_MEMORY_SAVE_EVERY`]
+    /// old (`force`: at the end, whatever the time). A failed save is logged and counted; the
+    /// memory stays dirty, so the next one retries.
+    pub(super) fn save_if_due(&mut self, force: bool) {
+        let Some(path) = &self.fault_memory else {
+            return;
+        };
+        if !self.core.memory().is_dirty() {
+            return;
+        }
+        let now = Instant::now();
+        if !force
+            && self
+                .last_save
+                .is_some_and(|t| now - t < FAULT_MEMORY_SAVE_EVERY)
+        {
+            return;
+        }
+        self.last_save = Some(now);
+        match store::save(path, self.core.memory()) {
+            Ok(()) => {
+                self.saves += 1;
+                self.core.memory_saved();
+            }
+            Err(e) => {
+                self.save_errors += 1;
+                tracing::warn!("fault memory not saved: {e}");
+            }
+        }
+    }
+
+    pub(super) fn report(&self) -> DiagReport {
+        DiagReport {
+            frames_received: self.received,
+            frames_sent: self.sent,
+            isotp: *self.core.isotp_counters(),
+            resets: self.resets,
+            fault_memory_saves: self.saves,
+            fault_memory_save_errors: self.save_errors,
+            fault_memory_set_aside: self.set_aside.clone(),
+        }
+    }
+}
