@@ -18,11 +18,16 @@ use super::isotp::{IsoTp, IsoTpConfig};
 use super::uds::{ResetKind, UdsServer};
 use super::values::Snapshot;
 use super::xcp::XcpSlave;
-use crate::can::messages::ids;
+use crate::can::messages::{ids, TcuState};
 use crate::can::CanFrame;
 use crate::tcu::{Tcu, TcuOutputs};
 use std::collections::VecDeque;
 use std::time::Duration;
+
+/// The fault memory's tests are enabled once the TCU has left Init (every input seen valid) or
+/// this long after its start, whichever comes first: a bench whose plant starts a moment after
+/// the TCU logs no lost-communication DTC for it, a plant that never comes still does.
+pub const TEST_ENABLE_AFTER: Duration = Duration::from_secs(2);
 
 /// The XCP event channel of the TCU's 10 ms cycle.
 pub const CYCLE_EVENT: u16 = 0;
@@ -69,6 +74,8 @@ pub struct DiagStack {
     xcp_out: VecDeque<[u8; 8]>,
     xcp_len: VecDeque<usize>,
     snapshot: Option<Snapshot>,
+    /// The fault memory's tests run (see [`TEST_ENABLE_AFTER`]).
+    tests_enabled: bool,
     serial: String,
     rng: u64,
     reset: Option<ResetKind>,
@@ -85,6 +92,7 @@ impl DiagStack {
             xcp_out: VecDeque::new(),
             xcp_len: VecDeque::new(),
             snapshot: None,
+            tests_enabled: false,
             serial: cfg.serial,
             rng: cfg.seed,
             reset: None,
@@ -160,9 +168,12 @@ impl DiagStack {
     ) {
         let snapshot = Snapshot::new(out, tcu.kiss_points());
         self.snapshot = Some(snapshot);
-        let fresh = tcu.health(core_now).all_fresh;
-        self.memory
-            .update(core_now, out.trace.fault, fresh, &snapshot);
+        self.tests_enabled |= out.trace.state != TcuState::Init || core_now >= TEST_ENABLE_AFTER;
+        if self.tests_enabled {
+            let fresh = tcu.health(core_now).all_fresh;
+            self.memory
+                .update(core_now, out.trace.fault, fresh, &snapshot);
+        }
         let ecu = TcuEcu::new(tcu, self.snapshot, &self.serial, &mut self.rng);
         let packets = self.xcp.on_event(now, CYCLE_EVENT, &snapshot, &ecu);
         for p in packets {
@@ -210,6 +221,7 @@ impl DiagStack {
     pub fn restarted(&mut self) {
         self.memory.start_operation_cycle();
         self.snapshot = None;
+        self.tests_enabled = false;
         self.xcp_out.clear();
         self.xcp_len.clear();
     }

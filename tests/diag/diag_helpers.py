@@ -64,11 +64,24 @@ def security_key(seed: bytes) -> bytes:
     return k.to_bytes(4, "big")
 
 
+class F32(udsoncan.DidCodec):
+    """A DID holding one IEEE-754 f32, big-endian."""
+
+    def encode(self, value) -> bytes:
+        return struct.pack(">f", value)
+
+    def decode(self, payload: bytes) -> float:
+        return struct.unpack(">f", payload)[0]
+
+    def __len__(self) -> int:
+        return 4
+
+
 def client_config() -> dict:
     cfg = dict(udsoncan.configs.default_client_config)
-    codecs = {did: ">f" for did in DID.values()}
-    codecs.update({did: ">f" for did in CAL_DID.values()})
-    codecs.update({did: ">f" for did in LEARNED_KISS_DID.values()})
+    codecs = {did: F32 for did in DID.values()}
+    codecs.update({did: F32 for did in CAL_DID.values()})
+    codecs.update({did: F32 for did in LEARNED_KISS_DID.values()})
     for did in (SERIAL_DID, VERSION_DID, NAME_DID):
         codecs[did] = udsoncan.AsciiCodec(16)
     cfg["data_identifiers"] = codecs
@@ -97,8 +110,11 @@ def isotp_params(blocksize: int = 8, stmin: int = 0) -> dict:
 
 @contextmanager
 def uds_client(blocksize: int = 8, stmin: int = 0, txid: int = REQ_ID):
-    """A udsoncan client on vcan0 over can-isotp's user-space stack."""
-    bus = can.Bus(interface="socketcan", channel=IFACE, receive_own_messages=False)
+    """A udsoncan client on vcan0 over can-isotp's user-space stack, its socket filtered to the
+    TCU's responses (as a tester's is: the control traffic, over a thousand frames a second,
+    would otherwise queue up behind python's notifier)."""
+    bus = can.Bus(interface="socketcan", channel=IFACE, receive_own_messages=False,
+                  can_filters=[{"can_id": RESP_ID, "can_mask": 0x7FF, "extended": False}])
     notifier = can.Notifier(bus, [], timeout=0.1)
     addr = isotp.Address(isotp.AddressingMode.Normal_11bits, txid=txid, rxid=RESP_ID)
     stack = isotp.NotifierBasedCanStack(bus, notifier, address=addr, params=isotp_params(blocksize, stmin))

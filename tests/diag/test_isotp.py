@@ -26,14 +26,15 @@ SLACK_S = 0.0005
 
 def cf_gaps(frames, can_id, fc_id):
     """Per transfer on `can_id`: the consecutive frames between flow controls on `fc_id` (the
-    blocks) and the gaps between consecutive frames of a block (s)."""
+    blocks) and the gaps between consecutive frames of a transfer, a flow control between them
+    or not (s)."""
     blocks, gaps, block, last_cf = [], [], [], None
     for f in frames:
         pci = f.data[0] >> 4 if f.data else None
         if f.arbitration_id == fc_id and pci == 3:
             if block:
                 blocks.append(block)
-            block, last_cf = [], None
+            block = []
         elif f.arbitration_id == can_id and pci == 2:
             block.append(f)
             if last_cf is not None:

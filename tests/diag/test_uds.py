@@ -246,8 +246,9 @@ def test_wrong_keys_count_then_delay(ddct, tmp_path):
         with pytest.raises(NegativeResponseException) as e:
             c.request_seed(1)
         assert e.value.response.code == 0x37
-        time.sleep(10.5)
-        c.tester_present()
+        for _ in range(6):  # 10.5 s, the extended session kept alive
+            time.sleep(1.75)
+            c.tester_present()
         seed = c.request_seed(1).service_data.seed
         c.send_key(2, security_key(seed))
 
@@ -296,7 +297,14 @@ EXTENDED_NRC_CASES = [
     ("310302" + "01", "7f3124", "results of a routine never started"),
     ("3101ffff", "7f3131", "unknown routine"),
     ("31010201" + "03", "7f3131", "a clutch that does not exist"),
+    # ISO 14229-1 checks security before the length of a supported DID's value.
+    ("2e0200" + "40a0", "7f2e33", "write with a short value while locked"),
+]
+
+UNLOCKED_NRC_CASES = [
     ("2e0200" + "40a0", "7f2e13", "write with a short value"),
+    ("2e0200" + "49742400", "7f2e31", "write out of range (1e6 for 0 ..= 200)"),
+    ("2e0100" + "40a00000", "7f2e31", "write to a measurement"),
 ]
 
 
@@ -306,6 +314,9 @@ def test_every_negative_response(ddct, tmp_path):
             assert raw(c, bytes.fromhex(req)).hex() == want, why
         assert raw(c, bytes.fromhex("1003"))[:2] == bytes.fromhex("5003")
         for req, want, why in EXTENDED_NRC_CASES:
+            assert raw(c, bytes.fromhex(req)).hex() == want, why
+        c.unlock_security_access(1)
+        for req, want, why in UNLOCKED_NRC_CASES:
             assert raw(c, bytes.fromhex(req)).hex() == want, why
 
 
@@ -320,11 +331,13 @@ def test_routine_conditions_not_correct_while_driving(ddct, tmp_path):
 
 
 def test_functional_requests(ddct, tmp_path):
-    """A functional TesterPresent with the suppress bit gets nothing; a functional read is
-    answered on the physical response id; a functional unknown service gets no NRC."""
+    """A functional TesterPresent with the suppress bit gets nothing; a functional read (a
+    single-frame response: a multi-frame one would need the tester's flow control on the
+    physical id) is answered on the physical response id; a functional unknown service gets no
+    NRC."""
     with bench(ddct, tmp_path), uds_client(txid=0x7DF) as c:
-        r = raw(c, bytes([0x22, 0xF1, 0x97]))
-        assert r[:3] == bytes([0x62, 0xF1, 0x97])
+        r = raw(c, bytes([0x22, 0x01, 0x10]))
+        assert r[:3] == bytes([0x62, 0x01, 0x10]) and len(r) == 7
         c.conn.send(bytes([0x3E, 0x80]))
         assert c.conn.wait_frame(timeout=0.5) is None
         c.conn.send(bytes([0xBA]))
