@@ -59,9 +59,13 @@ def main(argv=None) -> int:
     ap.add_argument("--measure", nargs="+", default=["Clutch1TempEst", "Clutch1TorqueRef"])
     ap.add_argument("--download", nargs="*", default=[], help="NAME=VALUE calibrations to write first")
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--list", action="store_true", help="only write the A2L's objects as JSON")
     args = ap.parse_args(argv)
 
     objects = a2l_objects(args.a2l)
+    if args.list:
+        args.out.write_text(json.dumps(objects))
+        return 0
     from pyxcp.daq_stim import DaqList, DaqOnlinePolicy
 
     class Collect(DaqOnlinePolicy):
