@@ -223,7 +223,7 @@ fn input_stream() -> impl Strategy<Value = Vec<(Duration, CanFrame)>> {
 }
 
 /// Frames (or lines, or CSV files) fed per property, for the campaign's report.
-static FED: [AtomicU64; 5] = [const { AtomicU64::new(0) }; 5];
+static FED: [AtomicU64; 6] = [const { AtomicU64::new(0) }; 6];
 
 fn fed(k: usize, n: usize) {
     FED[k].fetch_add(n as u64, Ordering::Relaxed);
@@ -658,4 +658,93 @@ fn the_isotp_transport_takes_any_frames() {
         .run(&isotp_stream(), |s| isotp_over(&s))
         .unwrap_or_else(|e| panic!("{e}"));
     report(4, "ISO-TP frames");
+}
+
+/// One event at the TCU's diagnostic side: a frame on one of its three request ids, or a TCU step
+/// (kind 3). UDS frames are mostly single frames of the known services (so requests get past the
+/// transport into the server's checks), XCP frames mostly start with a command code (0xC0–0xFF).
+fn diag_stream() -> impl Strategy<Value = Vec<(u64, u8, Vec<u8>)>> {
+    const SIDS: [u8; 11] = [
+        0x10, 0x11, 0x14, 0x19, 0x22, 0x27, 0x2E, 0x31, 0x3E, 0xBA, 0x85,
+    ];
+    let uds = (
+        prop::sample::select(SIDS.to_vec()),
+        prop::collection::vec(any::<u8>(), 0..=6),
+        any::<bool>(),
+    )
+        .prop_map(|(sid, rest, raw)| {
+            if raw {
+                let mut f = vec![sid];
+                f.extend(rest);
+                f
+            } else {
+                let mut f = vec![1 + rest.len() as u8, sid];
+                f.extend(rest);
+                f
+            }
+        });
+    let xcp = (0xC0u8..=0xFF, prop::collection::vec(any::<u8>(), 0..=7)).prop_map(|(c, rest)| {
+        let mut f = vec![c];
+        f.extend(rest);
+        f
+    });
+    let event = prop_oneof![
+        (Just(0u8), uds.clone()),
+        (Just(1u8), uds),
+        (Just(2u8), xcp),
+        (Just(3u8), Just(Vec::new())),
+    ];
+    prop::collection::vec((0u64..200_000, event), 0..150)
+        .prop_map(|v| v.into_iter().map(|(g, (k, f))| (g, k, f)).collect())
+}
+
+/// Feeds a stream to the whole diagnostic side (ISO-TP, UDS server, XCP slave, fault memory)
+/// around a real TCU core: nothing panics, and every frame it sends is a UDS response or an XCP
+/// packet of at most 8 bytes; an ECUReset restarts the core.
+fn diag_over(stream: &[(u64, u8, Vec<u8>)]) -> Result<(), TestCaseError> {
+    use ddct::can::messages::ids;
+    use ddct::diag::dtc::FaultMemory;
+    use ddct::diag::stack::{DiagConfig, DiagStack};
+    let mut tcu = Tcu::new(tcu_config().clone(), Duration::ZERO);
+    let mut stack = DiagStack::new(DiagConfig::default(), FaultMemory::default());
+    let mut now = Duration::ZERO;
+    for (gap, kind, bytes) in stream {
+        now += Duration::from_micros(*gap);
+        stack.handle_timeout(now, &mut tcu);
+        let id = [
+            ids::TCU_DIAG_REQ,
+            ids::DIAG_FUNCTIONAL_REQ,
+            ids::TCU_XCP_CRO,
+        ]
+        .get(*kind as usize);
+        match id.and_then(|id| CanFrame::standard(*id, bytes).ok()) {
+            Some(f) => stack.handle_frame(now, &f, &mut tcu),
+            None => {
+                let out = tcu.step(now, &TcuInputs { frames: &[] });
+                stack.after_step(now, now, &out, &mut tcu);
+            }
+        }
+        while let Some(f) = stack.poll_transmit(now) {
+            let id = f.standard_id();
+            prop_assert!(
+                id == Some(ids::TCU_DIAG_RESP) || id == Some(ids::TCU_XCP_DTO),
+                "{f:?}"
+            );
+            prop_assert!(f.bytes().len() <= 8);
+        }
+        if stack.take_reset().is_some() {
+            tcu = Tcu::new(tcu_config().clone(), now);
+            stack.restarted();
+        }
+    }
+    fed(5, stream.len());
+    Ok(())
+}
+
+#[test]
+fn the_diagnostic_side_takes_any_requests() {
+    runner()
+        .run(&diag_stream(), |s| diag_over(&s))
+        .unwrap_or_else(|e| panic!("{e}"));
+    report(5, "diagnostic frames and steps");
 }
