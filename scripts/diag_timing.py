@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -42,12 +43,12 @@ def poll_dids(stop: threading.Event, counts: dict) -> None:
             time.sleep(max(0.0, next_t - time.monotonic()))
 
 
-def one_run(ddct: Path, busy: bool, seconds: float, work: Path) -> dict:
+def one_run(ddct: Path, busy: bool, seconds: float, work: Path, tcu_args: list) -> dict:
     a2l = work / "tcu.a2l"
     if not a2l.exists():
         subprocess.run([str(ddct), "diag", "a2l", "--out", str(a2l)], check=True)
     counts = {"requests": 0, "daq_samples": 0}
-    with bench(ddct, work / ("busy" if busy else "quiet")) as (b, _driver):
+    with bench(ddct, work / ("busy" if busy else "quiet"), tcu_args=tcu_args) as (b, _driver):
         time.sleep(1.0)
         if busy:
             stop = threading.Event()
@@ -73,22 +74,32 @@ def main() -> int:
     ap.add_argument("--pairs", type=int, default=2)
     ap.add_argument("--ddct", type=Path, default=REPO / "target" / "release" / "ddct")
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--rt-priority", type=int, default=50 if os.geteuid() == 0 else 0,
+                    help="the TCU daemon's SCHED_FIFO priority (default 50 as root, as scripts/bench "
+                         "runs it; 0: normal scheduling, where the python clients compete with it "
+                         "for the CPU)")
     args = ap.parse_args()
+    tcu_args = ["--rt-priority", str(args.rt_priority)] if args.rt_priority else []
     runs = []
     with tempfile.TemporaryDirectory(prefix="ddct-diag-timing-") as tmp:
         for _ in range(args.pairs):
             for busy in (False, True):
-                runs.append(one_run(args.ddct, busy, args.seconds, Path(tmp)))
+                runs.append(one_run(args.ddct, busy, args.seconds, Path(tmp), tcu_args))
                 print(json.dumps(runs[-1]), file=sys.stderr)
+    print(f"TCU at {'SCHED_FIFO ' + str(args.rt_priority) if args.rt_priority else 'normal priority'}, "
+          f"{args.pairs} pairs of {args.seconds:.0f} s runs\n")
     print(f"| figure | quiet | with tester (DID every 10 ms) + DAQ | busy / quiet |\n|---|---|---|---|")
-    for k in FIGURES:
-        q = [r[k] for r in runs if not r["busy"] and r[k] is not None]
-        b = [r[k] for r in runs if r["busy"] and r[k] is not None]
+    for r in runs:  # counts per 1 000 computations: the runs differ in length
+        for k in ("overruns", "deadline_misses", "stalls"):
+            r[k + "_per_1000"] = 1000.0 * r[k] / max(r["computations"], 1)
+    for k in FIGURES + ["overruns_per_1000", "deadline_misses_per_1000", "stalls_per_1000"]:
+        q = [r[k] for r in runs if not r["busy"] and r.get(k) is not None]
+        b = [r[k] for r in runs if r["busy"] and r.get(k) is not None]
         if not q or not b:
             continue
         mq, mb = statistics.median(q), statistics.median(b)
         ratio = f"{mb / mq:.2f}" if mq else "-"
-        print(f"| {k} | {mq:.0f} | {mb:.0f} | {ratio} |")
+        print(f"| {k} | {mq:.1f} | {mb:.1f} | {ratio} |")
     busy = [r for r in runs if r["busy"]]
     print(f"\nper busy run: {statistics.median(r['requests'] for r in busy):.0f} UDS requests, "
           f"{statistics.median(r['daq_samples'] for r in busy):.0f} DAQ samples in {args.seconds:.0f} s")

@@ -29,7 +29,8 @@ pub enum DiagCmd {
     KissPoint(KissArgs),
     /// Write a calibration (extended session, SecurityAccess level 1 unlocked first).
     WriteCal(WriteCalArgs),
-    /// Reset the TCU (ECUReset hard reset).
+    /// Reset the TCU (ECUReset hard reset, from the extended session): the core restarts from its
+    /// calibration file; the fault memory and learned kiss points are kept.
     Reset(BusArgs),
     /// Write the A2L file of the TCU's XCP slave (measurements, calibrations, XCP on CAN).
     A2l(A2lArgs),
@@ -416,6 +417,8 @@ async fn write_cal(a: &WriteCalArgs) -> anyhow::Result<()> {
 
 async fn reset(a: &BusArgs) -> anyhow::Result<()> {
     let mut t = tester(a)?;
+    // A hard reset is refused in the default session (docs/diagnostics.md).
+    positive(&mut t, &[0x10, 0x03]).await?;
     positive(&mut t, &[0x11, 0x01]).await?;
     println!("reset");
     Ok(())

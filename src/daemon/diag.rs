@@ -3,6 +3,9 @@
 //! (loaded at the start, saved atomically when it changed, at most every
 //! [`FAULT_MEMORY_SAVE_EVERY`], and at the end).
 //!
+//! Control first: a diagnostic frame read while the TCU computes waits in a queue until the
+//! cycle's control frames are out; then the requests are served and the responses sent.
+//!
 //! Its time is the shell's live time base (monotonic, the daemon's stalls taken out), on a
 //! lockstep bench too: ISO-TP's STmin and timeouts and UDS's S3 are real-time rules of the
 //! tester's, not simulated time.
@@ -13,9 +16,14 @@ use crate::diag::dtc::FaultMemory;
 use crate::diag::stack::DiagStack;
 use crate::diag::store;
 use crate::tcu::{Tcu, TcuConfig, TcuOutputs};
+use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::Duration;
 use tokio::time::Instant;
+
+/// Diagnostic frames waiting to be served at most (a tester sends one request at a time, an XCP
+/// master one command; more is a flood).
+pub(super) const MAX_PENDING: usize = 1024;
 
 /// The diagnostic side's state in the shell.
 pub(super) struct DiagShell {
@@ -26,6 +34,10 @@ pub(super) struct DiagShell {
     last_save: Option<Instant>,
     pub(super) received: u64,
     pub(super) sent: u64,
+    /// Frames received, not yet served.
+    pending: VecDeque<CanFrame>,
+    /// Frames dropped with [`MAX_PENDING`] waiting.
+    dropped: u64,
     resets: u64,
     saves: u64,
     save_errors: u64,
@@ -65,6 +77,8 @@ impl DiagShell {
             last_save: None,
             received: 0,
             sent: 0,
+            pending: VecDeque::new(),
+            dropped: 0,
             resets: 0,
             saves: 0,
             save_errors: 0,
@@ -72,10 +86,23 @@ impl DiagShell {
         })
     }
 
-    /// A received diagnostic frame.
-    pub(super) fn on_frame(&mut self, now: Duration, frame: &CanFrame, tcu: &mut Tcu) {
+    /// A received diagnostic frame: queued, served after the cycle's control frames are out
+    /// ([`Self::serve_pending`]). Beyond [`MAX_PENDING`] waiting frames (a flood on the
+    /// diagnostic ids) a frame is dropped and counted.
+    pub(super) fn on_frame(&mut self, frame: CanFrame) {
         self.received += 1;
-        self.core.handle_frame(now, frame, tcu);
+        if self.pending.len() < MAX_PENDING {
+            self.pending.push_back(frame);
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    /// Serves the queued diagnostic frames at `now`, in arrival order.
+    pub(super) fn serve_pending(&mut self, now: Duration, tcu: &mut Tcu) {
+        while let Some(f) = self.pending.pop_front() {
+            self.core.handle_frame(now, &f, tcu);
+        }
     }
 
     /// After a TCU step.
@@ -141,6 +168,7 @@ impl DiagShell {
     pub(super) fn report(&self) -> DiagReport {
         DiagReport {
             frames_received: self.received,
+            frames_dropped: self.dropped,
             frames_sent: self.sent,
             isotp: *self.core.isotp_counters(),
             resets: self.resets,

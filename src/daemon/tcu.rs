@@ -189,8 +189,10 @@ pub struct TcuReport {
 /// What the diagnostic side did.
 #[derive(Debug, Clone, Serialize)]
 pub struct DiagReport {
-    /// Diagnostic frames received (UDS and XCP) and sent.
+    /// Diagnostic frames received (UDS and XCP), dropped unserved (a flood: more than
+    /// `MAX_PENDING` waiting) and sent.
     pub frames_received: u64,
+    pub frames_dropped: u64,
     pub frames_sent: u64,
     /// The ISO-TP transport's counts (dropped frames by cause, timeouts).
     pub isotp: IsoTpCounters,
@@ -347,8 +349,7 @@ impl<B: Bus> Shell<B> {
         self.cycle_frames += 1;
         if let Some(d) = &mut self.diag {
             if rx.frame.standard_id().is_some_and(DiagStack::handles) {
-                let now = self.time.live(self.clocks.mono);
-                d.on_frame(now, &rx.frame, &mut self.tcu);
+                d.on_frame(rx.frame);
                 return Ok(());
             }
         }
@@ -532,6 +533,7 @@ impl<B: Bus> Shell<B> {
             let Some(d) = &mut self.diag else {
                 return Ok(());
             };
+            d.serve_pending(now, &mut self.tcu);
             d.core.handle_timeout(now, &mut self.tcu);
             let Some(f) = d.core.poll_transmit(now) else {
                 d.reset_if_due(self.last_now, &mut self.tcu);

@@ -130,6 +130,31 @@ const fn meta(
     }
 }
 
+/// The measurements' names, units, descriptions and limits, in the order of
+/// [`Measurement::ALL`] (the unit test `meta_follows_all` holds the names to the variants).
+#[rustfmt::skip]
+const MEASUREMENT_META: [Meta; 19] = [
+    meta("Clutch1TempEst", "degC", "Estimated clutch 1 temperature (17)", -40.0, 400.0),
+    meta("Clutch2TempEst", "degC", "Estimated clutch 2 temperature (17)", -40.0, 400.0),
+    meta("Clutch1TorqueRef", "Nm", "Clutch 1 torque reference (23)-(27)", -1000.0, 1000.0),
+    meta("Clutch2TorqueRef", "Nm", "Clutch 2 torque reference (23)-(27)", -1000.0, 1000.0),
+    meta("Clutch1PosRef", "mm", "Clutch 1 bearing position request", 0.0, 16.0),
+    meta("Clutch2PosRef", "mm", "Clutch 2 bearing position request", 0.0, 16.0),
+    meta("Clutch1Pos", "mm", "Clutch 1 measured bearing position", 0.0, 16.0),
+    meta("Clutch2Pos", "mm", "Clutch 2 measured bearing position", 0.0, 16.0),
+    meta("Clutch1KissPoint", "mm", "Clutch 1 kiss point x_ISP at the estimated temperature (9)", 0.0, 16.0),
+    meta("Clutch2KissPoint", "mm", "Clutch 2 kiss point x_ISP at the estimated temperature (9)", 0.0, 16.0),
+    meta("EngineSpeed", "rpm", "Engine speed (measured)", 0.0, 10000.0),
+    meta("InShaft1Speed", "rpm", "Odd input shaft speed (measured)", -8192.0, 8192.0),
+    meta("InShaft2Speed", "rpm", "Even input shaft speed (measured)", -8192.0, 8192.0),
+    meta("OutShaftSpeed", "rpm", "Output shaft speed (measured)", -4096.0, 4096.0),
+    meta("AccelPedal", "%", "Accelerator pedal", 0.0, 100.0),
+    meta("HousingTemp", "degC", "Clutch housing air temperature (measured)", -40.0, 215.0),
+    meta("TcuState", "", "TCU state (TCU_Status TcuState)", 0.0, 8.0),
+    meta("GearActive", "", "Gear transmitting torque (7 = reverse)", 0.0, 7.0),
+    meta("FaultCode", "", "Active fault code (TCU_Status FaultCode)", 0.0, 255.0),
+];
+
 impl Measurement {
     /// Every measurement, in address order.
     pub const ALL: [Measurement; 19] = [
@@ -156,130 +181,7 @@ impl Measurement {
 
     /// Name, unit, description and limits.
     pub fn meta(self) -> Meta {
-        use Measurement::*;
-        match self {
-            Clutch1TempEst => meta(
-                "Clutch1TempEst",
-                "degC",
-                "Estimated clutch 1 temperature (17)",
-                -40.0,
-                400.0,
-            ),
-            Clutch2TempEst => meta(
-                "Clutch2TempEst",
-                "degC",
-                "Estimated clutch 2 temperature (17)",
-                -40.0,
-                400.0,
-            ),
-            Clutch1TorqueRef => meta(
-                "Clutch1TorqueRef",
-                "Nm",
-                "Clutch 1 torque reference (23)-(27)",
-                -1000.0,
-                1000.0,
-            ),
-            Clutch2TorqueRef => meta(
-                "Clutch2TorqueRef",
-                "Nm",
-                "Clutch 2 torque reference (23)-(27)",
-                -1000.0,
-                1000.0,
-            ),
-            Clutch1PosRef => meta(
-                "Clutch1PosRef",
-                "mm",
-                "Clutch 1 bearing position request",
-                0.0,
-                16.0,
-            ),
-            Clutch2PosRef => meta(
-                "Clutch2PosRef",
-                "mm",
-                "Clutch 2 bearing position request",
-                0.0,
-                16.0,
-            ),
-            Clutch1Pos => meta(
-                "Clutch1Pos",
-                "mm",
-                "Clutch 1 measured bearing position",
-                0.0,
-                16.0,
-            ),
-            Clutch2Pos => meta(
-                "Clutch2Pos",
-                "mm",
-                "Clutch 2 measured bearing position",
-                0.0,
-                16.0,
-            ),
-            Clutch1KissPoint => meta(
-                "Clutch1KissPoint",
-                "mm",
-                "Clutch 1 kiss point x_ISP at the estimated temperature (9)",
-                0.0,
-                16.0,
-            ),
-            Clutch2KissPoint => meta(
-                "Clutch2KissPoint",
-                "mm",
-                "Clutch 2 kiss point x_ISP at the estimated temperature (9)",
-                0.0,
-                16.0,
-            ),
-            EngineSpeed => meta(
-                "EngineSpeed",
-                "rpm",
-                "Engine speed (measured)",
-                0.0,
-                10000.0,
-            ),
-            InShaft1Speed => meta(
-                "InShaft1Speed",
-                "rpm",
-                "Odd input shaft speed (measured)",
-                -8192.0,
-                8192.0,
-            ),
-            InShaft2Speed => meta(
-                "InShaft2Speed",
-                "rpm",
-                "Even input shaft speed (measured)",
-                -8192.0,
-                8192.0,
-            ),
-            OutShaftSpeed => meta(
-                "OutShaftSpeed",
-                "rpm",
-                "Output shaft speed (measured)",
-                -4096.0,
-                4096.0,
-            ),
-            AccelPedal => meta("AccelPedal", "%", "Accelerator pedal", 0.0, 100.0),
-            HousingTemp => meta(
-                "HousingTemp",
-                "degC",
-                "Clutch housing air temperature (measured)",
-                -40.0,
-                215.0,
-            ),
-            TcuState => meta("TcuState", "", "TCU state (TCU_Status TcuState)", 0.0, 8.0),
-            GearActive => meta(
-                "GearActive",
-                "",
-                "Gear transmitting torque (7 = reverse)",
-                0.0,
-                7.0,
-            ),
-            FaultCode => meta(
-                "FaultCode",
-                "",
-                "Active fault code (TCU_Status FaultCode)",
-                0.0,
-                255.0,
-            ),
-        }
+        MEASUREMENT_META[self.index()]
     }
 
     /// The value in `s` (the unit of [`Measurement::meta`]).
@@ -503,6 +405,13 @@ mod tests {
                 }
                 assert_eq!(c.validate().is_ok(), ok, "{} = {v}", m.name);
             }
+        }
+    }
+
+    #[test]
+    fn meta_follows_all() {
+        for m in Measurement::ALL {
+            assert_eq!(m.meta().name, format!("{m:?}"));
         }
     }
 

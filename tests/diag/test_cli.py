@@ -55,6 +55,12 @@ def test_ddct_diag_reads_clears_writes_and_learns(ddct, tmp_path):
         out = diag(ddct, "kiss-point", "--iface", "vcan0", "--clutch", "2")
         m = re.search(r"clutch 2: learned kiss point ([0-9.]+) mm", out)
         assert m and abs(float(m.group(1)) - 4.0) < 0.05, out
+        assert "reset" in diag(ddct, "reset", "--iface", "vcan0")
+        time.sleep(0.5)
+        out = diag(ddct, "read-did", "--iface", "vcan0", "control.clutch_kp_per_s", "LearnedKiss2")
+        assert "control.clutch_kp_per_s = 8 1/s" in out, out  # the file's value again
+        kept = re.search(r"LearnedKiss2 = ([0-9.]+) mm", out)  # kept across the reset
+        assert kept and abs(float(kept.group(1)) - float(m.group(1))) < 0.001, out
 
 
 def test_ddct_diag_names_a_negative_response(ddct, tmp_path):
