@@ -137,6 +137,8 @@ const IDENTIFICATION: [(u16, &str); 3] = [
 const MEASUREMENT_DID: u16 = 0x0100;
 const CALIBRATION_DID: u16 = 0x0200;
 const LEARNED_KISS_DID: u16 = 0x0300;
+/// DIDs in each block of the table (256).
+const DID_BLOCK: u16 = 1 << 8;
 
 fn parse_did(s: &str) -> Result<u16, String> {
     if let Some(v) = parse_hex(s) {
@@ -187,10 +189,10 @@ fn describe(did: u16, data: &[u8]) -> String {
         return format!("{name} = {:?}", String::from_utf8_lossy(data).trim_end());
     }
     let (name, unit) = match did {
-        d if (MEASUREMENT_DID..MEASUREMENT_DID + 0x100).contains(&d) => Measurement::ALL
+        d if (MEASUREMENT_DID..MEASUREMENT_DID + DID_BLOCK).contains(&d) => Measurement::ALL
             .get(usize::from(d - MEASUREMENT_DID))
             .map(|m| (m.meta().name.to_string(), m.meta().unit)),
-        d if (CALIBRATION_DID..CALIBRATION_DID + 0x100).contains(&d) => Calibration::ALL
+        d if (CALIBRATION_DID..CALIBRATION_DID + DID_BLOCK).contains(&d) => Calibration::ALL
             .get(usize::from(d - CALIBRATION_DID))
             .map(|c| (c.meta().name.to_string(), c.meta().unit)),
         d if d == LEARNED_KISS_DID || d == LEARNED_KISS_DID + 1 => {

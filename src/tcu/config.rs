@@ -487,7 +487,7 @@ crate::ranges!(KissRoutineCfg as r, "kiss_routine" {
     hold_s: [0.0, 5.0],
     ramp_rate_mm_per_s: [0.005, 2.0],
     end_beyond_kiss_mm: [0.05, 5.0],
-    detect_rpm: [r.fit_floor_rpm + 1.0, 1000.0],
+    detect_rpm: [1.0, 1000.0],
     fit_floor_rpm: [0.5, 500.0],
     position_fit_s: [0.05, 10.0],
     timeout_s: [1.0, 600.0],
@@ -587,6 +587,12 @@ impl TcuConfig {
                 h.lugging_idle_fraction,
                 "creep.stall_idle_fraction",
                 "must be below shift.lugging_idle_fraction (a lugging engine downshifts before it stalls)",
+            ),
+            (
+                self.kiss_routine.fit_floor_rpm + 1.0,
+                self.kiss_routine.detect_rpm,
+                "kiss_routine.detect_rpm",
+                "must exceed kiss_routine.fit_floor_rpm by at least 1 rpm",
             ),
             (
                 h.fallback_lock_s,
@@ -794,7 +800,7 @@ mod tests {
         assert_eq!(TcuConfig::default().kiss_routine, KissRoutineCfg::default());
         for (key, bad) in [
             ("kiss_routine.ramp_rate_mm_per_s", "0.0"),
-            ("kiss_routine.detect_rpm", "4.5"),
+            ("kiss_routine.detect_rpm", "0.5"),
             ("kiss_routine.timeout_s", "nan"),
             ("kiss_routine.start_before_kiss_mm", "-1.0"),
         ] {
@@ -802,6 +808,12 @@ mod tests {
             let e = load_error(&with_value(name, bad)).unwrap_or_else(|| panic!("{key} = {bad}"));
             assert!(e.contains(&format!("`{key}` = ")), "{key}: {e}");
         }
+        // Within its range but not above the fit floor (4 rpm) by 1 rpm: the rule between keys.
+        let e = load_error(&with_value("detect_rpm", "4.5")).expect("detect_rpm = 4.5");
+        assert!(
+            e.contains("kiss_routine.detect_rpm") && e.contains("fit_floor_rpm"),
+            "{e}"
+        );
     }
 
     #[test]

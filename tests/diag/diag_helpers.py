@@ -21,15 +21,16 @@ from udsoncan.client import Client
 from udsoncan.connections import PythonIsoTpConnection
 
 from ddct_can.daemons import Bench
+from ddct_can.dbc import frame_id
 from ddct_can.driver import Driver
 
 REPO = Path(__file__).resolve().parents[2]
 IFACE = "vcan0"
 
-REQ_ID, RESP_ID, FUNC_ID = 0x7E1, 0x7E9, 0x7DF
-XCP_CRO, XCP_DTO = 0x7F0, 0x7F1
+REQ_ID, RESP_ID, FUNC_ID = frame_id("TCU_DiagReq"), frame_id("TCU_DiagResp"), frame_id("DIAG_FunctionalReq")
+XCP_CRO, XCP_DTO = frame_id("TCU_XcpCro"), frame_id("TCU_XcpDto")
 
-# docs/diagnostics.md: measurement i at DID 0x0100 + i, calibration i at 0x0200 + i.
+# docs/diagnostics.md: measurement i at DID 256 + i, calibration i at 0x0200 + i.
 MEASUREMENTS = [
     "Clutch1TempEst", "Clutch2TempEst", "Clutch1TorqueRef", "Clutch2TorqueRef",
     "Clutch1PosRef", "Clutch2PosRef", "Clutch1Pos", "Clutch2Pos", "Clutch1KissPoint",
@@ -41,7 +42,7 @@ CALIBRATIONS = [
     "control.engine_ki_per_s2", "launch.lockup_time_s", "safety.over_temp_warn_c",
     "compensation.temperature", "compensation.slip",
 ]
-DID = {name: 0x0100 + i for i, name in enumerate(MEASUREMENTS)}
+DID = {name: 256 + i for i, name in enumerate(MEASUREMENTS)}
 CAL_DID = {name: 0x0200 + i for i, name in enumerate(CALIBRATIONS)}
 LEARNED_KISS_DID = {1: 0x0300, 2: 0x0301}
 SERIAL_DID, VERSION_DID, NAME_DID = 0xF18C, 0xF195, 0xF197

@@ -20,7 +20,7 @@ from udsoncan.exceptions import NegativeResponseException
 from udsoncan.services import ECUReset, DiagnosticSessionControl, RoutineControl
 
 import ddct_can
-from diag_helpers import (CAL_DID, CONFIRMED, DID, FAILED_SINCE_CLEAR, KISS_ROUTINE,
+from diag_helpers import (CAL_DID, FUNC_ID, REQ_ID, CONFIRMED, DID, FAILED_SINCE_CLEAR, KISS_ROUTINE,
                           LEARNED_KISS_DID, NAME_DID, NOT_COMPLETED_THIS_CYCLE, PENDING, REPO,
                           SERIAL_DID, TEST_FAILED, TEST_FAILED_THIS_CYCLE, VERSION_DID, Recorder,
                           bench, f32, security_key, uds_client, wait_until)
@@ -335,7 +335,7 @@ def test_functional_requests(ddct, tmp_path):
     single-frame response: a multi-frame one would need the tester's flow control on the
     physical id) is answered on the physical response id; a functional unknown service gets no
     NRC."""
-    with bench(ddct, tmp_path), uds_client(txid=0x7DF) as c:
+    with bench(ddct, tmp_path), uds_client(txid=FUNC_ID) as c:
         r = raw(c, bytes([0x22, 0x01, 0x10]))
         assert r[:3] == bytes([0x62, 0x01, 0x10]) and len(r) == 7
         c.conn.send(bytes([0x3E, 0x80]))
@@ -349,7 +349,7 @@ def test_malformed_and_out_of_order_frames_are_dropped_and_counted(ddct, tmp_pat
         bus = can.Bus(interface="socketcan", channel="vcan0")
         bad = ["", "00", "08" + "11" * 7, "21" + "00" * 7, "30", "1001", "1fff" + "00" * 6, "f0" + "00" * 7, "2f"]
         for h in bad * 20:
-            bus.send(can.Message(arbitration_id=0x7E1, data=bytes.fromhex(h), is_extended_id=False))
+            bus.send(can.Message(arbitration_id=REQ_ID, data=bytes.fromhex(h), is_extended_id=False))
             time.sleep(0.002)
         bus.shutdown()
         with uds_client() as c:

@@ -37,13 +37,15 @@ def a2l_objects(path: Path) -> dict[str, dict]:
 
 
 def master(channel: str):
+    from ddct_can.dbc import frame_id
+
     from pyxcp.config import create_application_from_config, set_application
     from pyxcp.master import Master
 
     app = create_application_from_config({
         "Transport": {"CAN": {
-            "interface": "socketcan", "channel": channel, "can_id_master": 0x7F0,
-            "can_id_slave": 0x7F1, "max_dlc_required": True, "padding_value": 0,
+            "interface": "socketcan", "channel": channel, "can_id_master": frame_id("TCU_XcpCro"),
+            "can_id_slave": frame_id("TCU_XcpDto"), "max_dlc_required": True, "padding_value": 0,
         }},
     })
     app.transport.layer = "CAN"

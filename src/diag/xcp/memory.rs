@@ -31,7 +31,7 @@ pub const ID_A2L_NAME: &str = "ddct";
 /// The texts of the text area, each at its address.
 const TEXTS: [(u32, &str); 3] = [
     (TEXT_BASE, EVENT_NAME),
-    (TEXT_BASE + 0x100, ID_ASCII),
+    (TEXT_BASE + 256, ID_ASCII),
     (TEXT_BASE + 0x200, ID_A2L_NAME),
 ];
 
