@@ -70,9 +70,8 @@ pub struct DiagStack {
     uds: UdsServer,
     xcp: XcpSlave,
     memory: FaultMemory,
-    /// XCP packets to send (responses first come first).
-    xcp_out: VecDeque<[u8; 8]>,
-    xcp_len: VecDeque<usize>,
+    /// XCP packets to send, as frames on TCU_XcpDto (first come first).
+    xcp_out: VecDeque<CanFrame>,
     snapshot: Option<Snapshot>,
     /// The fault memory's tests run (see [`TEST_ENABLE_AFTER`]).
     tests_enabled: bool,
@@ -90,7 +89,6 @@ impl DiagStack {
             xcp: XcpSlave::new(),
             memory,
             xcp_out: VecDeque::new(),
-            xcp_len: VecDeque::new(),
             snapshot: None,
             tests_enabled: false,
             serial: cfg.serial,
@@ -149,11 +147,10 @@ impl DiagStack {
     }
 
     fn push_xcp(&mut self, packet: &[u8]) {
-        let mut b = [0u8; 8];
-        let n = packet.len().min(8);
-        b[..n].copy_from_slice(&packet[..n]);
-        self.xcp_out.push_back(b);
-        self.xcp_len.push_back(n);
+        // The slave's packets are at most MAX_DTO (8) bytes; a longer one is a slave bug and dropped.
+        if let Ok(f) = CanFrame::standard(ids::TCU_XCP_DTO, packet) {
+            self.xcp_out.push_back(f);
+        }
     }
 
     /// After each TCU step at core time `core_now`: the fault memory's tests on this step's
@@ -184,8 +181,8 @@ impl DiagStack {
     /// The next frame to send: XCP packets first (a DAQ sample belongs to its cycle), then the
     /// ISO-TP frames due at `now` (STmin and the tester's block size paced by the transport).
     pub fn poll_transmit(&mut self, now: Duration) -> Option<CanFrame> {
-        if let (Some(b), Some(n)) = (self.xcp_out.pop_front(), self.xcp_len.pop_front()) {
-            return CanFrame::standard(ids::TCU_XCP_DTO, &b[..n]).ok();
+        if let Some(f) = self.xcp_out.pop_front() {
+            return Some(f);
         }
         let f = self.tp.poll_transmit(now)?;
         CanFrame::standard(ids::TCU_DIAG_RESP, f.bytes()).ok()
@@ -223,7 +220,6 @@ impl DiagStack {
         self.snapshot = None;
         self.tests_enabled = false;
         self.xcp_out.clear();
-        self.xcp_len.clear();
     }
 
     /// The fault memory (the shell saves it when it changed).

@@ -382,6 +382,27 @@ impl Calibration {
     }
 }
 
+/// A TCU in Drive, 2nd gear, at `t_s`: the snapshot of the diagnostic cores' unit tests.
+#[cfg(test)]
+pub(crate) fn test_snapshot(t_s: f64) -> Snapshot {
+    Snapshot {
+        t_s,
+        state: TcuState::Drive,
+        fault: FaultCode::None,
+        gear_active: Gear::G2,
+        theta_est_c: [120.0, 95.5],
+        t_ref_nm: [10.0, 0.0],
+        x_ref_mm: [5.0, 1.0],
+        x_mm: [5.25, 1.5],
+        kiss_mm: [4.0, 4.1],
+        engine_rpm: 2000.0,
+        shaft_rpm: [1500.0, 900.0],
+        out_rpm: 450.0,
+        pedal_pct: 30.0,
+        housing_c: 60.0,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

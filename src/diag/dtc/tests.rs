@@ -1,24 +1,7 @@
 use super::*;
-use crate::can::messages::TcuState;
-use crate::model::gear::Gear;
 
 fn snap(t_s: f64) -> Snapshot {
-    Snapshot {
-        t_s,
-        state: TcuState::Drive,
-        fault: FaultCode::None,
-        gear_active: Gear::G2,
-        theta_est_c: [120.0, 95.5],
-        t_ref_nm: [10.0, 0.0],
-        x_ref_mm: [5.0, 1.0],
-        x_mm: [5.25, 1.5],
-        kiss_mm: [4.0, 4.1],
-        engine_rpm: 2000.0,
-        shaft_rpm: [1500.0, 900.0],
-        out_rpm: 450.0,
-        pedal_pct: 30.0,
-        housing_c: 60.0,
-    }
+    crate::diag::values::test_snapshot(t_s)
 }
 
 fn ms(n: u64) -> Duration {
