@@ -54,10 +54,13 @@ pub struct FrameFound {
 }
 
 /// Why the strict decode rejects a frame whose contract message is `message` (`None`: not in
-/// the contract), if it does; extended and remote frames are simply outside the contract.
+/// the contract), if it does; extended and remote frames are simply outside the contract. A
+/// transport message (ISO-TP, XCP: no signals) is never rejected: its bytes, and with an
+/// unpadded transfer its length, are the protocol's.
 fn strict_error(frame: &CanFrame, message: Option<&MessageDef>) -> Option<CodecError> {
     let id = frame.raw_id();
     match message {
+        Some(def) if def.signals.is_empty() => None,
         Some(_) => Message::decode(id, frame.bytes()).err(),
         None => (!frame.is_extended() && !frame.is_remote_frame())
             .then_some(CodecError::UnknownId { id }),
@@ -293,6 +296,21 @@ mod tests {
                 Some(CodecError::UnknownId { id: 0x7FF })
             )
         );
+    }
+
+    #[test]
+    fn transport_frames_are_named_without_signals_or_error() {
+        let mut dec = LogDecoder::default();
+        // A padded single frame and an unpadded one: both are the protocol's to judge.
+        for bytes in [
+            &[0x02, 0x10, 0x03, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA][..],
+            &[0x02, 0x3E, 0x00],
+        ] {
+            let f = dec.decode(&rec(0, ids::TCU_DIAG_REQ, bytes));
+            assert_eq!(f.message.map(|m| m.name), Some("TCU_DiagReq"));
+            assert!(f.signals.is_empty());
+            assert_eq!((f.e2e, f.error), (E2eVerdict::NotProtected, None));
+        }
     }
 }
 

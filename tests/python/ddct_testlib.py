@@ -178,7 +178,8 @@ def cantools_decode_log(path: Path) -> list[dict]:
 
 
 def sample_frames() -> list[dict]:
-    """Frames python encodes with cantools + E2E: every message at min, mid and max.
+    """Frames python encodes with cantools + E2E: every message at min, mid and max (a transport
+    message, ISO-TP or XCP, has no signals: its three frames are eight zero bytes).
 
     For each protected message the counters are 0, 1, 2 in the order min, mid, max, so that a
     sequence checker sees them as consecutive.
