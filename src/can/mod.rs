@@ -1,13 +1,14 @@
 //! The bus layer: the DBC contract (generated message types), E2E protection, the `Bus` trait
 //! with its SocketCAN and in-process implementations, and candump log I/O; `runtime_dbc` decodes
 //! logs with a DBC file given at run time instead of the contract; `columnar` writes decoded
-//! signals as Parquet, `decode_csv` as CSV.
+//! signals as Parquet, `decode_csv` as CSV; `mf4` reads and writes MDF 4 bus-logging files.
 
 pub mod bus;
 pub mod candump;
 pub mod candump_screen;
 pub mod codec;
 pub mod columnar;
+pub mod columnar_frames;
 pub mod dbc;
 pub mod decode;
 pub mod decode_csv;
@@ -15,7 +16,9 @@ pub mod e2e;
 pub mod frame;
 pub mod gear;
 pub mod lines;
+pub mod logfile;
 pub mod messages;
+pub mod mf4;
 pub mod monitor;
 pub mod replay;
 pub mod runtime_dbc;

@@ -1,16 +1,19 @@
-//! `ddct log`: decode, record and replay candump logs.
+//! `ddct log`: decode, record, replay and convert bus logs (candump text or MDF 4).
 
+mod convert;
 mod csv;
 
 use super::args::open_can;
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
-use ddct::can::candump::{LineError, LogError, LogReader, LogRecord, LogWriter};
+use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
 use ddct::can::columnar::{SignalRow, SignalWriter};
 use ddct::can::decode::{DecodedFrame, LogDecoder};
 use ddct::can::decode_csv::{CsvFrame, CsvRows, CsvSignal, CSV_HEADER};
 use ddct::can::e2e::E2eConfig;
+use ddct::can::logfile::{self, LogFormat};
+use ddct::can::mf4::Mf4Error;
 use ddct::can::runtime_dbc::{self, RuntimeDbc};
 use ddct::can::socketcan::MMSG_BATCH;
 use ddct::can::Bus;
@@ -121,6 +124,21 @@ pub enum LogCmd {
         #[arg(long = "loop", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
         passes: u32,
     },
+    /// Convert a log between candump `-l` text (`.log`), MDF 4 bus logging (`.mf4`), CSV
+    /// (`.csv`) and Parquet (`.parquet`), the output's format taken from its extension (the
+    /// input, candump text or MDF 4, is recognised by content). CSV and Parquet hold one row
+    /// per decoded signal as `ddct log decode` writes them, or one per frame with `--frames`.
+    Convert {
+        /// The log to read: candump `-l` text or an MDF 4 file.
+        input: PathBuf,
+        /// The file to write (`.log`, `.mf4`, `.csv` or `.parquet`); written beside it first and
+        /// renamed into place when complete.
+        output: PathBuf,
+        /// CSV and Parquet: one row per frame (time_s, iface, id, extended, remote, dlc, data)
+        /// instead of one per decoded signal.
+        #[arg(long)]
+        frames: bool,
+    },
     /// Plot chosen signals of a candump log over time (an SVG; speeds and other numbers share a
     /// panel per unit, states and gears as labelled lanes, fault codes marked, dropouts left
     /// open), optionally overlaid (dashed) on the lockstep simulation of the scenario the run
@@ -177,6 +195,11 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             out.as_deref(),
         ),
         LogCmd::Stats { file, json } => stats(&file, json),
+        LogCmd::Convert {
+            input,
+            output,
+            frames,
+        } => convert::convert(&input, &output, frames),
         LogCmd::Plot {
             file,
             signals,
@@ -409,6 +432,32 @@ enum AnyDecoder<'a> {
     Runtime(runtime_dbc::Decoder<'a>),
 }
 
+/// Why an item of the input is not a frame.
+enum Unread {
+    /// A malformed line or frame: named (after the file name), counted and skipped.
+    Skip(String),
+    /// The input cannot be read further.
+    Fatal(anyhow::Error),
+}
+
+impl From<LogError> for Unread {
+    fn from(e: LogError) -> Self {
+        match e {
+            LogError::Line { line, kind } => Unread::Skip(format!(":{line}: {kind}")),
+            other => Unread::Fatal(other.into()),
+        }
+    }
+}
+
+impl From<Mf4Error> for Unread {
+    fn from(e: Mf4Error) -> Self {
+        match e {
+            Mf4Error::Frame { .. } => Unread::Skip(format!(": {e}")),
+            other => Unread::Fatal(other.into()),
+        }
+    }
+}
+
 /// What `ddct log decode` tells about the log besides the decoded frames.
 struct Decoding<'a> {
     file: &'a std::path::Path,
@@ -427,23 +476,23 @@ impl Decoding<'_> {
         self.filter.is_empty() || self.filter.contains(&id)
     }
 
-    /// A line that is not a frame: named on stderr, counted.
-    fn bad_line(&mut self, line: usize, kind: &LineError) {
+    /// A line or frame that could not be read: named on stderr, counted.
+    fn bad_item(&mut self, what: &str) {
         self.bad_lines += 1;
         self.pb
-            .suspend(|| eprintln!("{}:{line}: {kind}", self.file.display()));
+            .suspend(|| eprintln!("{}{what}", self.file.display()));
     }
 
-    /// The record of a log item; a malformed line is named, counted and skipped (`None`), any
-    /// other error ends the decode naming the file.
-    fn record<T>(&mut self, item: Result<T, LogError>) -> anyhow::Result<Option<T>> {
-        match item {
+    /// The record of a log item; a malformed line or frame is named, counted and skipped
+    /// (`None`), any other error ends the decode naming the file.
+    fn record<T, E: Into<Unread>>(&mut self, item: Result<T, E>) -> anyhow::Result<Option<T>> {
+        match item.map_err(Into::into) {
             Ok(r) => Ok(Some(r)),
-            Err(LogError::Line { line, kind }) => {
-                self.bad_line(line, &kind);
+            Err(Unread::Skip(what)) => {
+                self.bad_item(&what);
                 Ok(None)
             }
-            Err(e) => Err(e).with_context(|| format!("{}", self.file.display())),
+            Err(Unread::Fatal(e)) => Err(e).with_context(|| format!("{}", self.file.display())),
         }
     }
 
@@ -484,6 +533,11 @@ fn decode(
         _ => None,
     };
     let filter = wanted_filter(messages, runtime.as_ref())?;
+    // An MDF file is read whole, then decoded frame by frame like a candump log.
+    let mf4 = match file.as_os_str() != "-" && logfile::detect(file)? == LogFormat::Mf4 {
+        true => Some(logfile::open_mf4(file)?),
+        false => None,
+    };
     let DecodeInput {
         reader,
         pb,
@@ -516,10 +570,20 @@ fn decode(
         verdicts: Vec::new(),
     };
     let decoded = match (&mut decoder, format) {
-        (AnyDecoder::Builtin(dec), Format::Csv) => {
+        (AnyDecoder::Builtin(dec), Format::Csv) if mf4.is_none() => {
             csv::csv_builtin(&mut reader, dec, &mut run, &mut out)
         }
-        (dec, _) => frame_by_frame(&mut reader, dec, format, &mut run, &mut out, &mut parquet),
+        (dec, _) => match mf4 {
+            Some(frames) => frame_by_frame(frames, dec, format, &mut run, &mut out, &mut parquet),
+            None => frame_by_frame(
+                reader.by_ref(),
+                dec,
+                format,
+                &mut run,
+                &mut out,
+                &mut parquet,
+            ),
+        },
     }
     .and_then(|()| Ok(out.flush()?));
     match decoded {
@@ -561,7 +625,7 @@ fn report_decoding(
     }
     if run.bad_lines > 0 {
         eprintln!(
-            "{}: {} malformed line(s)",
+            "{}: {} malformed line(s) or frame(s)",
             run.file.display(),
             run.bad_lines
         );
@@ -572,8 +636,8 @@ fn report_decoding(
 
 /// Every other format and the `--dbc` decoder: each frame decoded into a [`Shown`] and written
 /// as the format asks.
-fn frame_by_frame<R: std::io::Read, W: Write + Send>(
-    reader: &mut LogReader<R>,
+fn frame_by_frame<E: Into<Unread>, W: Write + Send>(
+    items: impl Iterator<Item = Result<LogRecord, E>>,
     decoder: &mut AnyDecoder<'_>,
     format: Format,
     run: &mut Decoding<'_>,
@@ -584,7 +648,7 @@ fn frame_by_frame<R: std::io::Read, W: Write + Send>(
     if format == Format::Csv {
         out.write_all(CSV_HEADER.as_bytes())?;
     }
-    for item in reader.by_ref() {
+    for item in items {
         let Some(rec) = run.record(item)? else {
             continue;
         };
@@ -626,6 +690,23 @@ fn frame_by_frame<R: std::io::Read, W: Write + Send>(
     Ok(())
 }
 
+/// Every frame of an MDF file, a candump log or candump's screen output (`-`: standard input);
+/// the first malformed line is an error.
+fn read_any_format(file: &PathBuf) -> anyhow::Result<Vec<LogRecord>> {
+    if file.as_os_str() != "-" && logfile::detect(file)? == LogFormat::Mf4 {
+        return Ok(logfile::read_all(file)?);
+    }
+    let mut records = Vec::new();
+    for item in LogReader::any_format(open_input(file)?, Box::new(wall_clock)) {
+        match item {
+            Ok(r) => records.push(r),
+            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
+            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+        }
+    }
+    Ok(records)
+}
+
 fn plot(
     file: &PathBuf,
     signals: &[String],
@@ -643,14 +724,7 @@ fn plot(
         .iter()
         .map(|n| SignalRef::parse(n).with_context(|| format!("--signal {n}")))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let mut records = Vec::new();
-    for item in LogReader::any_format(open_input(file)?, Box::new(wall_clock)) {
-        match item {
-            Ok(r) => records.push(r),
-            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
-            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
-        }
-    }
+    let records = read_any_format(file)?;
     if records.is_empty() {
         bail!("{}: no frame in the log", file.display());
     }
@@ -682,14 +756,7 @@ fn plot(
 }
 
 fn stats(file: &PathBuf, as_json: bool) -> anyhow::Result<ExitCode> {
-    let mut records = Vec::new();
-    for item in LogReader::new(open_input(file)?) {
-        match item {
-            Ok(r) => records.push(r),
-            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
-            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
-        }
-    }
+    let records = logfile::read_all(file)?;
     let stats = ddct::can::decode::cycle_stats(&records);
     if as_json {
         let arr: Vec<_> = stats
@@ -1009,14 +1076,7 @@ enum Pace {
 }
 
 fn replay(file: &PathBuf, iface: &str, pace: Pace, passes: u32) -> anyhow::Result<ExitCode> {
-    let mut records = Vec::new();
-    for item in LogReader::new(open_input(file)?) {
-        match item {
-            Ok(r) => records.push(r),
-            Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
-            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
-        }
-    }
+    let records = logfile::read_all(file)?;
     let rt = runtime()?;
     let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();
     let pb = super::bar((records.len() * passes as usize) as u64, "frames");

@@ -437,6 +437,12 @@ pub enum DatasetError {
     },
     #[error("{file}: the required signals never overlap in time")]
     NoOverlap { file: String },
+    #[error("{file}: {source}")]
+    Mf4 {
+        file: String,
+        #[source]
+        source: crate::can::mf4::Mf4Error,
+    },
 }
 
 /// Why a value is impossible in its column.
@@ -885,12 +891,30 @@ impl Segments {
     }
 }
 
-/// Reads a file and parses it as CSV or candump (a log starts with `(`).
+/// Reads a file and parses it as an MDF 4 bus log (it starts with `MDF `), CSV or candump (a
+/// log starts with `(`).
 fn read_file(path: &Path) -> Result<(String, RawRecord), DatasetError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| DatasetError::Io {
+    let bytes = std::fs::read(path).map_err(|e| DatasetError::Io {
         file: file.clone(),
         source: e.into(),
+    })?;
+    if crate::can::mf4::is_mdf(&bytes) {
+        let mdf = |source| DatasetError::Mf4 {
+            file: file.clone(),
+            source,
+        };
+        let frames = crate::can::mf4::read(&bytes).map_err(mdf)?;
+        let raw = decode_log(
+            &file,
+            numbered(frames.map(|r| r.map_err(mdf))),
+            DEFAULT_DT_S,
+        )?;
+        return Ok((file, raw));
+    }
+    let text = String::from_utf8(bytes).map_err(|e| DatasetError::Io {
+        file: file.clone(),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e).into(),
     })?;
     let raw = if text.trim_start().starts_with('(') {
         decode_log(&file, candump_text(&file, &text), DEFAULT_DT_S)?
