@@ -106,6 +106,26 @@ pub fn read_all(path: &Path) -> Result<Vec<LogRecord>, LogFileError> {
     }
 }
 
+/// When a log starts: an MDF file's header start time, a candump log's first frame; `None` for
+/// a file that is neither (e.g. a CSV record) or that cannot be read.
+pub fn start_time(path: &Path) -> Option<std::time::Duration> {
+    match detect(path).ok()? {
+        LogFormat::Mf4 => {
+            let mut head = [0u8; mf4::START_TIME_AT + 8];
+            let mut f = std::fs::File::open(path).ok()?;
+            f.read_exact(&mut head).ok()?;
+            mf4::start_time_ns(&head).map(std::time::Duration::from_nanos)
+        }
+        LogFormat::Candump => {
+            let f = std::fs::File::open(path).ok()?;
+            LogReader::new(BufReader::new(f))
+                .take(16)
+                .find_map(Result::ok)
+                .map(|r| r.timestamp)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,10 +159,13 @@ mod tests {
         w.finish(std::fs::File::create(&mdf).unwrap()).unwrap();
         let from_text = read_all(&text).unwrap();
         let from_mdf = read_all(&mdf).unwrap();
+        let starts = (start_time(&text), start_time(&mdf));
         let _ = (std::fs::remove_file(&text), std::fs::remove_file(&mdf));
         assert_eq!(from_text, records);
         let shown = |v: &[LogRecord]| v.iter().map(format_record).collect::<Vec<_>>();
         assert_eq!(shown(&from_mdf), shown(&records));
+        let first = std::time::Duration::from_micros(1_700_000_000_000_100);
+        assert_eq!(starts, (Some(first), Some(first)));
     }
 
     #[test]

@@ -4,10 +4,12 @@
 use anyhow::{bail, Context};
 use clap::{Args, Subcommand};
 use ddct::blind::{self, TrialResult};
+use ddct::can::logfile;
 use ddct::gap::class::ClassId;
 use ddct::gap::dataset::{Dataset, Segments};
 use ddct::gap::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use ddct::gap::experiment::{self, PlantTruth};
+use ddct::gap::findings_table;
 use ddct::gap::identify::{identify, Identification, IdentifyOptions};
 use ddct::gap::keys;
 use ddct::gap::report;
@@ -48,7 +50,7 @@ pub struct IdentifyArgs {
 
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
-    /// Training records from "reality" (candump `-l` logs or CSV).
+    /// Training records from "reality" (candump `-l` logs, MDF 4 bus logs or CSV).
     #[arg(long, num_args = 1.., required = true)]
     train: Vec<PathBuf>,
     /// Validation records (held out; effects are ranked on these).
@@ -76,6 +78,26 @@ pub struct DiagnoseArgs {
     /// Seed of the bootstrap.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Append one row per finding to this Parquet table (created if missing): unit, log, start
+    /// time, operating hours, kind, class, subsystem, variable, magnitude with its 95 %
+    /// interval, share of the gap, gap closed, the finding as JSON, ddct version and a hash of
+    /// the parameters. A diagnosis that fails appends an error row with the message.
+    #[arg(long, value_name = "FILE.parquet")]
+    findings: Option<PathBuf>,
+    /// The unit (rig or vehicle) the records come from, for the findings table.
+    #[arg(long, requires = "findings")]
+    unit: Option<String>,
+    /// The unit's operating hours at the validation record, for the findings table.
+    #[arg(long, requires = "findings", value_parser = non_negative_hours)]
+    operating_hours: Option<f64>,
+}
+
+/// Operating hours: a finite number ≥ 0.
+fn non_negative_hours(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(h) if h.is_finite() && h >= 0.0 => Ok(h),
+        _ => Err(format!("{s:?} is not a number of hours ≥ 0")),
+    }
 }
 
 #[derive(Debug, Args)]
@@ -411,6 +433,42 @@ fn print_validation(id: &Identification) {
 }
 
 fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
+    let outcome = diagnose_and_report(&a);
+    let Some(path) = &a.findings else {
+        return outcome.map(|_| ExitCode::SUCCESS);
+    };
+    let joined = |files: &[PathBuf]| {
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(";")
+    };
+    let info = findings_table::RunInfo {
+        unit: a.unit.clone(),
+        log: joined(&a.validate),
+        train: joined(&a.train),
+        start: a.validate.first().and_then(|f| logfile::start_time(f)),
+        operating_hours: a.operating_hours,
+        params_hash: load_params(&a.params)
+            .map(|p| findings_table::params_hash(&p))
+            .unwrap_or_default(),
+    };
+    let rows = match &outcome {
+        Ok(d) => findings_table::rows(d),
+        Err(e) => vec![findings_table::error_row(&format!("{e:#}"))],
+    };
+    let n = findings_table::append(path, &info, &rows)?;
+    eprintln!(
+        "{}: {} row(s) appended, {n} in the table",
+        path.display(),
+        rows.len()
+    );
+    outcome.map(|_| ExitCode::SUCCESS)
+}
+
+/// The diagnosis of `ddct gap diagnose`, written to `--out` and printed.
+fn diagnose_and_report(a: &DiagnoseArgs) -> anyhow::Result<Diagnosis> {
     let t0 = Instant::now();
     let p = load_params(&a.params)?;
     let (train, val) = load_train_validate(&a.train, &a.validate)?;
@@ -426,17 +484,17 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
     pb.finish_and_clear();
     let d = d?;
     let t_all = t0.elapsed().as_secs_f64();
-    let json = write_diagnosis(&a, &d, t_all, t_load)?;
+    let json = write_diagnosis(a, &d, t_all, t_load)?;
     if a.json {
         println!("{json}");
-        return Ok(ExitCode::SUCCESS);
+        return Ok(d);
     }
     print_diagnosis(&d);
     println!(
         "wrote {} in {t_all:.1} s",
         a.out.join("report.md").display()
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(d)
 }
 
 /// Writes the diagnosis into `--out`: report.json, report.md (with how long it took), the plots

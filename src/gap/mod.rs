@@ -20,6 +20,7 @@ pub mod disk;
 pub mod events;
 pub mod experiment;
 pub mod finding;
+pub mod findings_table;
 pub mod identify;
 pub mod keys;
 pub mod lsq;

@@ -29,6 +29,25 @@ use thiserror::Error;
 /// The first 8 bytes of every MDF file.
 pub const MAGIC: &[u8; 8] = b"MDF     ";
 
+/// Offset of the header's start time (ns since the epoch, u64): the HD block follows the
+/// 64-byte identification block, its 24-byte header and 6 links.
+pub const START_TIME_AT: usize = 64 + 24 + 6 * 8;
+
+/// The header's start time (ns since the epoch) from the first [`START_TIME_AT`] + 8 bytes of
+/// a file, if they are an MDF 4 identification block and header block.
+pub fn start_time_ns(head: &[u8]) -> Option<u64> {
+    let version = u16::from_le_bytes(head.get(28..30)?.try_into().ok()?);
+    let hd = head.get(64..68)?;
+    if !is_mdf(head) || !(400..500).contains(&version) || hd != b"##HD" {
+        return None;
+    }
+    Some(u64::from_le_bytes(
+        head.get(START_TIME_AT..START_TIME_AT + 8)?
+            .try_into()
+            .ok()?,
+    ))
+}
+
 /// Whether `head` (the first bytes of a file) starts like an MDF file.
 pub fn is_mdf(head: &[u8]) -> bool {
     head.starts_with(MAGIC)
