@@ -78,6 +78,10 @@ pub struct DiagnoseArgs {
     /// Seed of the bootstrap.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Worker threads for loading the records and fitting the classes (default: the available
+    /// cores; 1 where a scheduler such as `ddct-fleet` runs one diagnosis per core).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
     /// Append one row per finding to this Parquet table (created if missing): unit, log, start
     /// time, operating hours, kind, class, subsystem, variable, magnitude with its 95 %
     /// interval, share of the gap, gap closed, the finding as JSON, ddct version and a hash of
@@ -285,8 +289,17 @@ fn load_train_validate(
     train: &[PathBuf],
     validate: &[PathBuf],
 ) -> anyhow::Result<(Vec<Dataset>, Vec<Dataset>)> {
-    let files: Vec<&PathBuf> = train.iter().chain(validate).collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    load_train_validate_on(train, validate, threads)
+}
+
+/// [`load_train_validate`] on `threads` threads.
+fn load_train_validate_on(
+    train: &[PathBuf],
+    validate: &[PathBuf],
+    threads: usize,
+) -> anyhow::Result<(Vec<Dataset>, Vec<Dataset>)> {
+    let files: Vec<&PathBuf> = train.iter().chain(validate).collect();
     let loaded = ddct::par::map(threads, &files, |_, f| Segments::load(f));
     let (mut tr, mut va) = (Vec::new(), Vec::new());
     for (i, s) in loaded.into_iter().enumerate() {
@@ -471,12 +484,17 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
 fn diagnose_and_report(a: &DiagnoseArgs) -> anyhow::Result<Diagnosis> {
     let t0 = Instant::now();
     let p = load_params(&a.params)?;
-    let (train, val) = load_train_validate(&a.train, &a.validate)?;
+    let threads = a.threads.map_or(0, usize::from);
+    let (train, val) = match threads {
+        0 => load_train_validate(&a.train, &a.validate)?,
+        n => load_train_validate_on(&a.train, &a.validate, n)?,
+    };
     let t_load = t0.elapsed().as_secs_f64();
     let opts = DiagnoseOptions {
         carry_energy: a.carry_energy,
         bootstrap: a.bootstrap,
         seed: a.seed,
+        threads,
         ..DiagnoseOptions::default()
     };
     let pb = super::spinner("diagnosing: recalibration, class fits, selection");

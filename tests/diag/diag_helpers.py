@@ -8,6 +8,7 @@ status bits are the documented contract, written out by hand.
 
 from __future__ import annotations
 
+import socket
 import struct
 import threading
 import time
@@ -128,6 +129,10 @@ def uds_client(blocksize: int = 8, stmin: int = 0, txid: int = REQ_ID):
         bus.shutdown()
 
 
+# Receive buffer of the recorder's socket.
+RECORDER_RCVBUF = 8 * 1024 * 1024
+
+
 class Recorder(can.Listener):
     """Every frame on vcan0 with its kernel timestamp, from a python-can bus of its own."""
 
@@ -135,6 +140,12 @@ class Recorder(can.Listener):
         self.frames: list[can.Message] = []
         self._lock = threading.Lock()
         self.bus = can.Bus(interface="socketcan", channel=IFACE)
+        # Room for the bus traffic while the notifier thread waits for the GIL: with the default
+        # buffer (a few hundred frames) the kernel dropped frames here in User-Mode Linux.
+        try:  # root may exceed rmem_max
+            self.bus.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUFFORCE, RECORDER_RCVBUF)
+        except (OSError, AttributeError):
+            self.bus.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECORDER_RCVBUF)
         self.notifier = can.Notifier(self.bus, [self], timeout=0.1)
 
     def on_message_received(self, msg: can.Message) -> None:
