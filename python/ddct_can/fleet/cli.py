@@ -1,0 +1,113 @@
+"""`ddct-fleet`: fleet campaigns of ddct on Dask distributed (see docs/fleet.md).
+
+    ddct-fleet diagnose DIR_OR_MANIFEST --out FINDINGS_DIR [--scheduler tcp://HOST:8786]
+    ddct-fleet generate --out DIR [--units 20 --logs 10 --minutes 10]
+    ddct-fleet report FINDINGS_DIR --out report.html [--truth DIR/truth.csv]
+
+Without `--scheduler`, `diagnose` starts a LocalCluster on this machine (one single-threaded
+worker process per core); with one, it runs unchanged on that cluster (the workers need the ddct
+binary at the same path, or `--ddct`, and the logs and FINDINGS_DIR on a shared file system).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from . import campaign
+
+
+def _ddct_binary(given: str | None) -> str:
+    if given:
+        return str(Path(given).resolve())
+    env = os.environ.get("DDCT_BIN")
+    if env:
+        return str(Path(env).resolve())
+    repo = Path(__file__).resolve().parents[3] / "target" / "release" / "ddct"
+    if repo.is_file():
+        return str(repo)
+    found = shutil.which("ddct")
+    if found:
+        return found
+    raise SystemExit("ddct-fleet: no ddct binary (build it with `cargo build --release`, or give --ddct / DDCT_BIN)")
+
+
+def _version(ddct: str) -> str:
+    return subprocess.run([ddct, "--version"], capture_output=True, text=True).stdout.strip()
+
+
+def _client(scheduler: str | None, workers: int | None):
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        return Client(scheduler), None
+    cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                           processes=True, dashboard_address=None)
+    return Client(cluster), cluster
+
+
+def cmd_diagnose(a) -> int:
+    ddct = _ddct_binary(a.ddct)
+    salt = f"{_version(ddct)} bootstrap={a.bootstrap}"
+    try:
+        tasks = campaign.discover(Path(a.source), salt)
+    except ValueError as e:
+        raise SystemExit(f"ddct-fleet: {e}")
+    if not tasks:
+        raise SystemExit(f"ddct-fleet: no logs in {a.source}")
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
+    if a.sequential:
+        results = campaign.run_sequential(tasks, ddct, out, a.bootstrap, a.threads)
+        where = "a sequential loop"
+    else:
+        client, cluster = _client(a.scheduler, a.workers)
+        try:
+            where = f"Dask ({client.scheduler.address}, {len(client.scheduler_info()['workers'])} workers)"
+            results = campaign.run_campaign(tasks, ddct, out, a.bootstrap, a.threads, client)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    wall = time.monotonic() - t0
+    ran = [r for r in results if r["status"] != "done before"]
+    errors = sum(r["status"] == "error" for r in results)
+    summary = {
+        "logs": len(tasks), "ran": len(ran), "skipped": len(results) - len(ran), "errors": errors,
+        "wall_s": round(wall, 3), "logs_per_min": round(60 * len(ran) / wall, 2) if wall > 0 and ran else None,
+        "on": where, "out": str(out),
+    }
+    print(json.dumps(summary) if a.json else
+          f"{len(ran)} diagnosed ({summary['skipped']} done before, {errors} error rows) in {wall:.1f} s "
+          f"on {where}: {summary['logs_per_min']} logs/min; findings in {out}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="ddct-fleet", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="command", required=True)
+    d = sub.add_parser("diagnose", help="diagnose every log of a fleet; findings as a Parquet dataset")
+    d.add_argument("source", help="a directory (one subdirectory per unit, or a manifest.csv) or a manifest CSV "
+                                  "(columns unit, log, and optionally train, operating_hours)")
+    d.add_argument("--out", required=True, help="the findings dataset: OUT/<unit>/<content key>.parquet")
+    d.add_argument("--scheduler", help="address of a running Dask scheduler (default: a LocalCluster here)")
+    d.add_argument("--workers", type=int, help="LocalCluster worker processes (default: the cores)")
+    d.add_argument("--threads", type=int, default=1, help="threads of each ddct diagnosis (default 1)")
+    d.add_argument("--bootstrap", type=int, default=400, help="bootstrap resamples per diagnosis")
+    d.add_argument("--sequential", action="store_true", help="no Dask: one diagnosis after the other")
+    d.add_argument("--ddct", help="the ddct binary (default: DDCT_BIN, target/release/ddct, PATH)")
+    d.add_argument("--json", action="store_true", help="the summary as JSON")
+    d.set_defaults(run=cmd_diagnose)
+    a = p.parse_args(argv)
+    return a.run(a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,163 @@
+"""`ddct-fleet diagnose` on Dask distributed (issue 18): a small fleet of plant rig records as MF4
+(two units with two logs each, a unit whose logs are a truncated and a garbage file), diagnosed
+on the LocalCluster default, in a plain loop, and on a cluster started by hand (`dask scheduler`
+and two `dask worker` processes): the same findings each time; the bad files are error rows; a
+rerun skips every log already done; a worker killed mid-run loses no finding."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pyarrow.dataset as ds
+import pytest
+
+import ddct_testlib as lib
+from ddct_can.fleet import campaign
+
+VENV_BIN = Path(sys.executable).parent
+PROFILES = ("config/rig/identification.toml", "config/rig/validation.toml")
+
+
+def _rig_mf4(ddct, out: Path, profile: str, seed: int) -> Path:
+    log = out / f"{Path(profile).stem}_{seed}.log"
+    lib.run([ddct, "plant", "--iface", "sim", "--mode", "rig", "--config", lib.REPO / "config/plant_rig.toml",
+             "--rig-profile", lib.REPO / profile, "--effects", lib.REPO / "config/effects/friction_pressure.toml",
+             "--seed", seed, "--log", log])
+    mf4 = log.with_suffix(".mf4")
+    lib.run([ddct, "log", "convert", log, mf4])
+    log.unlink()
+    return mf4
+
+
+@pytest.fixture(scope="module")
+def fleet(ddct, tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("fleet")
+    for u, unit in enumerate(("unit-a", "unit-b")):
+        d = root / unit
+        d.mkdir()
+        for k, profile in enumerate(PROFILES):
+            mf4 = _rig_mf4(ddct, d, profile, 10 * u + k + 1)
+            mf4.rename(d / f"{k:02d}_{mf4.name}")
+    bad = root / "unit-bad"
+    bad.mkdir()
+    good = next((root / "unit-a").iterdir()).read_bytes()
+    (bad / "00_truncated.mf4").write_bytes(good[: len(good) // 3])
+    (bad / "01_garbage.log").write_bytes(os.urandom(5000))
+    return root
+
+
+def _fleet(args, **kw):
+    return lib.run([VENV_BIN / "ddct-fleet", *map(str, args)], **kw)
+
+
+def _findings(out: Path) -> list[dict]:
+    rows = ds.dataset(out, format="parquet").to_table().to_pylist()
+    return sorted(rows, key=lambda r: (r["unit"], r["log"], r["kind"], r["class"] or "", r["error"] or ""))
+
+
+def _comparable(rows):
+    """Findings without what differs between runs by design (none: ddct is deterministic)."""
+    return [{k: v for k, v in r.items()} for r in rows]
+
+
+def test_local_cluster_loop_and_resume_give_the_same_findings(fleet, tmp_path):
+    out = tmp_path / "local"
+    s = json.loads(_fleet(["diagnose", fleet, "--out", out, "--workers", "2", "--bootstrap", "50", "--json"]).stdout)
+    assert (s["logs"], s["ran"], s["skipped"], s["errors"]) == (6, 6, 0, 2), s
+    rows = _findings(out)
+    errors = [r for r in rows if r["kind"] == "error"]
+    assert sorted(Path(r["log"]).name for r in errors) == ["00_truncated.mf4", "01_garbage.log"]
+    assert all(r["unit"] == "unit-bad" and r["error"] for r in errors)
+    good = [r for r in rows if r["kind"] != "error"]
+    assert {r["unit"] for r in good} == {"unit-a", "unit-b"} and len({r["log"] for r in good}) == 4
+    # A rerun skips every log.
+    again = json.loads(_fleet(["diagnose", fleet, "--out", out, "--workers", "2", "--bootstrap", "50", "--json"]).stdout)
+    assert (again["ran"], again["skipped"]) == (0, 6), again
+    # A plain loop gives the same findings.
+    seq = tmp_path / "seq"
+    _fleet(["diagnose", fleet, "--out", seq, "--sequential", "--bootstrap", "50"])
+    assert _comparable(_findings(seq)) == _comparable(rows)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_cluster_started_by_hand_gives_the_same_findings(fleet, tmp_path):
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([VENV_BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(2):
+            procs.append(subprocess.Popen([VENV_BIN / "dask", "worker", address, "--nthreads", "1", "--no-dashboard"],
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout=60) as c:
+            c.wait_for_workers(2, timeout=60)
+        out = tmp_path / "by_hand"
+        s = json.loads(_fleet(["diagnose", fleet, "--out", out, "--scheduler", address, "--bootstrap", "50",
+                               "--json"]).stdout)
+        assert s["ran"] == 6 and "2 workers" in s["on"], s
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            p.wait(30)
+    ref = tmp_path / "ref"
+    _fleet(["diagnose", fleet, "--out", ref, "--sequential", "--bootstrap", "50"])
+    assert _comparable(_findings(out)) == _comparable(_findings(ref))
+
+
+def test_a_worker_killed_mid_run_loses_no_finding(ddct, fleet, tmp_path):
+    from distributed import Client, LocalCluster
+
+    tasks = campaign.discover(fleet, "kill-test")
+    out = tmp_path / "killed"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        pids = list(client.run(os.getpid).values())
+        killed = []
+
+        def kill_when_busy():
+            # Kill a worker while it runs a diagnosis (its ddct child is alive).
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and not killed:
+                busy = client.processing()
+                for addr, keys in busy.items():
+                    if keys:
+                        pid = client.run(os.getpid, workers=[addr])[addr]
+                        os.kill(pid, signal.SIGKILL)
+                        killed.append(pid)
+                        return
+                time.sleep(0.2)
+
+        killer = threading.Thread(target=kill_when_busy)
+        killer.start()
+        results = campaign.run_campaign(tasks, str(ddct), out, 50, 1, client, progress=lambda *a: None)
+        killer.join()
+    assert killed and killed[0] in pids
+    assert len(results) == len(tasks)
+    for t in tasks:
+        assert campaign.result_path(out, t).exists(), t
+    ref = tmp_path / "ref"
+    campaign.run_sequential(tasks, str(ddct), ref, 50, 1, progress=lambda *a: None)
+    assert _comparable(_findings(out)) == _comparable(_findings(ref))
+
+
+def test_the_python_error_row_has_ddct_s_schema(fleet, tmp_path):
+    out = tmp_path / "one"
+    _fleet(["diagnose", fleet, "--out", out, "--sequential", "--bootstrap", "20"])
+    written = ds.dataset(out, format="parquet").schema
+    assert written.remove_metadata() == campaign.FINDINGS_SCHEMA.remove_metadata()
