@@ -20,7 +20,7 @@ use ddct::truth::inject::{OutsideKind, Target};
 use ddct::truth::{self, CaseSpec, Truth, TruthKind, Variants};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
@@ -240,6 +240,41 @@ pub struct TruthArgs {
     /// Output directory: train_*.csv, validate_*.csv and truth.json.
     #[arg(long)]
     out: PathBuf,
+    /// Also write the records as MDF 4 bus logs, as a logger would have recorded them on the
+    /// bench: train.mf4 and validate.mf4, each the records one after the other with 10 s of
+    /// silence between them (the diagnosis cuts a log at such gaps).
+    #[arg(long)]
+    mf4: bool,
+    /// With `--mf4`: the time of the first frame (seconds since the Unix epoch).
+    #[arg(long, default_value_t = 1_767_225_600, requires = "mf4")]
+    start_time: u64,
+}
+
+/// Silence between two records in one MF4 log of `ddct gap truth --mf4`.
+const RECORD_GAP: Duration = Duration::from_secs(10);
+
+/// The CSV records of a truth as one MF4 log at `path`, starting at `start`.
+fn write_records_mf4(
+    records: &[(String, String)],
+    start: Duration,
+    path: &Path,
+) -> anyhow::Result<()> {
+    let mut w = ddct::can::mf4::Mf4Writer::new();
+    let mut at = start;
+    for (name, csv) in records {
+        let d = Dataset::from_csv(name, csv)?;
+        let frames = ddct::gap::record_frames::frames(&d, at, "can0")?;
+        if let Some(last) = frames.last() {
+            at = last.timestamp + RECORD_GAP;
+        }
+        for f in &frames {
+            w.push(f);
+        }
+    }
+    let f = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    w.finish(std::io::BufWriter::new(f))
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
 }
 
 #[derive(Debug, Args)]
@@ -688,6 +723,15 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
             std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
             list.push(path.display().to_string());
         }
+    }
+    if a.mf4 {
+        let start = Duration::from_secs(a.start_time);
+        write_records_mf4(&recs.train, start, &a.out.join("train.mf4"))?;
+        write_records_mf4(
+            &recs.validate,
+            start + Duration::from_secs(3600),
+            &a.out.join("validate.mf4"),
+        )?;
     }
     let path = a.out.join("truth.json");
     std::fs::write(&path, serde_json::to_string_pretty(&t)?)

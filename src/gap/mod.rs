@@ -26,6 +26,7 @@ pub mod keys;
 pub mod lsq;
 pub mod power_sites;
 pub mod record_cache;
+pub mod record_frames;
 pub mod replay;
 pub mod report;
 pub mod select;
