@@ -3,7 +3,9 @@
 //! saturated into its signal's range and quantised by the encoder, the E2E counter and CRC set
 //! — what `ddct gap truth --mf4` writes so that generated truths reach the diagnosis through the
 //! same decoding path as a logger's file. Only rig columns are encoded (a record with gear
-//! columns is refused); a message some of whose columns the record lacks carries 0 there.
+//! columns is refused); a message some of whose columns the record lacks carries 0 there. A
+//! command (TCU_ClutchCmd) is logged during the cycle before the one it acts in, as on the
+//! bench, where the loader reads it so.
 
 use super::dataset::{Col, Dataset, RPM_TO_RADPS};
 use crate::can::candump::LogRecord;
@@ -41,6 +43,9 @@ const MESSAGES: &[(u16, &[Col])] = &[
     (TcuClutchCmd::ID, &[Col::X1Req, Col::X2Req]),
 ];
 
+/// How long after a cycle's sensor frames the command for the next cycle is logged.
+const COMMAND_AFTER_SENSORS: Duration = Duration::from_millis(2);
+
 /// The frames of `d` on `iface`, its first sample at `start`, in time order.
 pub fn frames(
     d: &Dataset,
@@ -72,7 +77,18 @@ pub fn frames(
             if i % every != 0 {
                 continue;
             }
-            let msg = message(*id, d, i);
+            // A command acts from the cycle after the one it is logged in (the plant latches it,
+            // and the loader reads a bus log so): the request of row i + 1 goes out during cycle
+            // i, after its sensor frames.
+            let (row, at) = if *id == TcuClutchCmd::ID {
+                if i + 1 >= d.len() {
+                    continue;
+                }
+                (i + 1, at + COMMAND_AFTER_SENSORS)
+            } else {
+                (i, at)
+            };
+            let msg = message(*id, d, row);
             let mut data = msg.encode().map_err(|source| RecordFramesError::Encode {
                 file: d.source.clone(),
                 message: message_def(u32::from(*id)).map_or("?", |m| m.name),
@@ -87,6 +103,7 @@ pub fn frames(
             });
         }
     }
+    out.sort_by_key(|r| r.timestamp);
     Ok(out)
 }
 

@@ -90,6 +90,17 @@ def cmd_diagnose(a) -> int:
     return 0
 
 
+def cmd_generate(a) -> int:
+    from .generate import generate
+
+    ddct = _ddct_binary(a.ddct)
+    t0 = time.monotonic()
+    rows = generate(ddct, Path(a.out), a.units, a.logs, a.hours_per_log, a.seed, a.jobs or os.cpu_count() or 1)
+    print(f"wrote {len(rows)} logs of {a.units} units into {a.out} in {time.monotonic() - t0:.0f} s "
+          f"(manifest.csv, truth.csv)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="ddct-fleet", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -105,6 +116,15 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--ddct", help="the ddct binary (default: DDCT_BIN, target/release/ddct, PATH)")
     d.add_argument("--json", action="store_true", help="the summary as JSON")
     d.set_defaults(run=cmd_diagnose)
+    g = sub.add_parser("generate", help="a fleet of MF4 logs with evolving effects from ddct's truth generator")
+    g.add_argument("--out", required=True, help="the fleet directory (manifest.csv, truth.csv, <unit>/<k>/*.mf4)")
+    g.add_argument("--units", type=int, default=20, help="units (default 20)")
+    g.add_argument("--logs", type=int, default=10, help="logs per unit (default 10)")
+    g.add_argument("--hours-per-log", type=float, default=50.0, help="operating hours between two logs of a unit")
+    g.add_argument("--seed", type=int, default=1, help="seed of the fleet (units, offsets, noise)")
+    g.add_argument("--jobs", type=int, help="logs generated at once (default: the cores)")
+    g.add_argument("--ddct", help="the ddct binary (default: DDCT_BIN, target/release/ddct, PATH)")
+    g.set_defaults(run=cmd_generate)
     a = p.parse_args(argv)
     return a.run(a)
 
