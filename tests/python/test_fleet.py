@@ -161,3 +161,59 @@ def test_the_python_error_row_has_ddct_s_schema(fleet, tmp_path):
     _fleet(["diagnose", fleet, "--out", out, "--sequential", "--bootstrap", "20"])
     written = ds.dataset(out, format="parquet").schema
     assert written.remove_metadata() == campaign.FINDINGS_SCHEMA.remove_metadata()
+
+
+@pytest.fixture(scope="module")
+def generated(ddct, tmp_path_factory):
+    """A fleet from `ddct-fleet generate` (2 units × 2 logs) and its findings."""
+    root = tmp_path_factory.mktemp("generated")
+    fleet, out = root / "fleet", root / "findings"
+    _fleet(["generate", "--out", fleet, "--units", "2", "--logs", "2", "--seed", "3", "--ddct", ddct])
+    _fleet(["diagnose", fleet, "--out", out, "--workers", "2", "--bootstrap", "100"])
+    return fleet, out
+
+
+def test_the_generator_writes_the_planned_evolving_truths_as_mf4(ddct, generated):
+    from ddct_can.fleet.generate import plan
+
+    import csv
+
+    fleet, _ = generated
+    rows = list(csv.DictReader(open(fleet / "truth.csv")))
+    specs = plan(2, 2, 50.0, 3)
+    assert len(rows) == len(specs) == 4
+    for r, s in zip(rows, specs):
+        assert (r["unit"], r["class"]) == (s.unit, s.evolution.klass)
+        assert float(r["operating_hours"]) == s.hours
+        # the truth generator kept the magnitude asked for, which grows with the hours
+        assert float(r["magnitude"]) == pytest.approx(s.evolution.base + s.evolution.per_hour * s.hours, rel=1e-12)
+        for f in ("log", "train"):
+            frames = lib.run([ddct, "log", "stats", fleet / r[f], "--json"]).stdout
+            assert sum(m["frames"] for m in json.loads(frames)) > 50_000
+    by_unit = {}
+    for r in rows:
+        by_unit.setdefault(r["unit"], []).append(abs(float(r["magnitude"])))
+    assert all(m[0] < m[1] for m in by_unit.values()), by_unit
+
+
+def test_the_fleet_report_opens_in_a_browser(generated, tmp_path):
+    from test_report_html import browse
+
+    fleet, out = generated
+    page = tmp_path / "fleet.html"
+    figures = json.loads(_fleet(["report", out, "--truth", fleet / "truth.csv", "--out", page, "--json"]).stdout)
+    assert figures["logs"] == 4 and figures["units"] == 2 and figures["error_logs"] == 0
+    text = page.read_text()
+    assert "<script" not in text and "http" not in text.replace("http://www.w3.org/2000/svg", "")
+    assert "Recovery:" in text and text.count("<svg") == 2
+    import csv
+
+    for r in csv.DictReader(open(fleet / "truth.csv")):
+        assert str((fleet / r["log"]).resolve()) in text  # the log behind every point
+    shot = tmp_path / "shot.png"
+    p = browse(page.as_uri(), f"--screenshot={shot}", "--window-size=1000,1400")
+    assert p.returncode == 0 and shot.exists(), p.stderr[-2000:]
+    # A blank page compresses to a few kB; the tables and timelines make it ~100 kB.
+    assert shot.stat().st_size > 30_000 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    console = [line for line in p.stderr.splitlines() if "CONSOLE" in line]
+    assert console == [], console

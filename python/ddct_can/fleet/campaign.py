@@ -165,7 +165,9 @@ def diagnose_task(task: Task, ddct: str, out_dir: str, bootstrap: int, threads: 
         else:
             cmd = [ddct, "gap", "diagnose", "--train", task.train, "--validate", task.log,
                    "--out", str(Path(tmp) / "report"), "--findings", str(table), "--unit", task.unit,
-                   "--threads", str(threads), "--bootstrap", str(bootstrap)]
+                   "--bootstrap", str(bootstrap)]
+            if threads > 0:  # 0: ddct's default, every core
+                cmd += ["--threads", str(threads)]
             if task.operating_hours is not None:
                 cmd += ["--operating-hours", repr(task.operating_hours)]
             try:

@@ -84,9 +84,18 @@ def cmd_diagnose(a) -> int:
         "wall_s": round(wall, 3), "logs_per_min": round(60 * len(ran) / wall, 2) if wall > 0 and ran else None,
         "on": where, "out": str(out),
     }
+    if a.report:
+        from .report import render
+
+        source = Path(a.source)
+        truth = (source if source.is_dir() else source.parent) / "truth.csv"
+        page, figures = render(out, truth if truth.is_file() else None)
+        Path(a.report).write_text(page, encoding="utf-8")
+        summary["report"] = {"file": a.report, **figures}
     print(json.dumps(summary) if a.json else
           f"{len(ran)} diagnosed ({summary['skipped']} done before, {errors} error rows) in {wall:.1f} s "
-          f"on {where}: {summary['logs_per_min']} logs/min; findings in {out}")
+          f"on {where}: {summary['logs_per_min']} logs/min; findings in {out}"
+          + (f"; report {a.report}" if a.report else ""))
     return 0
 
 
@@ -101,6 +110,15 @@ def cmd_generate(a) -> int:
     return 0
 
 
+def cmd_report(a) -> int:
+    from .report import render
+
+    page, figures = render(Path(a.findings), Path(a.truth) if a.truth else None)
+    Path(a.out).write_text(page, encoding="utf-8")
+    print(json.dumps(figures) if a.json else f"wrote {a.out}: {figures}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="ddct-fleet", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -110,11 +128,13 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--out", required=True, help="the findings dataset: OUT/<unit>/<content key>.parquet")
     d.add_argument("--scheduler", help="address of a running Dask scheduler (default: a LocalCluster here)")
     d.add_argument("--workers", type=int, help="LocalCluster worker processes (default: the cores)")
-    d.add_argument("--threads", type=int, default=1, help="threads of each ddct diagnosis (default 1)")
+    d.add_argument("--threads", type=int, default=1, help="threads of each ddct diagnosis (default 1; 0: every core)")
     d.add_argument("--bootstrap", type=int, default=400, help="bootstrap resamples per diagnosis")
     d.add_argument("--sequential", action="store_true", help="no Dask: one diagnosis after the other")
     d.add_argument("--ddct", help="the ddct binary (default: DDCT_BIN, target/release/ddct, PATH)")
     d.add_argument("--json", action="store_true", help="the summary as JSON")
+    d.add_argument("--report", help="then write the fleet report (HTML) here; the truth.csv beside the "
+                                    "logs, if any, is overlaid")
     d.set_defaults(run=cmd_diagnose)
     g = sub.add_parser("generate", help="a fleet of MF4 logs with evolving effects from ddct's truth generator")
     g.add_argument("--out", required=True, help="the fleet directory (manifest.csv, truth.csv, <unit>/<k>/*.mf4)")
@@ -125,6 +145,12 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--jobs", type=int, help="logs generated at once (default: the cores)")
     g.add_argument("--ddct", help="the ddct binary (default: DDCT_BIN, target/release/ddct, PATH)")
     g.set_defaults(run=cmd_generate)
+    r = sub.add_parser("report", help="a self-contained HTML page of a findings dataset")
+    r.add_argument("findings", help="the findings dataset of `ddct-fleet diagnose --out`")
+    r.add_argument("--out", required=True, help="the HTML file to write")
+    r.add_argument("--truth", help="the fleet's truth.csv (from `ddct-fleet generate`): overlaid and scored")
+    r.add_argument("--json", action="store_true", help="the figures as JSON")
+    r.set_defaults(run=cmd_report)
     a = p.parse_args(argv)
     return a.run(a)
 

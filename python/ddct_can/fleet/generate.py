@@ -69,8 +69,8 @@ def plan(units: int, logs: int, hours_per_log: float, seed: int) -> list[LogSpec
         offset = rng.uniform(0.0, hours_per_log)
         unit_seed = seed * 10_000 + u
         for k in range(logs):
-            h = hours_per_log * (k + 1) + offset
-            specs.append(LogSpec(f"unit-{u:03d}", k, round(h, 3), evo, evo.base + evo.per_hour * h, unit_seed,
+            h = round(hours_per_log * (k + 1) + offset, 3)
+            specs.append(LogSpec(f"unit-{u:03d}", k, h, evo, evo.base + evo.per_hour * h, unit_seed,
                                  EPOCH_S + u * 3600 + k * DAY_S))
     return specs
 

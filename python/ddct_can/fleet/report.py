@@ -1,0 +1,204 @@
+"""The fleet report (`ddct-fleet report`): one self-contained HTML page (no script, no external
+reference) from a findings dataset — the class counts across the fleet, the units that stand
+out, and per unit a timeline of the fitted magnitude of its main class with the 95 % interval
+against operating hours (the true magnitude overlaid when the fleet's truth.csv is given), every
+point naming the log behind it. With the truth, the share of points whose interval holds the
+true magnitude, over the points where the effect is above 3× the noise, is reported.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import math
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import pyarrow.dataset as ds
+
+# Points where the effect is at least this many times the noise count for the recovery figure.
+STRONG_EFFECT = 3.0
+# A unit stands out when its latest magnitude is this many robust deviations from its class.
+OUTLIER_Z = 3.0
+
+
+def load_findings(path: Path) -> list[dict]:
+    return ds.dataset(Path(path), format="parquet").to_table().to_pylist()
+
+
+def load_truth(path: Path | None) -> dict[str, dict]:
+    """truth.csv rows by the absolute path of their validation log."""
+    if path is None:
+        return {}
+    base = Path(path).resolve().parent
+    with open(path, newline="") as f:
+        return {str((base / r["log"]).resolve()): r for r in csv.DictReader(f)}
+
+
+def main_class(rows: list[dict]) -> str | None:
+    c = Counter(r["class"] for r in rows if r["kind"] in ("class", "sensor") and r["class"])
+    return c.most_common(1)[0][0] if c else None
+
+
+def unit_points(rows: list[dict], klass: str, truth: dict[str, dict]) -> list[dict]:
+    """Per log of a unit: hours, fitted magnitude and interval of `klass` (None when the log's
+    diagnosis did not find it), the truth where known."""
+    by_log: dict[str, dict] = {}
+    for r in rows:
+        p = by_log.setdefault(r["log"], {"log": r["log"], "hours": r["operating_hours"], "start": r["start_time"],
+                                         "fit": None, "lo": None, "hi": None, "error": None})
+        if r["kind"] == "error":
+            p["error"] = r["error"]
+        if r["class"] == klass and r["kind"] in ("class", "sensor"):
+            p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"])
+    points = list(by_log.values())
+    for p in points:
+        t = truth.get(p["log"])
+        p["class"] = klass
+        p["truth"] = float(t["magnitude"]) if t and t["class"] == klass else None
+        p["effect_size"] = float(t["effect_size"]) if t else None
+    return sorted(points, key=lambda p: (p["hours"] is None, p["hours"] or 0.0, p["log"]))
+
+
+def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int]:
+    """(points whose interval holds the truth, strong points), over points with a known truth
+    whose effect is at least STRONG_EFFECT × the noise."""
+    hit = n = 0
+    for pts in points_by_unit.values():
+        for p in pts:
+            if p["truth"] is None or (p["effect_size"] or 0.0) < STRONG_EFFECT:
+                continue
+            n += 1
+            if p["lo"] is not None and p["lo"] <= p["truth"] <= p["hi"]:
+                hit += 1
+    return hit, n
+
+
+def outliers(latest: dict[str, tuple[str, float]]) -> list[tuple[str, str, float]]:
+    """Units whose latest magnitude lies more than OUTLIER_Z robust deviations (MAD) from the
+    median of the units with the same main class."""
+    by_class: dict[str, list[tuple[str, float]]] = defaultdict(list)
+    for unit, (klass, m) in latest.items():
+        by_class[klass].append((unit, m))
+    out = []
+    for klass, ms in by_class.items():
+        if len(ms) < 3:
+            continue
+        vals = sorted(m for _, m in ms)
+        med = vals[len(vals) // 2]
+        mad = sorted(abs(v - med) for v in vals)[len(vals) // 2] * 1.4826
+        for unit, m in ms:
+            z = abs(m - med) / mad if mad > 0 else 0.0
+            if z > OUTLIER_Z:
+                out.append((unit, klass, z))
+    return out
+
+
+def svg_timeline(points: list[dict], unit_label: str) -> str:
+    """An SVG of fitted magnitude (dots with interval bars) and truth (rings) over hours."""
+    w, h, m = 640, 220, 48
+    xs = [p["hours"] for p in points if p["hours"] is not None]
+    ys = [v for p in points for v in (p["fit"], p["lo"], p["hi"], p["truth"]) if v is not None and math.isfinite(v)]
+    if not xs or not ys:
+        return "<p>no magnitudes to draw</p>"
+    x0, x1 = min(xs), max(xs)
+    y0, y1 = min(ys + [0.0]), max(ys + [0.0])
+    x1 = x1 if x1 > x0 else x0 + 1
+    pad = (y1 - y0) * 0.08 or 1.0
+    y0, y1 = y0 - pad, y1 + pad
+    sx = lambda x: m + (x - x0) / (x1 - x0) * (w - 2 * m)  # noqa: E731
+    sy = lambda y: h - m - (y - y0) / (y1 - y0) * (h - 2 * m)  # noqa: E731
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" role="img" '
+             f'aria-label="{html.escape(unit_label)}">',
+             f'<rect x="0" y="0" width="{w}" height="{h}" fill="white"/>',
+             f'<line x1="{m}" y1="{h - m}" x2="{w - m}" y2="{h - m}" stroke="#444"/>',
+             f'<line x1="{m}" y1="{m}" x2="{m}" y2="{h - m}" stroke="#444"/>',
+             f'<text x="{w / 2}" y="{h - 10}" text-anchor="middle" font-size="12">operating hours</text>',
+             f'<text x="{m - 6}" y="{sy(y1):.1f}" text-anchor="end" font-size="11">{y1:.3g}</text>',
+             f'<text x="{m - 6}" y="{sy(y0):.1f}" text-anchor="end" font-size="11">{y0:.3g}</text>',
+             f'<text x="{sx(x0):.1f}" y="{h - m + 14}" text-anchor="middle" font-size="11">{x0:.0f}</text>',
+             f'<text x="{sx(x1):.1f}" y="{h - m + 14}" text-anchor="middle" font-size="11">{x1:.0f}</text>']
+    truth_line = [(sx(p["hours"]), sy(p["truth"])) for p in points if p["truth"] is not None and p["hours"] is not None]
+    if len(truth_line) > 1:
+        parts.append('<polyline fill="none" stroke="#c33" stroke-dasharray="4 3" points="'
+                     + " ".join(f"{x:.1f},{y:.1f}" for x, y in truth_line) + '"/>')
+    for p in points:
+        if p["hours"] is None:
+            continue
+        x = sx(p["hours"])
+        tip = html.escape(f"{p['log']}: {p['hours']} h, fitted {p['fit']} [{p['lo']}, {p['hi']}], truth {p['truth']}")
+        if p["truth"] is not None:
+            parts.append(f'<circle cx="{x:.1f}" cy="{sy(p["truth"]):.1f}" r="5" fill="none" stroke="#c33">'
+                         f'<title>{tip}</title></circle>')
+        if p["fit"] is not None:
+            if p["lo"] is not None and p["hi"] is not None:
+                parts.append(f'<line x1="{x:.1f}" y1="{sy(p["lo"]):.1f}" x2="{x:.1f}" y2="{sy(p["hi"]):.1f}" '
+                             f'stroke="#236" stroke-width="2"/>')
+            parts.append(f'<circle cx="{x:.1f}" cy="{sy(p["fit"]):.1f}" r="3.5" fill="#236"><title>{tip}</title></circle>')
+        elif p["error"]:
+            parts.append(f'<text x="{x:.1f}" y="{m + 10}" font-size="14" fill="#b00" text-anchor="middle">×'
+                         f'<title>{tip}: {html.escape(p["error"][:200])}</title></text>')
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict]:
+    """The page and its figures (class counts, outliers, recovery)."""
+    rows = load_findings(findings_dir)
+    truth = load_truth(truth_csv)
+    by_unit: dict[str, list[dict]] = defaultdict(list)
+    for r in rows:
+        by_unit[r["unit"] or "(no unit)"].append(r)
+    logs = {r["log"] for r in rows}
+    errors = {r["log"] for r in rows if r["kind"] == "error"}
+    counts = Counter((r["kind"], r["class"] or r["subsystem"] or "") for r in rows if r["kind"] != "error")
+    points_by_unit, latest = {}, {}
+    for unit, urows in sorted(by_unit.items()):
+        # The class the unit's diagnoses name most, else the one its truth names (a unit whose
+        # effect was never found still gets its timeline: the truth and the missing fits).
+        klass = main_class(urows) or next(
+            (truth[r["log"]]["class"] for r in urows if r["log"] in truth), None)
+        if klass is None:
+            continue
+        pts = unit_points(urows, klass, truth)
+        points_by_unit[unit] = pts
+        fitted = [p for p in pts if p["fit"] is not None]
+        if fitted:
+            latest[unit] = (klass, fitted[-1]["fit"])
+    hit, strong = recovery(points_by_unit)
+    odd = outliers(latest)
+    figures = {"logs": len(logs), "units": len(by_unit), "error_logs": len(errors),
+               "recovered": hit, "strong_points": strong, "outliers": [u for u, _, _ in odd]}
+    e = html.escape
+    out = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>ddct fleet report</title>",
+           "<style>body{font-family:sans-serif;margin:2em;max-width:72em}table{border-collapse:collapse}"
+           "td,th{border:1px solid #ccc;padding:2px 8px;text-align:left}.err{color:#b00}</style></head><body>",
+           "<h1>ddct fleet report</h1>",
+           f"<p>{len(logs)} logs of {len(by_unit)} units, {len(rows)} findings, "
+           f"<span class='err'>{len(errors)} logs without a diagnosis (error rows)</span>.</p>"]
+    if truth:
+        share = f"{100 * hit / strong:.0f} %" if strong else "n/a"
+        out.append(f"<p>Recovery: the fitted interval holds the true magnitude at {hit} of {strong} points "
+                   f"where the effect is above {STRONG_EFFECT:g}× the noise ({share}).</p>")
+    out.append("<h2>Classes across the fleet</h2><table><tr><th>kind</th><th>class or subsystem</th><th>findings</th></tr>")
+    for (kind, what), n in counts.most_common():
+        out.append(f"<tr><td>{e(kind)}</td><td>{e(what)}</td><td>{n}</td></tr>")
+    out.append("</table><h2>Units that stand out</h2><ul>")
+    for unit, klass, z in odd:
+        out.append(f"<li>{e(unit)}: latest {e(klass)} magnitude {z:.1f} robust deviations from the fleet</li>")
+    for unit in sorted({r["unit"] for r in rows if r["kind"] == "error"}):
+        out.append(f"<li class='err'>{e(unit or '')}: logs without a diagnosis</li>")
+    out.append("</ul><h2>Units</h2>")
+    for unit, pts in points_by_unit.items():
+        klass = pts[0]["class"]
+        out.append(f"<h3 id='{e(unit)}'>{e(unit)}: {e(klass or '')}</h3>")
+        out.append(svg_timeline(pts, f"{unit} {klass}"))
+        out.append("<table><tr><th>hours</th><th>fitted</th><th>95 % interval</th><th>truth</th><th>log</th></tr>")
+        for p in pts:
+            ci = f"[{p['lo']:.4g}, {p['hi']:.4g}]" if p["lo"] is not None else ""
+            fit = f"{p['fit']:.4g}" if p["fit"] is not None else (f"<span class='err'>{e((p['error'] or 'not found')[:120])}</span>")
+            tr = f"{p['truth']:.4g}" if p["truth"] is not None else ""
+            out.append(f"<tr><td>{p['hours']}</td><td>{fit}</td><td>{ci}</td><td>{tr}</td><td>{e(p['log'])}</td></tr>")
+        out.append("</table>")
+    out.append("</body></html>")
+    return "\n".join(out), figures
