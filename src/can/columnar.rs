@@ -28,6 +28,35 @@ pub enum ColumnarError {
     Parquet(#[from] ParquetError),
 }
 
+/// A Snappy-compressed Parquet writer of `schema` to `out` (the columnar outputs' settings).
+pub fn snappy_writer<W: Write + Send>(
+    out: W,
+    schema: SchemaRef,
+) -> Result<ArrowWriter<W>, ColumnarError> {
+    let props = WriterProperties::builder()
+        .set_compression(Compression::SNAPPY)
+        .build();
+    Ok(ArrowWriter::try_new(out, schema, Some(props))?)
+}
+
+/// Writes `columns` as one record batch and row group (memory bounded by the batch).
+pub fn write_row_group<W: Write + Send>(
+    writer: &mut ArrowWriter<W>,
+    schema: &SchemaRef,
+    columns: Vec<ArrayRef>,
+) -> Result<(), ColumnarError> {
+    let batch = RecordBatch::try_new(schema.clone(), columns)?;
+    writer.write(&batch)?;
+    writer.flush()?;
+    Ok(())
+}
+
+/// Writes the footer; the rows in the file.
+pub fn close<W: Write + Send>(writer: ArrowWriter<W>) -> Result<u64, ColumnarError> {
+    let meta = writer.close()?;
+    Ok(meta.file_metadata().num_rows().max(0) as u64)
+}
+
 /// One decoded signal of one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SignalRow<'a> {
@@ -76,11 +105,8 @@ impl<W: Write + Send> SignalWriter<W> {
     /// A writer of the table to `out` (Snappy-compressed).
     pub fn new(out: W) -> Result<Self, ColumnarError> {
         let schema = schema();
-        let props = WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
-            .build();
         Ok(Self {
-            writer: ArrowWriter::try_new(out, schema.clone(), Some(props))?,
+            writer: snappy_writer(out, schema.clone())?,
             schema,
             time_s: Float64Builder::with_capacity(BATCH_ROWS),
             iface: StringBuilder::new(),
@@ -129,10 +155,7 @@ impl<W: Write + Send> SignalWriter<W> {
             Arc::new(self.unit.finish()),
             Arc::new(self.e2e.finish()),
         ];
-        let batch = RecordBatch::try_new(self.schema.clone(), columns)?;
-        self.writer.write(&batch)?;
-        // One row group per batch: memory bounded by the batch.
-        self.writer.flush()?;
+        write_row_group(&mut self.writer, &self.schema, columns)?;
         self.pending = 0;
         Ok(())
     }
@@ -140,8 +163,7 @@ impl<W: Write + Send> SignalWriter<W> {
     /// Writes the remaining rows and the footer; returns the number of rows written.
     pub fn finish(mut self) -> Result<u64, ColumnarError> {
         self.flush_batch()?;
-        let meta = self.writer.close()?;
-        Ok(meta.file_metadata().num_rows().max(0) as u64)
+        close(self.writer)
     }
 }
 

@@ -4,15 +4,13 @@
 //! [`super::columnar::BATCH_ROWS`] rows keep memory bounded.
 
 use super::candump::LogRecord;
-use super::columnar::{ColumnarError, BATCH_ROWS};
+use super::columnar::{close, snappy_writer, write_row_group, ColumnarError, BATCH_ROWS};
 use arrow_array::builder::{BinaryBuilder, BooleanBuilder, Float64Builder, StringBuilder};
 use arrow_array::builder::{UInt32Builder, UInt8Builder};
-use arrow_array::{ArrayRef, RecordBatch};
+use arrow_array::ArrayRef;
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use embedded_can::Frame as _;
 use parquet::arrow::ArrowWriter;
-use parquet::basic::Compression;
-use parquet::file::properties::WriterProperties;
 use std::io::Write;
 use std::sync::Arc;
 
@@ -47,11 +45,8 @@ impl<W: Write + Send> FrameWriter<W> {
     /// A writer of the table to `out` (Snappy-compressed).
     pub fn new(out: W) -> Result<Self, ColumnarError> {
         let schema = schema();
-        let props = WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
-            .build();
         Ok(Self {
-            writer: ArrowWriter::try_new(out, schema.clone(), Some(props))?,
+            writer: snappy_writer(out, schema.clone())?,
             schema,
             time_s: Float64Builder::with_capacity(BATCH_ROWS),
             iface: StringBuilder::new(),
@@ -93,9 +88,7 @@ impl<W: Write + Send> FrameWriter<W> {
             Arc::new(self.dlc.finish()),
             Arc::new(self.data.finish()),
         ];
-        let batch = RecordBatch::try_new(self.schema.clone(), columns)?;
-        self.writer.write(&batch)?;
-        self.writer.flush()?;
+        write_row_group(&mut self.writer, &self.schema, columns)?;
         self.pending = 0;
         Ok(())
     }
@@ -103,7 +96,6 @@ impl<W: Write + Send> FrameWriter<W> {
     /// Writes the remaining rows and the footer; the number of frames written.
     pub fn finish(mut self) -> Result<u64, ColumnarError> {
         self.flush_batch()?;
-        let meta = self.writer.close()?;
-        Ok(meta.file_metadata().num_rows().max(0) as u64)
+        close(self.writer)
     }
 }

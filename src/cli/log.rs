@@ -543,19 +543,11 @@ fn decode(
         pb,
         per_frame,
     } = open_decode_input(file)?;
-    let stdout = std::io::stdout();
-    let sink: Box<dyn Write + Send> = if let (Some(p), None) = (out_path, &parquet) {
-        Box::new(create(p)?)
-    } else if stdout.is_terminal() && !pb.is_hidden() {
-        Box::new(AroundBar {
-            pb: pb.clone(),
-            out: stdout,
-            partial: Vec::new(),
-        })
-    } else {
-        Box::new(stdout)
+    let text_file = match (out_path, &parquet) {
+        (Some(p), None) => Some(create(p)?),
+        _ => None,
     };
-    let mut out = BufWriter::new(sink);
+    let mut out = BufWriter::new(text_sink(text_file, &pb));
     let mut decoder = match &runtime {
         Some(db) => AnyDecoder::Runtime(runtime_dbc::Decoder::new(db, E2eConfig::default())),
         None => AnyDecoder::Builtin(LogDecoder::default()),
@@ -602,6 +594,21 @@ fn decode(
         AnyDecoder::Runtime(dec) => dec.gaps(),
     };
     report_decoding(&run, gaps, quiet)
+}
+
+/// Where `ddct log decode` writes text: the `--out` file, else standard output (around the
+/// progress bar when both are on a terminal).
+fn text_sink(file: Option<File>, pb: &ProgressBar) -> Box<dyn Write + Send> {
+    let stdout = std::io::stdout();
+    match file {
+        Some(f) => Box::new(f),
+        None if stdout.is_terminal() && !pb.is_hidden() => Box::new(AroundBar {
+            pb: pb.clone(),
+            out: stdout,
+            partial: Vec::new(),
+        }),
+        None => Box::new(stdout),
+    }
 }
 
 /// The summary of `ddct log decode` on stderr: frames by E2E verdict, the silences (unless
@@ -755,7 +762,7 @@ fn plot(
     Ok(ExitCode::SUCCESS)
 }
 
-fn stats(file: &PathBuf, as_json: bool) -> anyhow::Result<ExitCode> {
+fn stats(file: &std::path::Path, as_json: bool) -> anyhow::Result<ExitCode> {
     let records = logfile::read_all(file)?;
     let stats = ddct::can::decode::cycle_stats(&records);
     if as_json {
@@ -1075,7 +1082,12 @@ enum Pace {
     MaxRate { interval_us: u64 },
 }
 
-fn replay(file: &PathBuf, iface: &str, pace: Pace, passes: u32) -> anyhow::Result<ExitCode> {
+fn replay(
+    file: &std::path::Path,
+    iface: &str,
+    pace: Pace,
+    passes: u32,
+) -> anyhow::Result<ExitCode> {
     let records = logfile::read_all(file)?;
     let rt = runtime()?;
     let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();

@@ -9,15 +9,12 @@
 
 use super::diagnose::Diagnosis;
 use super::finding::Finding;
-use crate::can::columnar::ColumnarError;
+use crate::can::columnar::{self, ColumnarError};
 use crate::model::params::Params;
 use arrow_array::builder::{Float64Builder, StringBuilder, TimestampMicrosecondBuilder};
 use arrow_array::{ArrayRef, RecordBatch};
 use arrow_schema::{DataType, Field, Schema, SchemaRef, TimeUnit};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use parquet::arrow::ArrowWriter;
-use parquet::basic::Compression;
-use parquet::file::properties::WriterProperties;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -275,15 +272,11 @@ pub fn append(path: &Path, info: &RunInfo, rows: &[FindingRow]) -> Result<u64, F
     ));
     let written = (|| {
         let f = std::fs::File::create(&part).map_err(|e| ColumnarError::Parquet(e.into()))?;
-        let props = WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
-            .build();
-        let mut w = ArrowWriter::try_new(f, schema(), Some(props))?;
+        let mut w = columnar::snappy_writer(f, schema())?;
         for b in &batches {
             w.write(b)?;
         }
-        let meta = w.close()?;
-        Ok::<u64, ColumnarError>(meta.file_metadata().num_rows().max(0) as u64)
+        columnar::close(w)
     })();
     let n = match written {
         Ok(n) => n,

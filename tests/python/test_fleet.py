@@ -217,3 +217,17 @@ def test_the_fleet_report_opens_in_a_browser(generated, tmp_path):
     assert shot.stat().st_size > 30_000 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     console = [line for line in p.stderr.splitlines() if "CONSOLE" in line]
     assert console == [], console
+
+
+def test_logs_and_findings_behind_urls_go_through_fsspec(ddct, fleet, tmp_path):
+    """A manifest naming its logs by URL and a findings dataset at a URL (file:// here; s3://
+    or gs:// take the same path through fsspec) give the findings of local paths."""
+    manifest = tmp_path / "manifest.csv"
+    logs = sorted((fleet / "unit-a").iterdir())
+    manifest.write_text("unit,log,train\n" + "".join(f"unit-a,{l.as_uri()},{logs[0].as_uri()}\n" for l in logs[1:]))
+    out = tmp_path / "remote"
+    s = json.loads(_fleet(["diagnose", manifest, "--out", out.as_uri(), "--sequential", "--bootstrap", "20",
+                           "--json"]).stdout)
+    assert (s["ran"], s["errors"]) == (1, 0), s
+    rows = _findings(out)
+    assert rows and rows[0]["log"].endswith(logs[1].name) and rows[0]["kind"] != "error", rows

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import csv
 import hashlib
-import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -23,6 +21,8 @@ from typing import Callable, Iterable, Optional
 
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from . import storage
 
 # The columns `ddct gap diagnose --findings` writes (src/gap/findings_table.rs); a task whose
 # ddct process died before writing uses it for its error row (tests check the two agree).
@@ -69,14 +69,20 @@ class Task:
     problem: Optional[str] = None
 
 
-def content_key(paths: Iterable[Path], salt: str) -> str:
+def content_key(paths: Iterable[str], salt: str) -> str:
     """blake2b of the files' bytes (and `salt`: the ddct version and options), 32 hex digits."""
     h = hashlib.blake2b(digest_size=16)
     h.update(salt.encode())
     for p in paths:
         h.update(b"\0file\0")
         try:
-            with open(p, "rb") as f:
+            if storage.is_url(str(p)):
+                import fsspec
+
+                opened = fsspec.open(str(p), "rb")
+            else:
+                opened = open(p, "rb")
+            with opened as f:
                 for chunk in iter(lambda: f.read(1 << 20), b""):
                     h.update(chunk)
         except OSError as e:  # the task reports it as an error row
@@ -95,11 +101,13 @@ def _manifest_rows(source: Path) -> list[dict]:
                 if not r.get("unit") or not r.get("log"):
                     raise ValueError(f"{manifest}:{n}: every row needs `unit` and `log`")
                 hours = (r.get("operating_hours") or "").strip()
+                where = lambda f: f if storage.is_url(f) else str((base / f).resolve())  # noqa: E731
+                train = (r.get("train") or "").strip()
                 rows.append(
                     {
                         "unit": r["unit"].strip(),
-                        "log": str((base / r["log"].strip()).resolve()),
-                        "train": str((base / r["train"].strip()).resolve()) if (r.get("train") or "").strip() else "",
+                        "log": where(r["log"].strip()),
+                        "train": where(train) if train else "",
                         "operating_hours": float(hours) if hours else None,
                     }
                 )
@@ -128,7 +136,7 @@ def discover(source: Path, salt: str) -> list[Task]:
                     train, problem = r["log"], "a unit needs at least two logs (one trains, one validates)"
                 else:
                     train = logs[k - 1 if k > 0 else 1]["log"]
-            key = content_key([Path(train), Path(r["log"])], salt)
+            key = content_key([train, r["log"]], salt)
             tasks.append(Task(unit, r["log"], train, r["operating_hours"], key, problem))
     return tasks
 
@@ -138,8 +146,9 @@ def safe_name(unit: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in unit) or "_"
 
 
-def result_path(out_dir: Path, task: Task) -> Path:
-    return Path(out_dir) / safe_name(task.unit) / f"{task.key}.parquet"
+def result_path(out_dir, task: Task) -> str:
+    """Where a task's findings go: OUT/<unit>/<content key>.parquet (a path or a URL)."""
+    return storage.join(str(out_dir), safe_name(task.unit), f"{task.key}.parquet")
 
 
 def error_table(task: Task, message: str, version: str = "") -> pa.Table:
@@ -153,8 +162,8 @@ def error_table(task: Task, message: str, version: str = "") -> pa.Table:
 def diagnose_task(task: Task, ddct: str, out_dir: str, bootstrap: int, threads: int) -> dict:
     """What a worker runs: `ddct gap diagnose` of the task, its findings file moved into the
     dataset (atomically). Idempotent: a result already there is kept."""
-    final = result_path(Path(out_dir), task)
-    if final.exists():
+    final = result_path(out_dir, task)
+    if storage.exists(final):
         return {"key": task.key, "status": "done before", "rows": None, "seconds": 0.0}
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="ddct-fleet-") as tmp:
@@ -163,7 +172,9 @@ def diagnose_task(task: Task, ddct: str, out_dir: str, bootstrap: int, threads: 
         if task.problem:
             pq.write_table(error_table(task, task.problem), table)
         else:
-            cmd = [ddct, "gap", "diagnose", "--train", task.train, "--validate", task.log,
+            train = storage.local_copy(task.train, Path(tmp))
+            log = storage.local_copy(task.log, Path(tmp))
+            cmd = [ddct, "gap", "diagnose", "--train", train, "--validate", log,
                    "--out", str(Path(tmp) / "report"), "--findings", str(table), "--unit", task.unit,
                    "--bootstrap", str(bootstrap)]
             if threads > 0:  # 0: ddct's default, every core
@@ -178,12 +189,19 @@ def diagnose_task(task: Task, ddct: str, out_dir: str, bootstrap: int, threads: 
                     pq.write_table(error_table(task, f"ddct exited {p.returncode}: {p.stderr[-2000:]}"), table)
             except subprocess.TimeoutExpired:
                 pq.write_table(error_table(task, f"ddct took longer than {TASK_TIMEOUT_S} s"), table)
+        if storage.is_url(task.log) or storage.is_url(task.train):
+            _name_logs(table, task)  # the rows name the logs as given, not the local copies
         rows = pq.read_metadata(table).num_rows
-        final.parent.mkdir(parents=True, exist_ok=True)
-        part = final.with_name(f".{final.name}.part")
-        shutil.copyfile(table, part)
-        os.replace(part, final)
+        storage.put_atomically(table, final)
     return {"key": task.key, "status": status, "rows": rows, "seconds": time.monotonic() - t0}
+
+
+def _name_logs(table: Path, task: Task) -> None:
+    t = pq.read_table(table)
+    n = t.num_rows
+    for name, value in (("log", task.log), ("train", task.train)):
+        t = t.set_column(t.schema.get_field_index(name), t.schema.field(name), pa.array([value] * n, pa.string()))
+    pq.write_table(t, table)
 
 
 def _progress(done: int, total: int, task: Task, result: dict, stream=sys.stderr) -> None:
@@ -209,9 +227,10 @@ def run_campaign(tasks: list[Task], ddct: str, out_dir: Path, bootstrap: int, th
     completion order. Tasks already in the dataset are not submitted."""
     from distributed import as_completed
 
-    todo = [t for t in tasks if not result_path(out_dir, t).exists()]
+    done_before = {t.key for t in tasks if storage.exists(result_path(out_dir, t))}
+    todo = [t for t in tasks if t.key not in done_before]
     results = [{"key": t.key, "status": "done before", "rows": None, "seconds": 0.0}
-               for t in tasks if result_path(out_dir, t).exists()]
+               for t in tasks if t.key in done_before]
     futures = {
         client.submit(diagnose_task, t, ddct, str(out_dir), bootstrap, threads,
                       key=f"diagnose-{n}-{t.key}", retries=retries, pure=False): t

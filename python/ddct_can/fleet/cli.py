@@ -61,8 +61,11 @@ def cmd_diagnose(a) -> int:
         raise SystemExit(f"ddct-fleet: {e}")
     if not tasks:
         raise SystemExit(f"ddct-fleet: no logs in {a.source}")
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    from .storage import is_url
+
+    out = a.out if is_url(a.out) else Path(a.out)
+    if not is_url(a.out):
+        out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     if a.sequential:
         results = campaign.run_sequential(tasks, ddct, out, a.bootstrap, a.threads)

@@ -22,7 +22,13 @@ STRONG_EFFECT = 3.0
 OUTLIER_Z = 3.0
 
 
-def load_findings(path: Path) -> list[dict]:
+def load_findings(path) -> list[dict]:
+    """Every row of a findings dataset (a directory or a URL fsspec opens)."""
+    if "://" in str(path):
+        import fsspec
+
+        fs, p = fsspec.core.url_to_fs(str(path))
+        return ds.dataset(p, format="parquet", filesystem=fs).to_table().to_pylist()
     return ds.dataset(Path(path), format="parquet").to_table().to_pylist()
 
 

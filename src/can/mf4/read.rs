@@ -356,18 +356,7 @@ fn frame_group(file: &[u8], cg: &Block<'_>, index: usize) -> Result<Option<Frame
         name: kind.channel().into(),
         what,
     };
-    let time = channels
-        .iter()
-        .find(|c| matches!(c.kind, CN_MASTER | CN_VIRTUAL_MASTER) && c.sync == SYNC_TIME)
-        .ok_or_else(|| err("no time master channel".into()))?;
-    if time.kind == CN_VIRTUAL_MASTER {
-        return Err(err("a virtual time master (no time in the records)".into()));
-    }
-    if !time.field.factor.is_finite() {
-        return Err(err(
-            "the time channel has a conversion other than linear".into()
-        ));
-    }
+    let time = time_master(&channels).map_err(err)?;
     let member = |name: &str| {
         frame
             .members
@@ -389,7 +378,7 @@ fn frame_group(file: &[u8], cg: &Block<'_>, index: usize) -> Result<Option<Frame
     }
     let g = FrameGroup {
         kind,
-        time: time.field,
+        time,
         bus: member("BusChannel"),
         id,
         ide: member("IDE"),
@@ -403,25 +392,49 @@ fn frame_group(file: &[u8], cg: &Block<'_>, index: usize) -> Result<Option<Frame
         iface: Vec::new(),
         next: 0,
     };
-    for (name, f) in [
-        ("time", Some(g.time)),
-        ("ID", Some(g.id)),
-        ("DataBytes", g.data),
-    ]
-    .into_iter()
-    .chain([("BusChannel", g.bus), ("IDE", g.ide), ("DLC", g.dlc)])
-    .chain([("DataLength", g.data_length), ("Dir", g.dir)])
-    {
-        if let Some(f) = f {
-            if f.byte_offset + f.span() > record_len || (f.data_type != 10 && f.bits > 64) {
-                return Err(err(format!(
-                    "member {name} (byte {}, {} bits) outside the {record_len}-byte record",
-                    f.byte_offset, f.bits
-                )));
+    g.check_bounds().map_err(err)?;
+    Ok(Some(g))
+}
+
+/// The time master channel's field: a recorded (not virtual) time with a linear conversion.
+fn time_master(channels: &[Channel]) -> Result<Field, String> {
+    let time = channels
+        .iter()
+        .find(|c| matches!(c.kind, CN_MASTER | CN_VIRTUAL_MASTER) && c.sync == SYNC_TIME)
+        .ok_or("no time master channel")?;
+    if time.kind == CN_VIRTUAL_MASTER {
+        return Err("a virtual time master (no time in the records)".into());
+    }
+    if !time.field.factor.is_finite() {
+        return Err("the time channel has a conversion other than linear".into());
+    }
+    Ok(time.field)
+}
+
+impl FrameGroup {
+    /// Every member inside the record, integers at most 64 bits wide.
+    fn check_bounds(&self) -> Result<(), String> {
+        let members = [
+            ("time", Some(self.time)),
+            ("ID", Some(self.id)),
+            ("DataBytes", self.data),
+            ("BusChannel", self.bus),
+            ("IDE", self.ide),
+            ("DLC", self.dlc),
+            ("DataLength", self.data_length),
+            ("Dir", self.dir),
+        ];
+        for (name, f) in members {
+            let Some(f) = f else { continue };
+            if f.byte_offset + f.span() > self.record_len || (f.data_type != 10 && f.bits > 64) {
+                return Err(format!(
+                    "member {name} (byte {}, {} bits) outside the {}-byte record",
+                    f.byte_offset, f.bits, self.record_len
+                ));
             }
         }
+        Ok(())
     }
-    Ok(Some(g))
 }
 
 /// The acquisition source's name of a channel group, else the group's acquisition name.
@@ -521,11 +534,7 @@ fn name_interfaces(g: &mut FrameGroup) {
 
 impl FrameGroup {
     fn len(&self) -> usize {
-        if self.record_len == 0 {
-            0
-        } else {
-            self.records.len() / self.record_len
-        }
+        self.records.len().checked_div(self.record_len).unwrap_or(0)
     }
 
     fn record(&self, i: usize) -> &[u8] {
