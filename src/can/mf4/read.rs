@@ -412,7 +412,7 @@ fn time_master(channels: &[Channel]) -> Result<Field, String> {
 }
 
 impl FrameGroup {
-    /// Every member inside the record, integers at most 64 bits wide.
+    /// Every member inside the record, at least one bit and integers at most 64 bits wide.
     fn check_bounds(&self) -> Result<(), String> {
         let members = [
             ("time", Some(self.time)),
@@ -426,9 +426,10 @@ impl FrameGroup {
         ];
         for (name, f) in members {
             let Some(f) = f else { continue };
-            if f.byte_offset + f.span() > self.record_len || (f.data_type != 10 && f.bits > 64) {
+            let width = f.bits == 0 || (f.data_type != 10 && f.bits > 64);
+            if width || f.byte_offset + f.span() > self.record_len {
                 return Err(format!(
-                    "member {name} (byte {}, {} bits) outside the {}-byte record",
+                    "member {name} (byte {}, {} bits) is empty, too wide or outside the {}-byte record",
                     f.byte_offset, f.bits, self.record_len
                 ));
             }
