@@ -223,7 +223,7 @@ fn input_stream() -> impl Strategy<Value = Vec<(Duration, CanFrame)>> {
 }
 
 /// Frames (or lines, or CSV files) fed per property, for the campaign's report.
-static FED: [AtomicU64; 6] = [const { AtomicU64::new(0) }; 6];
+static FED: [AtomicU64; 7] = [const { AtomicU64::new(0) }; 7];
 
 fn fed(k: usize, n: usize) {
     FED[k].fetch_add(n as u64, Ordering::Relaxed);
@@ -747,4 +747,62 @@ fn the_diagnostic_side_takes_any_requests() {
         .run(&diag_stream(), |s| diag_over(&s))
         .unwrap_or_else(|e| panic!("{e}"));
     report(5, "diagnostic frames and steps");
+}
+
+/// A valid MF4 of a few frames (standard, extended, remote, on two interfaces), as bytes.
+fn mf4_bytes() -> &'static [u8] {
+    static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
+    BYTES.get_or_init(|| {
+        let mut w = ddct::can::mf4::Mf4Writer::new();
+        for line in [
+            "(1700000000.000100) vcan0 100#0102030405060708",
+            "(1700000000.001000) vcan0 1ABCDEF0#DEAD",
+            "(1700000000.002000) can1 7E1#R T",
+            "(1700000000.003000) vcan0 123#",
+        ] {
+            w.push(&ddct::can::candump::parse_line(line).unwrap());
+        }
+        let mut out = Vec::new();
+        w.finish(&mut out).unwrap();
+        out
+    })
+}
+
+/// Byte edits of the valid file: overwrite a run, cut it, or graft random bytes.
+fn mf4_mutations() -> impl Strategy<Value = Vec<u8>> {
+    let n = mf4_bytes().len();
+    prop_oneof![
+        (0..n, proptest::collection::vec(any::<u8>(), 1..16)).prop_map(|(at, bytes)| {
+            let mut v = mf4_bytes().to_vec();
+            for (i, b) in bytes.into_iter().enumerate() {
+                if at + i < v.len() {
+                    v[at + i] = b;
+                }
+            }
+            v
+        }),
+        (0..n).prop_map(|cut| mf4_bytes()[..cut].to_vec()),
+        proptest::collection::vec(any::<u8>(), 0..512).prop_map(|tail| {
+            let mut v = ddct::can::mf4::MAGIC.to_vec();
+            v.extend(tail);
+            v
+        }),
+    ]
+}
+
+#[test]
+fn the_mf4_reader_takes_any_bytes() {
+    runner()
+        .run(&mf4_mutations(), |bytes| {
+            // Ok or a typed error, never a panic; every frame read is a valid classic frame.
+            if let Ok(frames) = ddct::can::mf4::read(&bytes) {
+                for f in frames.flatten() {
+                    prop_assert!(f.frame.bytes().len() <= 8);
+                }
+            }
+            fed(6, 1);
+            Ok(())
+        })
+        .unwrap_or_else(|e| panic!("{e}"));
+    report(6, "MF4 files");
 }
