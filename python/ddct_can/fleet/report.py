@@ -46,38 +46,56 @@ def main_class(rows: list[dict]) -> str | None:
     return c.most_common(1)[0][0] if c else None
 
 
+# Units that mean the same quantity: a relative change is dimensionless.
+_SAME_UNIT = {"1": "1", "relative": "1"}
+
+
+def comparable(fit_unit: str | None, truth_unit: str | None) -> bool:
+    """Whether a fitted magnitude and a true one are on the same scale (both units known and
+    alike; e.g. a sensor's fitted "relative gain" is not the truth's N·m of reading error)."""
+    if not fit_unit or not truth_unit:
+        return False
+    return _SAME_UNIT.get(fit_unit, fit_unit) == _SAME_UNIT.get(truth_unit, truth_unit)
+
+
 def unit_points(rows: list[dict], klass: str, truth: dict[str, dict]) -> list[dict]:
     """Per log of a unit: hours, fitted magnitude and interval of `klass` (None when the log's
     diagnosis did not find it), the truth where known."""
     by_log: dict[str, dict] = {}
     for r in rows:
         p = by_log.setdefault(r["log"], {"log": r["log"], "hours": r["operating_hours"], "start": r["start_time"],
-                                         "fit": None, "lo": None, "hi": None, "error": None})
+                                         "fit": None, "lo": None, "hi": None, "error": None, "fit_unit": None})
         if r["kind"] == "error":
             p["error"] = r["error"]
         if r["class"] == klass and r["kind"] in ("class", "sensor"):
-            p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"])
+            p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"], fit_unit=r["magnitude_unit"])
     points = list(by_log.values())
     for p in points:
         t = truth.get(p["log"])
         p["class"] = klass
         p["truth"] = float(t["magnitude"]) if t and t["class"] == klass else None
         p["effect_size"] = float(t["effect_size"]) if t else None
+        p["truth_unit"] = t["magnitude_unit"] if t else None
     return sorted(points, key=lambda p: (p["hours"] is None, p["hours"] or 0.0, p["log"]))
 
 
-def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int]:
-    """(points whose interval holds the truth, strong points), over points with a known truth
-    whose effect is at least STRONG_EFFECT × the noise."""
-    hit = n = 0
+def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int, int]:
+    """(points whose interval holds the truth, strong points, strong points whose fitted and
+    true magnitudes are on different scales), over points with a known truth whose effect is at
+    least STRONG_EFFECT × the noise. A point whose class was not found counts as missed; one on
+    another scale counts apart, neither hit nor missed."""
+    hit = n = other_scale = 0
     for pts in points_by_unit.values():
         for p in pts:
             if p["truth"] is None or (p["effect_size"] or 0.0) < STRONG_EFFECT:
                 continue
+            if p["fit"] is not None and not comparable(p["fit_unit"], p["truth_unit"]):
+                other_scale += 1
+                continue
             n += 1
             if p["lo"] is not None and p["lo"] <= p["truth"] <= p["hi"]:
                 hit += 1
-    return hit, n
+    return hit, n, other_scale
 
 
 def outliers(latest: dict[str, tuple[str, float]]) -> list[tuple[str, str, float]]:
@@ -171,10 +189,11 @@ def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict
         fitted = [p for p in pts if p["fit"] is not None]
         if fitted:
             latest[unit] = (klass, fitted[-1]["fit"])
-    hit, strong = recovery(points_by_unit)
+    hit, strong, other_scale = recovery(points_by_unit)
     odd = outliers(latest)
     figures = {"logs": len(logs), "units": len(by_unit), "error_logs": len(errors),
-               "recovered": hit, "strong_points": strong, "outliers": [u for u, _, _ in odd]}
+               "recovered": hit, "strong_points": strong, "other_scale_points": other_scale,
+               "outliers": [u for u, _, _ in odd]}
     e = html.escape
     out = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>ddct fleet report</title>",
            "<style>body{font-family:sans-serif;margin:2em;max-width:72em}table{border-collapse:collapse}"
@@ -185,7 +204,8 @@ def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict
     if truth:
         share = f"{100 * hit / strong:.0f} %" if strong else "n/a"
         out.append(f"<p>Recovery: the fitted interval holds the true magnitude at {hit} of {strong} points "
-                   f"where the effect is above {STRONG_EFFECT:g}× the noise ({share}).</p>")
+                   f"where the effect is above {STRONG_EFFECT:g}× the noise ({share}); {other_scale} more "
+                   f"points are fitted on another scale than the truth's (units in the tables).</p>")
     out.append("<h2>Classes across the fleet</h2><table><tr><th>kind</th><th>class or subsystem</th><th>findings</th></tr>")
     for (kind, what), n in counts.most_common():
         out.append(f"<tr><td>{e(kind)}</td><td>{e(what)}</td><td>{n}</td></tr>")
@@ -199,7 +219,10 @@ def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict
         klass = pts[0]["class"]
         out.append(f"<h3 id='{e(unit)}'>{e(unit)}: {e(klass or '')}</h3>")
         out.append(svg_timeline(pts, f"{unit} {klass}"))
-        out.append("<table><tr><th>hours</th><th>fitted</th><th>95 % interval</th><th>truth</th><th>log</th></tr>")
+        units = f"{pts[0]['fit_unit'] or next((p['fit_unit'] for p in pts if p['fit_unit']), '')}"
+        truth_units = next((p["truth_unit"] for p in pts if p["truth_unit"]), "")
+        out.append(f"<table><tr><th>hours</th><th>fitted ({e(units)})</th><th>95 % interval</th>"
+                   f"<th>truth ({e(truth_units)})</th><th>log</th></tr>")
         for p in pts:
             ci = f"[{p['lo']:.4g}, {p['hi']:.4g}]" if p["lo"] is not None else ""
             fit = f"{p['fit']:.4g}" if p["fit"] is not None else (f"<span class='err'>{e((p['error'] or 'not found')[:120])}</span>")
