@@ -8,8 +8,10 @@ status bits are the documented contract, written out by hand.
 
 from __future__ import annotations
 
-import socket
+import shutil
+import signal
 import struct
+import subprocess
 import threading
 import time
 from contextlib import contextmanager
@@ -22,6 +24,7 @@ from udsoncan.client import Client
 from udsoncan.connections import PythonIsoTpConnection
 
 from ddct_can.daemons import Bench
+from ddct_can import can_receivers
 from ddct_can.dbc import frame_id
 from ddct_can.driver import Driver
 
@@ -129,36 +132,72 @@ def uds_client(blocksize: int = 8, stmin: int = 0, txid: int = REQ_ID):
         bus.shutdown()
 
 
-# Receive buffer of the recorder's socket.
+# Receive buffer of the recorder's (candump's) socket: room for seconds of bus traffic.
 RECORDER_RCVBUF = 8 * 1024 * 1024
 
 
-class Recorder(can.Listener):
-    """Every frame on vcan0 with its kernel timestamp, from a python-can bus of its own."""
+def _candump_frame(line: str) -> can.Message | None:
+    """A `candump -L` line as a python-can message (kernel timestamp, id, data)."""
+    try:
+        stamp, _iface, frame = line.split()
+        ident, data = frame.split("#", 1)
+        remote = data.startswith("R")
+        return can.Message(timestamp=float(stamp.strip("()")), arbitration_id=int(ident, 16),
+                           is_extended_id=len(ident) == 8, is_remote_frame=remote,
+                           data=b"" if remote else bytes.fromhex(data))
+    except ValueError:
+        return None
+
+
+class Recorder:
+    """Every frame on vcan0 with its kernel timestamp, recorded by candump (C, with a large
+    receive buffer) and read line by line from its output: python-can reading one frame per
+    call fell behind the bus in User-Mode Linux and the kernel dropped frames for it."""
 
     def __init__(self):
         self.frames: list[can.Message] = []
         self._lock = threading.Lock()
-        self.bus = can.Bus(interface="socketcan", channel=IFACE)
-        # Room for the bus traffic while the notifier thread waits for the GIL: with the default
-        # buffer (a few hundred frames) the kernel dropped frames here in User-Mode Linux.
-        try:  # root may exceed rmem_max
-            self.bus.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUFFORCE, RECORDER_RCVBUF)
-        except (OSError, AttributeError):
-            self.bus.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECORDER_RCVBUF)
-        self.notifier = can.Notifier(self.bus, [self], timeout=0.1)
+        candump = shutil.which("candump")
+        assert candump, "candump not found on PATH (scripts/setup installs can-utils)"
+        before = can_receivers(IFACE)
+        self.proc = subprocess.Popen(["stdbuf", "-oL", candump, "-L", "-r", str(RECORDER_RCVBUF), IFACE],
+                                     stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        deadline = time.monotonic() + 30
+        while before is not None and len(can_receivers(IFACE) - before) < 1:
+            assert self.proc.poll() is None and time.monotonic() < deadline, "candump did not start"
+            time.sleep(0.02)
 
-    def on_message_received(self, msg: can.Message) -> None:
-        with self._lock:
-            self.frames.append(msg)
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            msg = _candump_frame(line)
+            if msg is not None:
+                with self._lock:
+                    self.frames.append(msg)
 
     def snapshot(self) -> list[can.Message]:
         with self._lock:
             return list(self.frames)
 
-    def close(self) -> None:
-        self.notifier.stop()
-        self.bus.shutdown()
+    def close(self, catch_up_s: float = 30.0) -> None:
+        """Stops recording once the frames sent until now are in (the bus stays busy with the
+        daemons' traffic, so a frame stamped after now arrives soon)."""
+        until = time.time()
+        deadline = time.monotonic() + catch_up_s
+        while time.monotonic() < deadline:
+            with self._lock:
+                last = self.frames[-1].timestamp if self.frames else None
+            if last is not None and last >= until:
+                break
+            time.sleep(0.05)
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self._reader.join(10)
 
 
 @contextmanager

@@ -84,7 +84,11 @@ def test_daq_measures_every_cycle_equal_to_the_bus(ddct, tmp_path, a2l):
           f"{cycles} TCU cycles in their span ({last - first:.2f} s)")
     assert len(samples) >= 0.99 * cycles
     assert len(pairs) >= 0.99 * cycles
-    assert len(samples) >= 0.99 * 1000 * (res["daq_stop"] - res["daq_start"]) / 10.0 * 0.9
+    # And over the DAQ's wall-clock window, with room for the noisy tail of timing in
+    # User-Mode Linux: at least 90 % of the nominal 100 samples a second.
+    window_s = res["daq_stop"] - res["daq_start"]
+    print(f"DAQ window {window_s:.2f} s: {len(samples) / window_s:.1f} samples/s (nominal 100)")
+    assert len(samples) >= 0.99 * 100 * window_s * 0.9
     slave_ts = [s[2] for s in samples]
     assert all(b > a for a, b in zip(slave_ts, slave_ts[1:])), "slave timestamps not increasing"
     # The k-th sample pyxcp decoded is the k-th sample frame on the bus.

@@ -150,7 +150,7 @@ def test_a_worker_killed_mid_run_loses_no_finding(ddct, fleet, tmp_path):
     assert killed and killed[0] in pids
     assert len(results) == len(tasks)
     for t in tasks:
-        assert campaign.result_path(out, t).exists(), t
+        assert Path(campaign.result_path(out, t)).exists(), t
     ref = tmp_path / "ref"
     campaign.run_sequential(tasks, str(ddct), ref, 50, 1, progress=lambda *a: None)
     assert _comparable(_findings(out)) == _comparable(_findings(ref))

@@ -106,9 +106,9 @@ def _candump_frames() -> list[tuple[float, int, bool, bytes]]:
     t = frames[-1][0]
     frames += [
         (t + 0.5, 0x1ABCDEF0, True, bytes([0xDE, 0xAD])),
-        (t + 0.75, 0x7E1, False, b""),
+        (t + 0.75, ddct_can.frame_id("TCU_DiagReq"), False, b""),  # an empty transport frame
         (t + 1.0, 0x18DAF110, True, bytes(range(8))),
-        (t + 86_400.0, 0x123, False, bytes([1, 2, 3])),  # a day later
+        (t + 86_400.0, 0x2A5, False, bytes([1, 2, 3])),  # a day later, an id outside the contract
     ]
     return frames
 
