@@ -181,14 +181,20 @@ class Recorder:
             return list(self.frames)
 
     def close(self, catch_up_s: float = 30.0) -> None:
-        """Stops recording once the frames sent until now are in (the bus stays busy with the
-        daemons' traffic, so a frame stamped after now arrives soon)."""
+        """Stops recording once the frames sent until now are in: a frame stamped after now has
+        arrived, or nothing has for 0.5 s (the bench already stopped)."""
         until = time.time()
         deadline = time.monotonic() + catch_up_s
+        seen, quiet_since = -1, time.monotonic()
         while time.monotonic() < deadline:
             with self._lock:
+                n = len(self.frames)
                 last = self.frames[-1].timestamp if self.frames else None
             if last is not None and last >= until:
+                break
+            if n != seen:
+                seen, quiet_since = n, time.monotonic()
+            elif time.monotonic() - quiet_since > 0.5:  # the bus has gone quiet (bench stopped)
                 break
             time.sleep(0.05)
         self.proc.send_signal(signal.SIGINT)
