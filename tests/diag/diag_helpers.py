@@ -154,13 +154,16 @@ class Recorder:
     receive buffer) and read line by line from its output: python-can reading one frame per
     call fell behind the bus in User-Mode Linux and the kernel dropped frames for it."""
 
-    def __init__(self):
+    def __init__(self, only: tuple[str, ...] = ()):
+        """`only`: record just these messages (by name; candump filters in the kernel), which
+        leaves the CPU of User-Mode Linux to the daemons when a test needs a few frames."""
         self.frames: list[can.Message] = []
         self._lock = threading.Lock()
         candump = shutil.which("candump")
         assert candump, "candump not found on PATH (scripts/setup installs can-utils)"
         before = can_receivers(IFACE)
-        self.proc = subprocess.Popen(["stdbuf", "-oL", candump, "-L", "-r", str(RECORDER_RCVBUF), IFACE],
+        where = ",".join([IFACE, *(f"{frame_id(m):03X}:7FF" for m in only)])
+        self.proc = subprocess.Popen(["stdbuf", "-oL", candump, "-L", "-r", str(RECORDER_RCVBUF), where],
                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

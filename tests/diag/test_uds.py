@@ -178,7 +178,7 @@ def plant_kiss_point(theta_c: float) -> float:
 
 @pytest.mark.parametrize("clutch", [1, 2])
 def test_kiss_point_routine_learns_the_plants_kiss_point(ddct, tmp_path, clutch):
-    rec = Recorder()
+    rec = Recorder(only=("SIM_Truth",))
     try:
         with bench(ddct, tmp_path), uds_client() as c:
             time.sleep(1.0)
