@@ -43,6 +43,8 @@ pub struct Mf4Writer {
     groups: Vec<Group>,
     /// The first frame's time: the header's start time; records hold the time since it.
     start: Option<Duration>,
+    /// Interfaces in the order first seen (bus channel = index + 1).
+    ifaces: Vec<String>,
 }
 
 impl Mf4Writer {
@@ -88,17 +90,17 @@ impl Mf4Writer {
         g.count += 1;
     }
 
-    /// The bus channel number of an interface: 1 for the first interface seen, 2 for the next, …
-    fn bus_channel(&self, iface: &str) -> u8 {
-        let mut seen: Vec<&str> = Vec::new();
-        for g in &self.groups {
-            if !seen.contains(&g.iface.as_str()) {
-                seen.push(&g.iface);
+    /// The bus channel number of an interface: 1 for the first interface seen, 2 for the next,
+    /// … (the interfaces are kept in the order first seen; a handful, so a list).
+    fn bus_channel(&mut self, iface: &str) -> u8 {
+        let i = match self.ifaces.iter().position(|i| i == iface) {
+            Some(i) => i,
+            None => {
+                self.ifaces.push(iface.to_string());
+                self.ifaces.len() - 1
             }
-        }
-        seen.iter()
-            .position(|i| *i == iface)
-            .map_or(seen.len() + 1, |i| i + 1) as u8
+        };
+        (i + 1) as u8
     }
 
     /// Writes the file; the number of frames written.
