@@ -9,6 +9,11 @@
 ``launch(pct)`` performs the whole sequence the TCU needs (N, then D with the brake held, then
 brake off and pedal). ``send()`` sends one frame (a lockstep bench answers each plant cycle with
 it); ``play(seconds, program)`` plays a timeline on absolute 10 ms deadlines in the calling thread.
+
+On a SocketCAN bus the background sender is the kernel's broadcast manager (CAN_BCM): one cyclic
+task holding a frame per alive-counter value, its data replaced whenever the state changes. Its
+10 ms come from a kernel timer, so a busy python process (a tester, a recorder, the GIL) cannot
+stretch a gap into the TCU's 3-cycle input timeout. Other buses get a python thread.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ from typing import Callable, Mapping, Optional
 import can
 
 from .dbc import frame_id, message
-from .e2e import encode
+from .e2e import counter_modulus, encode
 
 MESSAGE = "DRV_Pedal"
 CYCLE_S = 0.01
@@ -43,8 +48,13 @@ class Driver:
     ``sent`` counts the frames the bus accepted, ``dropped`` those it refused (a full transmit
     queue: the receiver's E2E check then sees a skipped counter, as on a real bus)."""
 
-    def __init__(self, bus: can.BusABC, cycle_s: float = CYCLE_S, counter: int = 0):
+    def __init__(self, bus: can.BusABC, cycle_s: float = CYCLE_S, counter: int = 0,
+                 kernel_timer: Optional[bool] = None):
+        """``kernel_timer``: send from the kernel's broadcast manager (default: on SocketCAN buses)."""
         self.bus = bus
+        self.kernel_timer = _is_socketcan(bus) if kernel_timer is None else kernel_timer
+        self._task: Optional[can.broadcastmanager.ModifiableCyclicTaskABC] = None
+        self._task_started = 0.0
         self.cycle_s = cycle_s
         self.counter = counter
         self.sent = 0
@@ -73,6 +83,8 @@ class Driver:
         encode(MESSAGE, {**self.state, **signals})  # range and choice check now, not in the thread
         with self._lock:
             self._state.update(signals)
+            if self._task is not None:
+                self._task.modify_data(self._counter_cycle())
 
     def neutral(self) -> None:
         """Lever N, brake held, no pedal."""
@@ -131,6 +143,8 @@ class Driver:
         """Send one frame now. Without ``counter`` it carries the driver's counter, which then
         advances (also when the bus refuses the frame); with it (a second, spoofing node) the
         driver's counter is left alone. Returns whether the bus took the frame."""
+        if counter is None and self._task is not None:
+            raise DriverError("the kernel sends the driver's frames: send() with an explicit counter, or stop() first")
         msg = self.frame(signals, counter)
         if counter is None:
             self.counter += 1
@@ -163,13 +177,25 @@ class Driver:
 
     @property
     def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+        return self._task is not None or (self._thread is not None and self._thread.is_alive())
+
+    def _counter_cycle(self) -> list:
+        """One frame of the current state per alive-counter value, from the driver's counter on:
+        the broadcast manager sends them in turn, so consecutive frames carry consecutive counters
+        (also across a change of state, which replaces the data and keeps the kernel's index)."""
+        state = dict(self._state)
+        return [self.frame(state, self.counter + j) for j in range(counter_modulus(MESSAGE))]
 
     def start(self) -> "Driver":
         if self.running:
             raise DriverError("the driver is already running")
         self._stop.clear()
         self._error = None
+        if self.kernel_timer:
+            with self._lock:
+                self._task = self.bus.send_periodic(self._counter_cycle(), self.cycle_s)
+                self._task_started = time.monotonic()
+            return self
         self._thread = threading.Thread(target=self._run, name="ddct-driver", daemon=True)
         self._thread.start()
         return self
@@ -184,6 +210,12 @@ class Driver:
     def stop(self) -> None:
         """Stop the sender (within one cycle) and raise what made it fail, if anything did."""
         self._stop.set()
+        if self._task is not None:
+            with self._lock:
+                task, self._task = self._task, None
+                task.stop()
+                # The kernel's place in the cycle is not readable: continue from the elapsed time.
+                self.counter += round((time.monotonic() - self._task_started) / self.cycle_s)
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             if self._thread.is_alive():
@@ -205,3 +237,11 @@ class Driver:
         except DriverError:
             if exc_type is None:
                 raise
+
+
+def _is_socketcan(bus: can.BusABC) -> bool:
+    try:
+        from can.interfaces.socketcan import SocketcanBus
+    except ImportError:  # pragma: no cover - python-can always ships it
+        return False
+    return isinstance(bus, SocketcanBus)

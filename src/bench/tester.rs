@@ -107,6 +107,7 @@ impl<B: Bus> UdsTester<B> {
             if let Ok(frame) = CanFrame::standard(ids::TCU_DIAG_REQ, f.bytes()) {
                 self.bus.send(frame).await?;
             }
+            self.tp.sent(self.now());
         }
         Ok(())
     }

@@ -542,6 +542,10 @@ impl<B: Bus> Shell<B> {
             };
             d.sent += 1;
             self.send(f).await?;
+            let at = self.time.live(self.mono());
+            if let Some(d) = &mut self.diag {
+                d.core.sent(at);
+            }
         }
     }
 

@@ -256,6 +256,9 @@ pub struct IsoTp {
     tx: Option<Tx>,
     /// Frames queued to go out at once (single and first frames, flow controls).
     out: VecDeque<TxFrame>,
+    /// The last frame [`IsoTp::poll_transmit`] gave was a consecutive frame whose send time
+    /// [`IsoTp::sent`] has not reported yet.
+    cf_unconfirmed: bool,
     counters: Counters,
 }
 
@@ -267,6 +270,7 @@ impl IsoTp {
             rx: None,
             tx: None,
             out: VecDeque::new(),
+            cf_unconfirmed: false,
             counters: Counters::default(),
         }
     }
@@ -369,6 +373,7 @@ impl IsoTp {
     /// The next frame to send at `now`, if one is due: queued frames first, then the next
     /// consecutive frame once its separation time has passed.
     pub fn poll_transmit(&mut self, now: Duration) -> Option<TxFrame> {
+        self.cf_unconfirmed = false;
         if let Some(f) = self.out.pop_front() {
             return Some(f);
         }
@@ -393,6 +398,7 @@ impl IsoTp {
         tx.pos = end;
         tx.next_sn = (tx.next_sn + 1) & 0x0F;
         tx.last_cf = Some(now);
+        self.cf_unconfirmed = true;
         let done = tx.pos == tx.payload.len();
         let block_left = block_left.map(|b| b - 1);
         tx.state = if block_left == Some(0) && !done {
@@ -412,6 +418,26 @@ impl IsoTp {
             self.counters.messages_sent += 1;
         }
         Some(f)
+    }
+
+    /// The frame the last [`IsoTp::poll_transmit`] gave left at `at` (read after the write
+    /// returned). STmin then counts from there, not from the `now` the frame was taken at: a
+    /// shell delayed between taking a consecutive frame and writing it would otherwise send the
+    /// next one early. Other frames, and a transfer already complete, need nothing.
+    pub fn sent(&mut self, at: Duration) {
+        if !std::mem::take(&mut self.cf_unconfirmed) {
+            return;
+        }
+        let Some(tx) = self.tx.as_mut() else {
+            return;
+        };
+        tx.last_cf = tx.last_cf.map(|t| t.max(at));
+        if let TxState::Sending {
+            next_at, st_min, ..
+        } = &mut tx.state
+        {
+            *next_at = (*next_at).max(at + *st_min);
+        }
     }
 
     /// When the core next needs to run without a received frame: at once when a frame is
@@ -662,6 +688,35 @@ mod tests {
                 assert_eq!(b.counters().messages_received, 1);
             }
         }
+    }
+
+    #[test]
+    fn st_min_counts_from_when_the_shell_wrote_the_frame() {
+        for bs in [0u8, 1] {
+            let mut a = IsoTp::new(IsoTpConfig::default());
+            a.send(Duration::ZERO, &payload(30)).unwrap();
+            a.poll_transmit(Duration::ZERO).unwrap(); // FF
+            a.handle_frame(ms(1), &[0x30, bs, 5]);
+            assert!(a.poll_transmit(ms(1)).is_some(), "first CF at once");
+            // The shell took the CF at 1 ms but its write returned only at 3 ms.
+            a.sent(ms(3));
+            if bs == 1 {
+                a.handle_frame(ms(4), &[0x30, bs, 5]);
+            }
+            assert_eq!(
+                a.poll_transmit(ms(7)),
+                None,
+                "bs {bs}: 5 ms from the write, not the take"
+            );
+            assert_eq!(a.poll_timeout(), Some(ms(8)), "bs {bs}");
+            assert!(a.poll_transmit(ms(8)).is_some(), "bs {bs}");
+        }
+        // A report after a single frame or a flow control changes nothing.
+        let mut b = IsoTp::new(IsoTpConfig::default());
+        b.send(Duration::ZERO, &[0x3E, 0]).unwrap();
+        b.poll_transmit(Duration::ZERO).unwrap();
+        b.sent(ms(50));
+        assert!(!b.sending());
     }
 
     #[test]

@@ -188,6 +188,12 @@ impl DiagStack {
         CanFrame::standard(ids::TCU_DIAG_RESP, f.bytes()).ok()
     }
 
+    /// The frame the last [`DiagStack::poll_transmit`] gave left at `at`: ISO-TP's STmin counts
+    /// from there ([`IsoTp::sent`]).
+    pub fn sent(&mut self, at: Duration) {
+        self.tp.sent(at);
+    }
+
     /// When the core must run by itself next (ISO-TP pacing and timeouts, the UDS session's S3
     /// timer, the SecurityAccess delay).
     pub fn poll_timeout(&self) -> Option<Duration> {
