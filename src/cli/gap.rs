@@ -734,7 +734,16 @@ fn run_truth(a: TruthArgs) -> anyhow::Result<ExitCode> {
         )?;
     }
     let path = a.out.join("truth.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&t)?)
+    // The effects' terms over their variables: what a magnitude stated over another range is
+    // read off (docs/gap.md, "Magnitudes").
+    let mut json = serde_json::to_value(&t)?;
+    json["curves"] = serde_json::to_value(
+        t.effects
+            .iter()
+            .filter_map(truth::curve::curve)
+            .collect::<Vec<_>>(),
+    )?;
+    std::fs::write(&path, serde_json::to_string_pretty(&json)?)
         .with_context(|| format!("writing {}", path.display()))?;
     print_truth(&t);
     println!(

@@ -9,7 +9,7 @@ use super::candidates::{Channel, Model};
 use super::class::{ClassId, Variable};
 use super::lsq::{Fit, ParamSpec};
 use super::shape::{Shape, KNOTS};
-use super::terms::GainOffset;
+use super::terms::{GainOffset, X_REF_MM};
 use crate::model::effects::{EffectId, Subsystem};
 use std::collections::BTreeMap;
 
@@ -522,9 +522,105 @@ pub fn conflicts(a: ClassId, b: ClassId) -> bool {
 /// state it.
 const SURFACE_REFERENCE_W: f64 = 30e3;
 
-/// Magnitude of a fitted class term with its unit: the largest change over the training range
-/// of its variable for shapes (relative for multipliers, mm for kiss-point shifts), the member's
-/// parameter otherwise.
+/// Torque range over which the torque sensor's reading error is reported (N·m).
+const TORQUE_READING_RANGE: (f64, f64) = (0.0, 100.0);
+/// Position range over which a position reading error or the actuator transfer's is reported (mm).
+const POSITION_READING_RANGE: (f64, f64) = (0.0, 6.0);
+/// Temperature range over which a thermocouple's reading error is reported (°C).
+const TEMPERATURE_READING_RANGE: (f64, f64) = (20.0, 250.0);
+
+/// What a class's magnitude is measured over: the one definition per class that the truth
+/// generator's curves (`truth::curve`) are read by, each side computing it from its own model.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Basis {
+    /// The term's change from `from` to `to` of its variable: the training records' 2 and 98 %
+    /// quantiles of it, where the data pin the fitted shape down.
+    Change { from: f64, to: f64 },
+    /// The term's value of largest size over `from`…`to` of its variable, with its sign (a
+    /// reading error over a fixed range of the channel).
+    Largest { from: f64, to: f64 },
+    /// The term's value at `at` of its variable.
+    At { at: f64 },
+    /// A parameter of the class's member (a time, a factor), as is.
+    Parameter,
+}
+
+impl Basis {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Basis::Change { .. } => "change",
+            Basis::Largest { .. } => "largest",
+            Basis::At { .. } => "at",
+            Basis::Parameter => "parameter",
+        }
+    }
+
+    /// The variable's range (`at` for both ends of a point), `None` for a parameter.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        match *self {
+            Basis::Change { from, to } | Basis::Largest { from, to } => Some((from, to)),
+            Basis::At { at } => Some((at, at)),
+            Basis::Parameter => None,
+        }
+    }
+}
+
+/// The [`Basis`] of a fitted class's [`magnitude`].
+pub fn basis(class: ClassId, m: &Model) -> Basis {
+    use ClassId::*;
+    let t = &m.terms;
+    let change = |s: Option<&Shape>| {
+        s.map_or(Basis::Parameter, |s| Basis::Change {
+            from: s.z[0],
+            to: s.z[KNOTS - 1],
+        })
+    };
+    let largest = |(from, to): (f64, f64)| Basis::Largest { from, to };
+    match class {
+        FrictionTemperature
+        | FrictionSlip
+        | FrictionClampLoad
+        | FrictionSlidingAcceleration
+        | FrictionEnergy => {
+            let var = shape_variable(class);
+            change(
+                t.mu.iter()
+                    .flatten()
+                    .find(|(v, _)| Some(*v) == var)
+                    .map(|(_, s)| s),
+            )
+        }
+        FrictionStaticTemperature => change(t.mu_static.as_ref()),
+        SpringTemperature => change(t.spring.as_ref()),
+        KissPointTemperature | KissPointEnergy => change(t.kiss.as_ref().map(|k| &k.1)),
+        SupportConduction => change(t.support.as_ref().map(|s| &s.shape)),
+        ConvectionSpeed => change(t.convection.as_ref().map(|c| &c.shape)),
+        HeatPartition => change(t.partition.as_ref().map(|p| &p.shape)),
+        SensorTorque => largest(TORQUE_READING_RANGE),
+        SensorPosition | ActuatorTransfer => largest(POSITION_READING_RANGE),
+        SensorTemperature => largest(TEMPERATURE_READING_RANGE),
+        FrictionSurfaceTemperature if t.surface.is_some() => Basis::At {
+            at: SURFACE_REFERENCE_W,
+        },
+        _ => Basis::Parameter,
+    }
+}
+
+/// A gain-and-offset reading error's value of largest size over `range` (ends: it is straight).
+fn largest_gain_error(g: Option<GainOffset>, reference: f64, range: (f64, f64)) -> f64 {
+    g.map_or(0.0, |g| {
+        super::terms::largest_signed(
+            [range.0, range.1]
+                .into_iter()
+                .map(|v| g.apply(v, reference) - v),
+        )
+    })
+}
+
+/// Magnitude of a fitted class term with its unit, by its [`basis`]: the change over the
+/// training range of its variable for shapes (relative for multipliers, mm for kiss-point
+/// shifts), a reading error over a fixed range for sensors, the member's parameter otherwise.
 pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
     use ClassId::*;
     let t = &m.terms;
@@ -554,18 +650,26 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
             "share of the plate's friction heat moved to the disk over the power range",
         ),
         ActuatorLag => (m.p.actuator.tau_s, "s"),
-        ActuatorTransfer => (t.transfer.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
+        ActuatorTransfer => (
+            largest_gain_error(t.transfer, X_REF_MM, POSITION_READING_RANGE),
+            "mm, bearing minus measured position, largest over 0…6 mm",
+        ),
         SensorTorque => (
-            t.torque_sensor.map_or(0.0, |g| g.gain - 1.0),
-            "relative gain",
+            largest_gain_error(t.torque_sensor, 0.0, TORQUE_READING_RANGE),
+            "N·m, largest reading error over 0…100 N·m",
         ),
         SensorTorqueSkew => (t.torque_skew_s, "s"),
         SensorTemperatureLag => (t.temp_lag_s, "s"),
         SensorTemperature => (
-            t.temp_sensor.map_or(0.0, |g| g.largest_error(20.0, 250.0)),
+            t.temp_sensor.map_or(0.0, |g| {
+                g.largest_signed_error(TEMPERATURE_READING_RANGE.0, TEMPERATURE_READING_RANGE.1)
+            }),
             "K, largest reading error over 20…250 °C",
         ),
-        SensorPosition => (t.pos_sensor.map_or(0.0, |g| g.gain - 1.0), "relative gain"),
+        SensorPosition => (
+            largest_gain_error(t.pos_sensor, X_REF_MM, POSITION_READING_RANGE),
+            "mm, largest reading error over 0…6 mm",
+        ),
         FrictionSurfaceTemperature if t.surface.is_some() => (
             t.surface.map_or(0.0, |s| s.rise.eval(SURFACE_REFERENCE_W)),
             "K, steady surface temperature rise at 30 kW",
@@ -761,6 +865,43 @@ mod tests {
         let mut loose = fit.clone();
         loose.std_err[2] = f64::INFINITY;
         assert_eq!(magnitude_ci95(c, &knots, &m, &loose), None);
+    }
+
+    #[test]
+    fn a_gain_and_offset_magnitude_is_the_largest_reading_error_over_its_range() {
+        let mut m = Model::nominal(crate::model::params::Params::default());
+        // measured = T + offset + (gain − 1)·T: −1 N·m at 0, +4 N·m at 100 N·m.
+        m.terms.torque_sensor = Some(GainOffset {
+            gain: 1.05,
+            offset: -1.0,
+        });
+        let (mag, unit) = magnitude(ClassId::SensorTorque, &m);
+        assert!((mag - 4.0).abs() < 1e-12, "{mag}");
+        assert!(unit.starts_with("N·m"));
+        assert_eq!(
+            basis(ClassId::SensorTorque, &m),
+            Basis::Largest {
+                from: 0.0,
+                to: 100.0
+            }
+        );
+        m.terms.torque_sensor = Some(GainOffset {
+            gain: 0.99,
+            offset: -1.5,
+        });
+        assert!((magnitude(ClassId::SensorTorque, &m).0 + 2.5).abs() < 1e-12);
+        // A shape's change is over its knots' range.
+        let s = Shape {
+            z: [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7],
+            v: [0.0, 0.01, 0.02, 0.03, 0.05, 0.06, 0.08],
+        };
+        m.terms.kiss = Some((Variable::FrictionEnergy, s));
+        assert_eq!(magnitude(ClassId::KissPointEnergy, &m), (0.08, "mm"));
+        assert_eq!(
+            basis(ClassId::KissPointEnergy, &m),
+            Basis::Change { from: 0.1, to: 0.7 }
+        );
+        assert_eq!(basis(ClassId::ActuatorLag, &m), Basis::Parameter);
     }
 
     #[test]

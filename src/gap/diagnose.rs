@@ -801,6 +801,7 @@ fn class_finding(
         magnitude: mag,
         magnitude_ci95,
         unit,
+        magnitude_basis: classfit::basis(c.class, &c.model),
         range_warning,
         shape: classfit::shape_points(c.class, &c.model),
         parameters,

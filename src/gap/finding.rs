@@ -24,6 +24,8 @@ pub struct ClassFinding {
     pub magnitude: f64,
     pub magnitude_ci95: (f64, f64),
     pub unit: &'static str,
+    /// What the magnitude is measured over (the variable's range, or a parameter).
+    pub magnitude_basis: crate::gap::classfit::Basis,
     /// When the magnitude lies outside the documented range of the class's library member:
     /// by how much (text), else `None`.
     pub range_warning: Option<String>,

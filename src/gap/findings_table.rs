@@ -65,6 +65,11 @@ pub struct FindingRow {
     pub magnitude: Option<f64>,
     pub magnitude_ci95: Option<(f64, f64)>,
     pub magnitude_unit: Option<String>,
+    /// What the magnitude is measured over: `change` (of the term from `magnitude_from` to
+    /// `magnitude_to` of its variable), `largest` (its value of largest size over that range),
+    /// `at` (its value at that point) or `parameter`.
+    pub magnitude_basis: Option<String>,
+    pub magnitude_range: Option<(f64, f64)>,
     pub share_pct: Option<f64>,
     /// The validation gap above the noise floor closed by the diagnosed model (%).
     pub gap_closed_pct: Option<f64>,
@@ -104,6 +109,8 @@ pub fn rows(d: &Diagnosis) -> Vec<FindingRow> {
                     magnitude: Some(c.magnitude),
                     magnitude_ci95: Some(c.magnitude_ci95),
                     magnitude_unit: Some(c.unit.into()),
+                    magnitude_basis: Some(c.magnitude_basis.as_str().into()),
+                    magnitude_range: c.magnitude_basis.range(),
                     share_pct: Some(c.share_pct),
                     detail,
                     ..common.clone()
@@ -174,6 +181,9 @@ pub fn schema() -> SchemaRef {
         num("magnitude_lo"),
         num("magnitude_hi"),
         text("magnitude_unit", true),
+        text("magnitude_basis", true),
+        num("magnitude_from"),
+        num("magnitude_to"),
         num("share_pct"),
         num("gap_closed_pct"),
         num("unexplained_pct"),
@@ -218,6 +228,9 @@ fn batch(info: &RunInfo, rows: &[FindingRow]) -> Result<RecordBatch, ColumnarErr
         numbers(&|r| r.magnitude_ci95.map(|c| c.0)),
         numbers(&|r| r.magnitude_ci95.map(|c| c.1)),
         strings(&|r| r.magnitude_unit.clone()),
+        strings(&|r| r.magnitude_basis.clone()),
+        numbers(&|r| r.magnitude_range.map(|c| c.0)),
+        numbers(&|r| r.magnitude_range.map(|c| c.1)),
         numbers(&|r| r.share_pct),
         numbers(&|r| r.gap_closed_pct),
         numbers(&|r| r.unexplained_pct),

@@ -115,15 +115,19 @@ impl ReadingInverse {
 impl Reading {
     /// Largest |reading error| over `[lo, hi]` (at the ends and the knots inside).
     pub fn largest_error(&self, lo: f64, hi: f64) -> f64 {
-        self.shape
-            .z
-            .iter()
-            .copied()
-            .filter(|z| *z > lo && *z < hi)
-            .chain([lo, hi])
-            .map(|v| (self.apply(v) - v).abs())
-            .fold(0.0, f64::max)
+        self.largest_signed_error(lo, hi).abs()
     }
+
+    /// The reading error of largest size over `[lo, hi]`, with its sign.
+    pub fn largest_signed_error(&self, lo: f64, hi: f64) -> f64 {
+        let inside = self.shape.z.iter().copied().filter(|z| *z > lo && *z < hi);
+        largest_signed(inside.chain([lo, hi]).map(|v| self.apply(v) - v))
+    }
+}
+
+/// The value of largest size, with its sign (0 for none).
+pub fn largest_signed(values: impl Iterator<Item = f64>) -> f64 {
+    values.fold(0.0, |a: f64, b: f64| if b.abs() > a.abs() { b } else { a })
 }
 
 /// Heat flow to supports at the housing temperature (K/s): s(θ − θ_h) from each clutch disk,

@@ -461,6 +461,17 @@ impl ReadingError<'_> {
     }
 }
 
+/// Where a reading-error class's characteristic part is zero and where it reaches its share of
+/// the magnitude ([`Effect::reading_error`]): (v0, v_ref) in the channel's unit.
+pub fn reading_reference(class: ClassId) -> Option<(f64, f64)> {
+    match class {
+        ClassId::SensorTorque => Some((0.0, 100.0)),
+        ClassId::SensorTemperature => Some((25.0, 200.0)),
+        ClassId::SensorPosition | ClassId::ActuatorTransfer => Some((0.0, 6.0)),
+        _ => None,
+    }
+}
+
 /// z of the clutch temperature.
 #[inline]
 pub fn z_temp(theta: f64) -> f64 {

@@ -16,6 +16,7 @@
 //! over the noise, measured by simulating the records with and without the effect, noise-free.
 //! [`records`] then generates the noisy training and validation CSV records.
 
+pub mod curve;
 pub mod experiments;
 pub mod form;
 pub mod identifiable;

@@ -194,6 +194,13 @@ struct Fx<'a> {
 
 impl<'a> Fx<'a> {
     fn new(effects: &'a [Effect]) -> Fx<'a> {
+        let reading = |e: &'a Effect| match e.target {
+            Target::Class(c) => inject::reading_reference(c)
+                .map_or_else(ReadingError::default, |(v0, v_ref)| {
+                    e.reading_error(v0, v_ref)
+                }),
+            Target::Outside(_) => ReadingError::default(),
+        };
         let mut f = Fx {
             lag_factor: 1.0,
             ..Fx::default()
@@ -218,11 +225,11 @@ impl<'a> Fx<'a> {
                         f.lag_factor = if e.aux("faster") > 0.5 { 1.0 / k } else { k };
                     }
                     C::ActuatorBacklash => f.backlash = e.magnitude.max(0.0),
-                    C::ActuatorTransfer => f.transfer = e.reading_error(0.0, 6.0),
+                    C::ActuatorTransfer => f.transfer = reading(e),
                     C::SupportConduction => f.support = Some(e),
                     C::ConvectionSpeed => f.conv = Some(e),
                     C::HeatPartition => f.partition = Some(e),
-                    C::SensorTorque => f.s_torque = e.reading_error(0.0, 100.0),
+                    C::SensorTorque => f.s_torque = reading(e),
                     C::SensorTorqueSkew => {
                         let q = if e.magnitude > 0.0 {
                             e.aux("filter_share")
@@ -239,8 +246,8 @@ impl<'a> Fx<'a> {
                         f.tc_delay = delay;
                         f.tc_lag = [s * (m - delay), (1.0 - s) * (m - delay)];
                     }
-                    C::SensorTemperature => f.s_temp = e.reading_error(25.0, 200.0),
-                    C::SensorPosition => f.s_pos = e.reading_error(0.0, 6.0),
+                    C::SensorTemperature => f.s_temp = reading(e),
+                    C::SensorPosition => f.s_pos = reading(e),
                     _ => {}
                 },
                 Target::Outside(o) => match o {

@@ -65,6 +65,14 @@ def test_findings_rows_match_the_report_and_append(ddct, records, tmp_path):
             assert row["class"] == f["class"] and row["variable"] == f["variable"]
             assert row["magnitude"] == f["magnitude"]
             assert [row["magnitude_lo"], row["magnitude_hi"]] == f["magnitude_ci95"]
+            basis = f["magnitude_basis"]
+            assert row["magnitude_basis"] == basis["kind"]
+            ends = {"change": ("from", "to"), "largest": ("from", "to"), "at": ("at", "at")}.get(basis["kind"])
+            if ends:
+                assert [row["magnitude_from"], row["magnitude_to"]] == [basis[ends[0]], basis[ends[1]]]
+                assert row["magnitude_from"] <= row["magnitude_to"]
+            else:
+                assert row["magnitude_from"] is None and row["magnitude_to"] is None
             assert row["share_pct"] == f["share_pct"]
     # A second run appends; pandas and DuckDB read the same rows.
     _diagnose(ddct, train, valid, tmp_path / "again", "--findings", table, "--unit", "rig-1")

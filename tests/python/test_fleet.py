@@ -194,6 +194,30 @@ def test_the_generator_writes_the_planned_evolving_truths_as_mf4(ddct, generated
     for r in rows:
         by_unit.setdefault(r["unit"], []).append(abs(float(r["magnitude"])))
     assert all(m[0] < m[1] for m in by_unit.values()), by_unit
+    # The curve of the term over its variable states the same magnitude: kiss-point wear over
+    # 0…1.2 MJ of friction energy, friction fade over 20…320 °C (the truth's z ranges).
+    for r in rows:
+        curve = json.loads(r["curve"])
+        xs = [x for x, _ in curve]
+        assert xs == sorted(xs) and len(xs) > 100
+        ends = {"kiss_point_energy": (0.0, 1.2), "friction_temperature": (20.0, 320.0)}[r["class"]]
+        from ddct_can.fleet.report import truth_by_basis
+
+        assert truth_by_basis(curve, "change", *ends) == pytest.approx(float(r["magnitude"]), rel=1e-9, abs=1e-12)
+
+
+def test_the_truth_is_read_by_the_findings_definition_of_the_magnitude():
+    from ddct_can.fleet.report import truth_by_basis
+
+    curve = [[x / 10, (x / 10) ** 2 - 3] for x in range(0, 101)]  # y = x² − 3 on 0…10
+    assert truth_by_basis(curve, "change", 2.0, 4.0) == pytest.approx(12.0)
+    assert truth_by_basis(curve, "change", 2.05, 4.05) == pytest.approx(4.05**2 - 2.05**2, abs=0.01)
+    assert truth_by_basis(curve, "at", 1.0, 1.0) == pytest.approx(-2.0)
+    # the value of largest size, with its sign: −3 at 0 beats 1 at 2; 6 at 3 beats −3
+    assert truth_by_basis(curve, "largest", 0.0, 2.0) == pytest.approx(-3.0)
+    assert truth_by_basis(curve, "largest", 0.0, 3.0) == pytest.approx(6.0)
+    assert truth_by_basis(curve, "parameter", 0.0, 1.0) is None
+    assert truth_by_basis(curve, "change", None, 1.0) is None
 
 
 def test_the_fleet_report_opens_in_a_browser(generated, tmp_path):

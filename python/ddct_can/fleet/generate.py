@@ -15,7 +15,9 @@ offset):
 
 Layout: DIR/<unit>/<k>/{train.mf4, validate.mf4, truth.json}, DIR/manifest.csv (unit, log,
 train, operating_hours: the per-unit-and-day pairing of docs/fleet.md) and DIR/truth.csv (the
-truth of every log, for the report).
+truth of every log, for the report: the magnitude as the truth generator states it, and the
+effect's term as a curve over its variable, from which the report reads the truth by the
+diagnosis's definition of each finding's magnitude).
 """
 
 from __future__ import annotations
@@ -85,11 +87,15 @@ def _generate_one(ddct: str, out: Path, s: LogSpec) -> dict:
     for csv_file in d.glob("*.csv"):  # the MF4 logs are the fleet's records
         csv_file.unlink()
     truth = json.loads((d / "truth.json").read_text())
+    curve = next((c for c in truth.get("curves", []) if c["class"] == s.evolution.klass), None)
     return {
         "unit": s.unit, "log": str((d / "validate.mf4").relative_to(out)),
         "train": str((d / "train.mf4").relative_to(out)), "operating_hours": s.hours,
         "evolution": s.evolution.name, "class": s.evolution.klass, "magnitude": truth["magnitude"],
         "magnitude_unit": truth["unit"], "effect_size": truth["effect_size"],
+        # The effect's term over its variable (truth::curve): the truth by the diagnosis's
+        # definition of a magnitude is read off it (report.truth_by_basis).
+        "curve": json.dumps(curve["points"]) if curve else "",
     }
 
 

@@ -8,8 +8,10 @@ true magnitude, over the points where the effect is above 3× the noise, is repo
 
 from __future__ import annotations
 
+import bisect
 import csv
 import html
+import json
 import math
 from collections import Counter, defaultdict
 from pathlib import Path
@@ -52,30 +54,69 @@ _SAME_UNIT = {"1": "1", "relative": "1"}
 
 def comparable(fit_unit: str | None, truth_unit: str | None) -> bool:
     """Whether a fitted magnitude and a true one are on the same scale (both units known and
-    alike; e.g. a sensor's fitted "relative gain" is not the truth's N·m of reading error)."""
+    alike). Used only where the truth has no curve to read by the finding's basis."""
     if not fit_unit or not truth_unit:
         return False
     return _SAME_UNIT.get(fit_unit, fit_unit) == _SAME_UNIT.get(truth_unit, truth_unit)
 
 
+def _interp(points: list[list[float]], x: float) -> float:
+    xs = [p[0] for p in points]
+    if x <= xs[0]:
+        return points[0][1]
+    if x >= xs[-1]:
+        return points[-1][1]
+    i = bisect.bisect_right(xs, x)
+    (x0, y0), (x1, y1) = points[i - 1], points[i]
+    return y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+
+
+def truth_by_basis(points: list[list[float]], basis: str | None, lo: float | None, hi: float | None) -> float | None:
+    """The true magnitude by a finding's definition of it, read off the truth's curve (the
+    effect's term over its variable, written by the truth generator from its own forms):
+    ``change`` — the term's change from lo to hi; ``largest`` — its value of largest size over
+    [lo, hi] with its sign; ``at`` — its value at lo. ``None`` when the basis needs no curve or
+    the range is unknown."""
+    if not points or lo is None or hi is None:
+        return None
+    if basis == "change":
+        return _interp(points, hi) - _interp(points, lo)
+    if basis == "at":
+        return _interp(points, lo)
+    if basis == "largest":
+        inside = [y for x, y in points if lo < x < hi] + [_interp(points, lo), _interp(points, hi)]
+        return max(inside, key=abs)
+    return None
+
+
 def unit_points(rows: list[dict], klass: str, truth: dict[str, dict]) -> list[dict]:
     """Per log of a unit: hours, fitted magnitude and interval of `klass` (None when the log's
-    diagnosis did not find it), the truth where known."""
+    diagnosis did not find it), the truth where known — by the finding's definition of the
+    magnitude where the truth has a curve, else as the truth generator states it."""
     by_log: dict[str, dict] = {}
     for r in rows:
         p = by_log.setdefault(r["log"], {"log": r["log"], "hours": r["operating_hours"], "start": r["start_time"],
-                                         "fit": None, "lo": None, "hi": None, "error": None, "fit_unit": None})
+                                         "fit": None, "lo": None, "hi": None, "error": None, "fit_unit": None,
+                                         "basis": None, "from": None, "to": None})
         if r["kind"] == "error":
             p["error"] = r["error"]
         if r["class"] == klass and r["kind"] in ("class", "sensor"):
-            p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"], fit_unit=r["magnitude_unit"])
+            p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"], fit_unit=r["magnitude_unit"],
+                     basis=r.get("magnitude_basis"), **{"from": r.get("magnitude_from"), "to": r.get("magnitude_to")})
     points = list(by_log.values())
     for p in points:
         t = truth.get(p["log"])
         p["class"] = klass
-        p["truth"] = float(t["magnitude"]) if t and t["class"] == klass else None
         p["effect_size"] = float(t["effect_size"]) if t else None
-        p["truth_unit"] = t["magnitude_unit"] if t else None
+        p["truth"] = p["truth_unit"] = None
+        if not t or t["class"] != klass:
+            continue
+        curve = json.loads(t["curve"]) if t.get("curve") else None
+        by_basis = truth_by_basis(curve, p["basis"], p["from"], p["to"]) if curve else None
+        if by_basis is not None:
+            p["truth"], p["truth_unit"] = by_basis, p["fit_unit"]
+        elif p["fit"] is None or p["basis"] in (None, "parameter"):
+            p["truth"], p["truth_unit"] = float(t["magnitude"]), t["magnitude_unit"]
     return sorted(points, key=lambda p: (p["hours"] is None, p["hours"] or 0.0, p["log"]))
 
 
@@ -87,10 +128,12 @@ def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int, int]:
     hit = n = other_scale = 0
     for pts in points_by_unit.values():
         for p in pts:
-            if p["truth"] is None or (p["effect_size"] or 0.0) < STRONG_EFFECT:
+            if (p["effect_size"] or 0.0) < STRONG_EFFECT:
                 continue
-            if p["fit"] is not None and not comparable(p["fit_unit"], p["truth_unit"]):
+            if p["fit"] is not None and (p["truth"] is None or not comparable(p["fit_unit"], p["truth_unit"])):
                 other_scale += 1
+                continue
+            if p["truth"] is None:
                 continue
             n += 1
             if p["lo"] is not None and p["lo"] <= p["truth"] <= p["hi"]:
