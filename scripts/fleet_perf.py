@@ -7,8 +7,9 @@ on this machine against sequential loops in the same run, on a fleet from `ddct-
   loop, all cores    one `ddct gap diagnose` after the other, each on every core
   LocalCluster       ddct-fleet's default: one single-threaded worker process per core
 
-and the workers' memory (RSS after each finished task) over the campaign. Figures go to stdout
-and DIR/fleet_perf.json; docs/fleet.md quotes them.
+and the workers' memory (RSS after each finished task) over the campaign, whether the loop and the
+cluster found the same, and the fleet report's figures (recovery of the truths). Figures go to
+stdout and DIR/fleet_perf.json; docs/fleet.md quotes them.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ sys.path.insert(0, str(REPO / "python"))
 
 from ddct_can.fleet import campaign  # noqa: E402
 from ddct_can.fleet.generate import generate  # noqa: E402
+from ddct_can.fleet.report import load_findings  # noqa: E402
 
 
 def main() -> int:
@@ -74,11 +76,21 @@ def main() -> int:
     for r in rows.values():
         r["speedup_vs_loop_1_thread"] = round(base / r["wall_s"], 2)
     q = max(1, len(rss) // 4)
+    from ddct_can.fleet.report import render
+
+    def findings(name):
+        rows_ = load_findings(a.out / name)
+        return sorted((r["unit"], r["log"], r["kind"], r["class"] or "", r["magnitude"] or 0.0, r["error"] or "")
+                      for r in rows_)
+
+    _, figures = render(a.out / "LocalCluster", fleet / "truth.csv")
     summary = {
         "logs": len(tasks), "cores": os.cpu_count(), "bootstrap": a.bootstrap, "runs": rows,
         "worker_rss_mib_first_quarter": round(max(m for _, m in rss[:q]), 1),
         "worker_rss_mib_last_quarter": round(max(m for _, m in rss[-q:]), 1),
         "cost_per_log_core_s": round(base / len(tasks), 2),
+        "identical_findings_loop_and_cluster": findings("loop_1_thread") == findings("LocalCluster"),
+        "report": figures,
     }
     a.out.mkdir(parents=True, exist_ok=True)
     (a.out / "fleet_perf.json").write_text(json.dumps(summary, indent=2))

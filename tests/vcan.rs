@@ -171,10 +171,26 @@ fn the_bench_harness_records_a_complete_run_on_vcan() {
             .rposition(|(_, f)| f.standard_id() == Some(id))
     };
     assert!(last(ids::TCU_CLUTCH_CMD) > last(ids::DCT_SENSORS));
-    let (_, missed) = ddct::sim::buslog::latency(&r.frames, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD);
+    // The TCU cycles on its own 10 ms timer, not on DCT_Sensors: whether its answer comes before
+    // the plant's next frame depends on the two timers' phase and User-Mode Linux's noisy tail
+    // (reported, asserted in simulated time elsewhere). That it answered every cycle does not:
+    // between the first and the last DCT_Sensors frame, a ClutchCmd per cycle but for start-up.
+    let (spread, missed) =
+        ddct::sim::buslog::latency(&r.frames, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD);
+    println!("DCT_Sensors → TCU_ClutchCmd: {spread:?}, {missed} not answered before the next");
+    let first = r
+        .frames
+        .iter()
+        .position(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
+        .unwrap();
+    let cycles = n(ids::DCT_SENSORS) - 1;
+    let answers = r.frames[first..=last(ids::DCT_SENSORS).unwrap()]
+        .iter()
+        .filter(|(_, f)| f.standard_id() == Some(ids::TCU_CLUTCH_CMD))
+        .count();
     assert!(
-        missed <= 2,
-        "{missed} DCT_Sensors frames without their TCU_ClutchCmd"
+        answers + 2 >= cycles && answers <= cycles + 1,
+        "{answers} TCU_ClutchCmd frames over {cycles} plant cycles"
     );
     assert_eq!(r.plant.send_errors, 0);
 }

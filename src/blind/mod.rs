@@ -18,6 +18,10 @@
 //!
 //! Trials are deterministic in (seed, index) and independent: [`run`] spreads them over threads.
 
+mod scored;
+
+pub use scored::{Scored, ScoredTruth};
+
 use crate::gap::class::ClassId;
 use crate::gap::dataset::Dataset;
 use crate::gap::diagnose::{diagnose, DiagnoseOptions};
@@ -34,6 +38,8 @@ use std::time::Instant;
 pub struct TrialResult {
     pub index: usize,
     pub truth: Truth,
+    /// The truth's label ([`Truth::label`]).
+    pub label: String,
     /// Labels of every finding, in order.
     pub findings: Vec<String>,
     /// Named classes with their ambiguity sets (the class first).
@@ -146,6 +152,7 @@ pub fn score(
     let mut r = TrialResult {
         index,
         truth: truth.clone(),
+        label: truth.label(),
         findings: findings.iter().map(Finding::label).collect(),
         named: named.clone(),
         first,
@@ -219,10 +226,10 @@ pub fn run_trial(seed: u64, index: usize, nominal: &Params, threads: usize) -> T
     r
 }
 
-/// The indices among 0..`trials` whose kind is in `kinds` (every index when `kinds` is empty):
-/// a subset of a run is the same trials as in the whole run.
-pub fn indices(seed: u64, trials: usize, kinds: &[TruthKind]) -> Vec<usize> {
-    (0..trials)
+/// The indices among `first`..`first + trials` whose kind is in `kinds` (every index when
+/// `kinds` is empty): a subset of a run is the same trials as in the whole run.
+pub fn indices(seed: u64, first: usize, trials: usize, kinds: &[TruthKind]) -> Vec<usize> {
+    (first..first + trials)
         .filter(|&i| kinds.is_empty() || kinds.contains(&truth::kind_of(seed, i).0))
         .collect()
 }
@@ -291,8 +298,8 @@ fn median(v: &[f64]) -> f64 {
 }
 
 impl Rate {
-    pub fn of(rs: &[&TrialResult]) -> Rate {
-        let correct: Vec<&&TrialResult> = rs.iter().filter(|r| r.correct).collect();
+    pub fn of(rs: &[&Scored]) -> Rate {
+        let correct: Vec<&&Scored> = rs.iter().filter(|r| r.correct).collect();
         let ambiguous = rs.iter().filter(|r| r.ambiguous).count();
         Rate {
             n: rs.len(),
@@ -381,22 +388,21 @@ pub struct Summary {
 pub const DETECT_EDGES: [f64; 9] = [0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 30.0, f64::INFINITY];
 
 /// Summarises results.
-pub fn summarize(results: &[TrialResult]) -> Summary {
-    let of_kind = |k: TruthKind| -> Vec<&TrialResult> {
-        results.iter().filter(|r| r.truth.kind == k).collect()
-    };
-    let class_trials: Vec<&TrialResult> = results
+pub fn summarize(results: &[Scored]) -> Summary {
+    let of_kind =
+        |k: TruthKind| -> Vec<&Scored> { results.iter().filter(|r| r.truth.kind == k).collect() };
+    let class_trials: Vec<&Scored> = results
         .iter()
         .filter(|r| matches!(r.truth.kind, TruthKind::Class | TruthKind::Sensor))
         .collect();
-    let group = |key: &dyn Fn(&TrialResult) -> String| grouped(&class_trials, key);
+    let group = |key: &dyn Fn(&Scored) -> String| grouped(&class_trials, key);
     let by_band = group(&|r| r.truth.band.as_str().to_string());
     let nominal = of_kind(TruthKind::Nominal);
     let outside = of_kind(TruthKind::Outside);
     let pairs = of_kind(TruthKind::Pair);
     let attributed = outside.iter().filter(|r| !r.correct).count();
     let both = pairs.iter().filter(|r| r.correct).count();
-    let detectable: Vec<&TrialResult> = pairs
+    let detectable: Vec<&Scored> = pairs
         .iter()
         .copied()
         .filter(|r| r.truth.effect_sizes.iter().all(|e| *e >= 1.0))
@@ -409,7 +415,7 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
             / results.len().max(1) as f64,
         by_kind: rates_by_kind(results),
         class_trials: Rate::of(&class_trials),
-        by_class: group(&|r| r.truth.label()),
+        by_class: group(&|r| r.label.clone()),
         by_band,
         by_raw_band: group(&|r| Band::of(r.truth.raw_effect_size).as_str().to_string()),
         by_family: group(&|r| {
@@ -447,10 +453,10 @@ pub fn summarize(results: &[TrialResult]) -> Summary {
 
 /// Accuracy per kind of truth (no gap reduction for nominal and outside truths: nothing to
 /// shrink, no gap was put in or none is attributable).
-fn rates_by_kind(results: &[TrialResult]) -> BTreeMap<String, Rate> {
+fn rates_by_kind(results: &[Scored]) -> BTreeMap<String, Rate> {
     let mut by_kind = BTreeMap::new();
     for k in TruthKind::ALL {
-        let v: Vec<&TrialResult> = results.iter().filter(|r| r.truth.kind == k).collect();
+        let v: Vec<&Scored> = results.iter().filter(|r| r.truth.kind == k).collect();
         if !v.is_empty() {
             let mut r = Rate::of(&v);
             if matches!(k, TruthKind::Nominal | TruthKind::Outside) {
@@ -464,11 +470,8 @@ fn rates_by_kind(results: &[TrialResult]) -> BTreeMap<String, Rate> {
 }
 
 /// Accuracy of `trials` grouped by `key`.
-fn grouped(
-    trials: &[&TrialResult],
-    key: &dyn Fn(&TrialResult) -> String,
-) -> BTreeMap<String, Rate> {
-    let mut m: BTreeMap<String, Vec<&TrialResult>> = BTreeMap::new();
+fn grouped(trials: &[&Scored], key: &dyn Fn(&Scored) -> String) -> BTreeMap<String, Rate> {
+    let mut m: BTreeMap<String, Vec<&Scored>> = BTreeMap::new();
     for r in trials {
         m.entry(key(r)).or_default().push(r);
     }
@@ -476,12 +479,12 @@ fn grouped(
 }
 
 /// Counts of first findings per hidden truth (pairs in one row).
-fn confusion(results: &[TrialResult]) -> BTreeMap<String, BTreeMap<String, usize>> {
+fn confusion(results: &[Scored]) -> BTreeMap<String, BTreeMap<String, usize>> {
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
     for r in results {
         let row = match r.truth.kind {
             TruthKind::Pair => "pair".to_string(),
-            _ => r.truth.label(),
+            _ => r.label.clone(),
         };
         *confusion
             .entry(row)
@@ -493,11 +496,11 @@ fn confusion(results: &[TrialResult]) -> BTreeMap<String, BTreeMap<String, usize
 }
 
 /// Accuracy of the class and sensor trials per bin of effect size ([`DETECT_EDGES`]).
-fn detectability(class_trials: &[&TrialResult]) -> Vec<DetectBin> {
+fn detectability(class_trials: &[&Scored]) -> Vec<DetectBin> {
     DETECT_EDGES
         .windows(2)
         .map(|w| {
-            let v: Vec<&&TrialResult> = class_trials
+            let v: Vec<&&Scored> = class_trials
                 .iter()
                 .filter(|r| r.truth.effect_size >= w[0] && r.truth.effect_size < w[1])
                 .collect();
@@ -518,11 +521,11 @@ fn detectability(class_trials: &[&TrialResult]) -> Vec<DetectBin> {
 
 /// The acceptance criteria of issue 17 with their values.
 fn acceptance(
-    results: &[TrialResult],
+    results: &[Scored],
     by_band: &BTreeMap<String, Rate>,
-    nominal: &[&TrialResult],
-    outside: &[&TrialResult],
-    detectable: &[&TrialResult],
+    nominal: &[&Scored],
+    outside: &[&Scored],
+    detectable: &[&Scored],
 ) -> Vec<Criterion> {
     let band_rate = |b: Band| -> (f64, usize) {
         by_band
@@ -604,7 +607,7 @@ fn f1(v: f64) -> String {
 }
 
 /// The report as text: one line per trial, the tables, the confusion matrix, the criteria.
-pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
+pub fn render_text(results: &[Scored], s: &Summary) -> String {
     let mut o = String::new();
     trial_lines(&mut o, results);
     rate_tables(&mut o, s);
@@ -621,7 +624,7 @@ pub fn render_text(results: &[TrialResult], s: &Summary) -> String {
 }
 
 /// One line per trial: its truth, sizes and band, the first finding and whether it was right.
-fn trial_lines(o: &mut String, results: &[TrialResult]) {
+fn trial_lines(o: &mut String, results: &[Scored]) {
     let _ = writeln!(
         o,
         "{:>4}  {:<8} {:<44} {:<16} {:>7} {:>7} {:<4} {:<28} {:>4} {:>7}",
@@ -629,7 +632,7 @@ fn trial_lines(o: &mut String, results: &[TrialResult]) {
     );
     for r in results {
         let t = &r.truth;
-        let mut label = t.label();
+        let mut label = r.label.clone();
         if t.variants.only_req1 {
             label.push_str(" [req1]");
         }

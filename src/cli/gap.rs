@@ -110,6 +110,14 @@ pub struct BlindArgs {
     /// nominal, one pair, two outside every class).
     #[arg(long, default_value_t = 40)]
     trials: usize,
+    /// Index of the first trial: `--first 200 --trials 100` runs trials 200–299 of the seed,
+    /// the same as in a run of all of them (chunks of one campaign, see `--merge`).
+    #[arg(long, default_value_t = 0)]
+    first: usize,
+    /// Summarise the trials of these report.json files (chunks of one seed run apart) together
+    /// instead of running trials; a trial index found twice is taken once.
+    #[arg(long, num_args = 1.., value_name = "REPORT_JSON", conflicts_with_all = ["first", "kind", "threads", "params"])]
+    merge: Vec<PathBuf>,
     /// Seed of the hidden truths (kinds, classes, forms, magnitudes, detuning) and of the sensor
     /// noise.
     #[arg(long, default_value_t = 1)]
@@ -638,6 +646,9 @@ fn print_diagnosis(d: &Diagnosis) {
 }
 
 fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
+    if !a.merge.is_empty() {
+        return merge_blind(&a);
+    }
     if a.trials == 0 {
         bail!("--trials must be at least 1");
     }
@@ -649,12 +660,13 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
     let correct = std::sync::atomic::AtomicUsize::new(0);
     let kinds: Vec<TruthKind> = a.kind.iter().map(|k| (*k).into()).collect();
-    let indices = blind::indices(a.seed, a.trials, &kinds);
+    let indices = blind::indices(a.seed, a.first, a.trials, &kinds);
     if indices.is_empty() {
         bail!(
-            "no trial of the kinds {:?} among {} trials",
+            "no trial of the kinds {:?} among the {} trials from {}",
             a.kind,
-            a.trials
+            a.trials,
+            a.first
         );
     }
     let pb = super::bar(indices.len() as u64, "trials");
@@ -665,25 +677,103 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         pb.set_message(format!(", {c} correct"));
     });
     pb.finish_and_clear();
-    let secs = started.elapsed().as_secs_f64();
-    let summary = blind::summarize(&results);
-    let mut text = blind::render_text(&results, &summary);
+    let trials = results
+        .iter()
+        .map(serde_json::to_value)
+        .collect::<Result<Vec<_>, _>>()?;
+    let run = BlindRun {
+        seed: a.seed,
+        seconds: started.elapsed().as_secs_f64(),
+        how: format!("on {threads} thread(s)"),
+        extra: serde_json::json!({ "threads": threads, "first": a.first }),
+    };
+    write_blind(&a, &run, trials)
+}
+
+/// How a blind report's trials were run.
+struct BlindRun {
+    seed: u64,
+    seconds: f64,
+    how: String,
+    /// More top-level fields of report.json.
+    extra: serde_json::Value,
+}
+
+/// `--merge`: the trials of several report.json files (chunks of one seed run apart, e.g. by
+/// `ddct-fleet blind` on a Dask cluster) summarised together, as one run of them would be.
+fn merge_blind(a: &BlindArgs) -> anyhow::Result<ExitCode> {
+    let mut seed = None;
+    let mut seconds = 0.0;
+    let mut by_index = std::collections::BTreeMap::new();
+    for file in &a.merge {
+        let text =
+            std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a blind report (JSON)", file.display()))?;
+        let s = v["seed"]
+            .as_u64()
+            .with_context(|| format!("{}: no \"seed\"", file.display()))?;
+        if *seed.get_or_insert(s) != s {
+            bail!(
+                "{}: seed {s}, the other reports have {}: trials of different seeds do not merge",
+                file.display(),
+                seed.unwrap_or(s)
+            );
+        }
+        seconds += v["seconds"].as_f64().unwrap_or(0.0);
+        let trials = v["trials"]
+            .as_array()
+            .with_context(|| format!("{}: no \"trials\" array", file.display()))?;
+        for (k, t) in trials.iter().enumerate() {
+            let scored = blind::Scored::from_json(t)
+                .with_context(|| format!("{}: trial {k} is not a scored trial", file.display()))?;
+            by_index.entry(scored.index).or_insert_with(|| t.clone());
+        }
+    }
+    let run = BlindRun {
+        seed: seed.unwrap_or(a.seed),
+        seconds,
+        how: format!("merged from {} report(s)", a.merge.len()),
+        extra: serde_json::json!({
+            "merged_from": a.merge.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
+        }),
+    };
+    write_blind(a, &run, by_index.into_values().collect())
+}
+
+/// Summarises `trials` (report.json's array) and writes the text, JSON and figure.
+fn write_blind(
+    a: &BlindArgs,
+    run: &BlindRun,
+    trials: Vec<serde_json::Value>,
+) -> anyhow::Result<ExitCode> {
+    let scored = trials
+        .iter()
+        .map(blind::Scored::from_json)
+        .collect::<Result<Vec<_>, _>>()?;
+    let summary = blind::summarize(&scored);
+    let mut text = blind::render_text(&scored, &summary);
     text.push_str(&format!(
-        "{} trials in {secs:.0} s on {threads} thread(s), seed {}\n",
-        results.len(),
-        a.seed
+        "{} trials in {:.0} s {}, seed {}\n",
+        scored.len(),
+        run.seconds,
+        run.how,
+        run.seed
     ));
-    let json = serde_json::to_string_pretty(&serde_json::json!({
-        "seed": a.seed,
-        "trials": results,
+    let mut json = serde_json::json!({
+        "seed": run.seed,
+        "trials": trials,
         "summary": summary,
-        "seconds": secs,
-        "threads": threads,
+        "seconds": run.seconds,
         "skipped_classes": truth::inject::skipped_classes()
             .iter()
             .map(|(c, why)| serde_json::json!({"class": c, "reason": why}))
             .collect::<Vec<_>>(),
-    }))?;
+    });
+    if let (Some(o), Some(extra)) = (json.as_object_mut(), run.extra.as_object()) {
+        o.extend(extra.clone());
+    }
+    let json = serde_json::to_string_pretty(&json)?;
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for (name, body) in [

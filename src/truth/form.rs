@@ -7,7 +7,9 @@ use super::rng::Xoshiro;
 use std::fmt;
 
 /// Families of functional forms.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Family {
     /// Monotone cubic Hermite spline (Fritsch–Carlson slopes) through 3–6 random knots.

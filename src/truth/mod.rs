@@ -39,7 +39,9 @@ use std::fmt;
 pub use identifiable::DETUNE;
 
 /// What a truth is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum TruthKind {
     /// Detuned baseline, no effect.
@@ -80,7 +82,9 @@ impl fmt::Display for TruthKind {
 }
 
 /// Magnitude band: effect size over the noise.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub enum Band {
     #[serde(rename = "<1")]
     Below1,
@@ -117,7 +121,7 @@ impl fmt::Display for Band {
 }
 
 /// Variants of the records.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Variants {
     /// Only `x_to1_req_mm` is logged (the `x_to2_req_mm` column is dropped).
     pub only_req1: bool,

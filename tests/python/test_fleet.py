@@ -255,3 +255,36 @@ def test_logs_and_findings_behind_urls_go_through_fsspec(ddct, fleet, tmp_path):
     assert (s["ran"], s["errors"]) == (1, 0), s
     rows = _findings(out)
     assert rows and rows[0]["log"].endswith(logs[1].name) and rows[0]["kind"] != "error", rows
+
+
+def test_blind_trials_in_chunks_on_the_cluster_summarise_as_one_run(ddct, tmp_path):
+    """`ddct-fleet blind` cuts the trials of a seed into chunks (Dask tasks) and merges them:
+    the same trials and summary as one `ddct gap blind` of them; a rerun runs nothing."""
+    lib.run([ddct, "gap", "blind", "--trials", 3, "--seed", 5, "--out", tmp_path / "one"])
+    out = tmp_path / "fleet"
+    summary = json.loads(_fleet(["blind", "--trials", 3, "--chunk", 2, "--seed", 5, "--out", out, "--json"]).stdout)
+    assert summary["trials"] == 3 and summary["ran"] == 3 and summary["chunks"] == 2
+    assert summary["failed_chunks"] == 0 and "Dask" in summary["on"]
+    one = json.loads((tmp_path / "one/report.json").read_text())
+    merged = json.loads((out / "report.json").read_text())
+    assert len(merged["merged_from"]) == 2
+
+    def timeless(trials):
+        return [{k: v for k, v in t.items() if k != "seconds"} for t in trials]
+
+    assert timeless(merged["trials"]) == timeless(one["trials"])
+    assert {k: v for k, v in merged["summary"].items() if k != "mean_seconds_per_trial"} == \
+        {k: v for k, v in one["summary"].items() if k != "mean_seconds_per_trial"}
+    again = json.loads(_fleet(["blind", "--trials", 3, "--chunk", 2, "--seed", 5, "--out", out, "--json",
+                               "--sequential"]).stdout)
+    assert again["ran"] == 0 and again["trials"] == 3
+    # Reports of another seed, or not reports at all, do not merge: the file is named.
+    chunk = next((out / "chunks").iterdir()) / "report.json"
+    other = json.loads(chunk.read_text())
+    other["seed"] = 6
+    (tmp_path / "seed6.json").write_text(json.dumps(other))
+    p = lib.run([ddct, "gap", "blind", "--merge", chunk, tmp_path / "seed6.json"], check=False)
+    assert p.returncode != 0 and "seed6.json" in p.stderr and "seed" in p.stderr, p.stderr
+    (tmp_path / "junk.json").write_text("{\"seed\": 5, \"trials\": [{\"index\": 1}]}")
+    p = lib.run([ddct, "gap", "blind", "--merge", chunk, tmp_path / "junk.json"], check=False)
+    assert p.returncode != 0 and "junk.json" in p.stderr and "trial 0" in p.stderr, p.stderr

@@ -3,6 +3,7 @@
     ddct-fleet diagnose DIR_OR_MANIFEST --out FINDINGS_DIR [--scheduler tcp://HOST:8786]
     ddct-fleet generate --out DIR [--units 20 --logs 10 --minutes 10]
     ddct-fleet report FINDINGS_DIR --out report.html [--truth DIR/truth.csv]
+    ddct-fleet blind --trials 10000 --out DIR [--chunk 20] [--seed 1] [--scheduler tcp://HOST:8786]
 
 Without `--scheduler`, `diagnose` starts a LocalCluster on this machine (one single-threaded
 worker process per core); with one, it runs unchanged on that cluster (the workers need the ddct
@@ -122,6 +123,54 @@ def cmd_report(a) -> int:
     return 0
 
 
+def cmd_blind(a) -> int:
+    from . import blind
+
+    ddct = _ddct_binary(a.ddct)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        cs = blind.chunks(a.trials, a.chunk)
+    except ValueError as e:
+        raise SystemExit(f"ddct-fleet: {e}")
+    t0 = time.monotonic()
+    if a.sequential:
+        results = blind.run(cs, ddct, a.seed, out, a.threads)
+        where = "a sequential loop"
+    else:
+        client, cluster = _client(a.scheduler, a.workers)
+        try:
+            where = f"Dask ({client.scheduler.address}, {len(client.scheduler_info()['workers'])} workers)"
+            results = blind.run(cs, ddct, a.seed, out, a.threads, client)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    wall = time.monotonic() - t0
+    failed = [r for r in results if r["status"] == "error"]
+    for r in failed:
+        print(f"ddct-fleet: chunk from trial {r['first']} failed: {r['error']}", file=sys.stderr)
+    report = blind.merge(ddct, cs, out)
+    s = report["summary"]
+    ran = sum(c.trials for c in cs) - sum(c.trials for c in cs if any(
+        r["first"] == c.first and r["status"] == "done before" for r in results))
+    summary = {
+        "trials": s["trials"], "ran": ran, "chunks": len(cs), "failed_chunks": len(failed),
+        "wall_s": round(wall, 3), "trials_per_min": round(60 * ran / wall, 2) if wall > 0 and ran else None,
+        "on": where, "out": str(out), "errors": s["errors"],
+        "acceptance": [{k: c[k] for k in ("name", "value_pct", "n", "goal_pct", "met")} for c in s["acceptance"]],
+    }
+    if a.json:
+        print(json.dumps(summary))
+    else:
+        print(f"{s['trials']} trials ({ran} run now, {len(failed)} chunk(s) failed) in {wall:.1f} s on {where}; "
+              f"report in {out}/report.txt")
+        for c in summary["acceptance"]:
+            value = "–" if c["value_pct"] is None else f"{c['value_pct']:.1f} %"
+            print(f"  {'met ' if c['met'] else 'NOT '} {c['name']}: {value} of {c['n']} (goal {c['goal_pct']:g} %)")
+    return 1 if failed else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="ddct-fleet", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -154,6 +203,19 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--truth", help="the fleet's truth.csv (from `ddct-fleet generate`): overlaid and scored")
     r.add_argument("--json", action="store_true", help="the figures as JSON")
     r.set_defaults(run=cmd_report)
+    b = sub.add_parser("blind", help="`ddct gap blind` trials in chunks on the cluster, summarised together")
+    b.add_argument("--trials", type=int, required=True, help="trials of the seed, 0…TRIALS−1")
+    b.add_argument("--chunk", type=int, default=20, help="trials per task (default 20)")
+    b.add_argument("--seed", type=int, default=1, help="seed of the hidden truths (default 1)")
+    b.add_argument("--out", required=True, help="directory: chunks/<first>/report.json, then the merged "
+                                                "report.txt, report.json and detectability.svg")
+    b.add_argument("--scheduler", help="address of a running Dask scheduler (default: a LocalCluster here)")
+    b.add_argument("--workers", type=int, help="LocalCluster worker processes (default: the cores)")
+    b.add_argument("--threads", type=int, default=1, help="threads of each chunk's ddct (default 1; 0: every core)")
+    b.add_argument("--sequential", action="store_true", help="no Dask: one chunk after the other")
+    b.add_argument("--ddct", help="the ddct binary (default: DDCT_BIN, target/release/ddct, PATH)")
+    b.add_argument("--json", action="store_true", help="the summary as JSON")
+    b.set_defaults(run=cmd_blind)
     a = p.parse_args(argv)
     return a.run(a)
 

@@ -120,12 +120,13 @@ def unit_points(rows: list[dict], klass: str, truth: dict[str, dict]) -> list[di
     return sorted(points, key=lambda p: (p["hours"] is None, p["hours"] or 0.0, p["log"]))
 
 
-def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int, int]:
+def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int, int, dict[str, list[int]]]:
     """(points whose interval holds the truth, strong points, strong points whose fitted and
-    true magnitudes are on different scales), over points with a known truth whose effect is at
-    least STRONG_EFFECT × the noise. A point whose class was not found counts as missed; one on
-    another scale counts apart, neither hit nor missed."""
+    true magnitudes are on different scales, [hit, strong] per class), over points with a known
+    truth whose effect is at least STRONG_EFFECT × the noise. A point whose class was not found
+    counts as missed; one on another scale counts apart, neither hit nor missed."""
     hit = n = other_scale = 0
+    by_class: dict[str, list[int]] = defaultdict(lambda: [0, 0])
     for pts in points_by_unit.values():
         for p in pts:
             if (p["effect_size"] or 0.0) < STRONG_EFFECT:
@@ -136,9 +137,11 @@ def recovery(points_by_unit: dict[str, list[dict]]) -> tuple[int, int, int]:
             if p["truth"] is None:
                 continue
             n += 1
+            by_class[p["class"]][1] += 1
             if p["lo"] is not None and p["lo"] <= p["truth"] <= p["hi"]:
                 hit += 1
-    return hit, n, other_scale
+                by_class[p["class"]][0] += 1
+    return hit, n, other_scale, dict(by_class)
 
 
 def outliers(latest: dict[str, tuple[str, float]]) -> list[tuple[str, str, float]]:
@@ -221,10 +224,10 @@ def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict
     counts = Counter((r["kind"], r["class"] or r["subsystem"] or "") for r in rows if r["kind"] != "error")
     points_by_unit, latest = {}, {}
     for unit, urows in sorted(by_unit.items()):
-        # The class the unit's diagnoses name most, else the one its truth names (a unit whose
-        # effect was never found still gets its timeline: the truth and the missing fits).
-        klass = main_class(urows) or next(
-            (truth[r["log"]]["class"] for r in urows if r["log"] in truth), None)
+        # The class the unit's truth names (the effect the report must recover: a unit whose
+        # effect was never found still gets its timeline, the truth and the missing fits), else
+        # the class its diagnoses name most.
+        klass = next((truth[r["log"]]["class"] for r in urows if r["log"] in truth), None) or main_class(urows)
         if klass is None:
             continue
         pts = unit_points(urows, klass, truth)
@@ -232,10 +235,11 @@ def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict
         fitted = [p for p in pts if p["fit"] is not None]
         if fitted:
             latest[unit] = (klass, fitted[-1]["fit"])
-    hit, strong, other_scale = recovery(points_by_unit)
+    hit, strong, other_scale, by_class = recovery(points_by_unit)
     odd = outliers(latest)
     figures = {"logs": len(logs), "units": len(by_unit), "error_logs": len(errors),
                "recovered": hit, "strong_points": strong, "other_scale_points": other_scale,
+               "recovered_by_class": by_class,
                "outliers": [u for u, _, _ in odd]}
     e = html.escape
     out = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>ddct fleet report</title>",
