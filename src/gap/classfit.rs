@@ -267,6 +267,9 @@ pub fn remove(class: ClassId, m: &mut Model, reference: &Model) {
     }
 }
 
+/// Largest torque-sensor offset the fit may take (N·m).
+const SENSOR_TORQUE_OFFSET_MAX_NM: f64 = 50.0;
+
 /// A gain (1 ± `gain_span`) and an offset (± `offset_bound`, solver scale `offset_scale`).
 fn gain_offset(
     class: &str,
@@ -381,7 +384,10 @@ pub fn params(class: ClassId, base: &Model) -> Vec<ParamSpec> {
             vec![ParamSpec::new("actuator_lag.tau_s", tau, tau / 20.0, tau * 20.0, tau).log()]
         }
         ActuatorTransfer => gain_offset(name, 0.3, "offset_mm", 1.0, 0.05),
-        SensorTorque => gain_offset(name, 0.3, "offset_nm", 10.0, 0.5),
+        // The offset's limit is a physical one (a tenth of the engine's ±500 N·m), not the size
+        // of the reading errors seen so far: a fleet's drifting sensor passed 10 N·m and its fit
+        // stuck at the old 10 N·m bound.
+        SensorTorque => gain_offset(name, 0.3, "offset_nm", SENSOR_TORQUE_OFFSET_MAX_NM, 0.5),
         SensorTorqueSkew => vec![ParamSpec::new(
             "sensor_torque_skew.skew_s",
             0.0,
@@ -530,7 +536,7 @@ const POSITION_READING_RANGE: (f64, f64) = (0.0, 6.0);
 const TEMPERATURE_READING_RANGE: (f64, f64) = (20.0, 250.0);
 
 /// What a class's magnitude is measured over: the one definition per class that the truth
-/// generator's curves (`truth::curve`) are read by, each side computing it from its own model.
+/// generator's curves (src/truth/curve.rs) are read by, each side computing it from its own model.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Basis {
