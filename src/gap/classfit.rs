@@ -572,37 +572,60 @@ impl Basis {
     }
 }
 
-/// The [`Basis`] of a fitted class's [`magnitude`].
-pub fn basis(class: ClassId, m: &Model) -> Basis {
+/// The unit of a shape class's magnitude, the change of its fitted shape over the knots (`None`
+/// for the other classes).
+fn change_unit(class: ClassId) -> Option<&'static str> {
     use ClassId::*;
-    let t = &m.terms;
-    let change = |s: Option<&Shape>| {
-        s.map_or(Basis::Parameter, |s| Basis::Change {
-            from: s.z[0],
-            to: s.z[KNOTS - 1],
-        })
-    };
-    let largest = |(from, to): (f64, f64)| Basis::Largest { from, to };
-    match class {
+    Some(match class {
         FrictionTemperature
         | FrictionSlip
         | FrictionClampLoad
         | FrictionSlidingAcceleration
-        | FrictionEnergy => {
-            let var = shape_variable(class);
-            change(
-                t.mu.iter()
-                    .flatten()
-                    .find(|(v, _)| Some(*v) == var)
-                    .map(|(_, s)| s),
-            )
+        | FrictionEnergy
+        | FrictionStaticTemperature
+        | SpringTemperature => "relative",
+        KissPointTemperature | KissPointEnergy => "mm",
+        SupportConduction => "K/s from a clutch disk at the top of θ − θ_h",
+        ConvectionSpeed => "relative convection change over the flywheel-speed range",
+        HeatPartition => {
+            "share of the plate's friction heat moved to the disk over the power range"
         }
-        FrictionStaticTemperature => change(t.mu_static.as_ref()),
-        SpringTemperature => change(t.spring.as_ref()),
-        KissPointTemperature | KissPointEnergy => change(t.kiss.as_ref().map(|k| &k.1)),
-        SupportConduction => change(t.support.as_ref().map(|s| &s.shape)),
-        ConvectionSpeed => change(t.convection.as_ref().map(|c| &c.shape)),
-        HeatPartition => change(t.partition.as_ref().map(|p| &p.shape)),
+        _ => return None,
+    })
+}
+
+/// The fitted shape of a shape class ([`change_unit`]), when its term is set.
+fn change_shape(class: ClassId, t: &super::terms::Terms) -> Option<&Shape> {
+    use ClassId::*;
+    match class {
+        FrictionStaticTemperature => t.mu_static.as_ref(),
+        SpringTemperature => t.spring.as_ref(),
+        KissPointTemperature | KissPointEnergy => t.kiss.as_ref().map(|k| &k.1),
+        SupportConduction => t.support.as_ref().map(|s| &s.shape),
+        ConvectionSpeed => t.convection.as_ref().map(|c| &c.shape),
+        HeatPartition => t.partition.as_ref().map(|p| &p.shape),
+        _ => {
+            let var = shape_variable(class)?;
+            t.mu.iter()
+                .flatten()
+                .find(|(v, _)| *v == var)
+                .map(|(_, s)| s)
+        }
+    }
+}
+
+/// The [`Basis`] of a fitted class's [`magnitude`].
+pub fn basis(class: ClassId, m: &Model) -> Basis {
+    use ClassId::*;
+    let t = &m.terms;
+    if change_unit(class).is_some() {
+        return change_shape(class, t).map_or(Basis::Parameter, |s| Basis::Change {
+            from: s.z[0],
+            to: s.z[KNOTS - 1],
+        });
+    }
+    let largest = |(from, to): (f64, f64)| Basis::Largest { from, to };
+    match class {
         SensorTorque => largest(TORQUE_READING_RANGE),
         SensorPosition | ActuatorTransfer => largest(POSITION_READING_RANGE),
         SensorTemperature => largest(TEMPERATURE_READING_RANGE),
@@ -630,31 +653,10 @@ fn largest_gain_error(g: Option<GainOffset>, reference: f64, range: (f64, f64)) 
 pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
     use ClassId::*;
     let t = &m.terms;
+    if let Some(unit) = change_unit(class) {
+        return (change_shape(class, t).map_or(0.0, Shape::span), unit);
+    }
     match class {
-        FrictionTemperature
-        | FrictionSlip
-        | FrictionClampLoad
-        | FrictionSlidingAcceleration
-        | FrictionEnergy => {
-            let var = shape_variable(class);
-            let s = t.mu.iter().flatten().find(|(v, _)| Some(*v) == var);
-            (s.map_or(0.0, |(_, s)| s.span()), "relative")
-        }
-        FrictionStaticTemperature => (t.mu_static.map_or(0.0, |s| s.span()), "relative"),
-        SpringTemperature => (t.spring.map_or(0.0, |s| s.span()), "relative"),
-        KissPointTemperature | KissPointEnergy => (t.kiss.map_or(0.0, |s| s.1.span()), "mm"),
-        SupportConduction => (
-            t.support.map_or(0.0, |s| s.shape.span()),
-            "K/s from a clutch disk at the top of θ − θ_h",
-        ),
-        ConvectionSpeed => (
-            t.convection.map_or(0.0, |c| c.shape.span()),
-            "relative convection change over the flywheel-speed range",
-        ),
-        HeatPartition => (
-            t.partition.map_or(0.0, |p| p.shape.span()),
-            "share of the plate's friction heat moved to the disk over the power range",
-        ),
         ActuatorLag => (m.p.actuator.tau_s, "s"),
         ActuatorTransfer => (
             largest_gain_error(t.transfer, X_REF_MM, POSITION_READING_RANGE),

@@ -88,16 +88,11 @@ def run(cs: list[Chunk], ddct: str, seed: int, out: Path, threads: int, client=N
             done += 1
             progress(done, len(cs), c, r)
         return results
-    from distributed import as_completed
+    from .campaign import collect
 
     futures = {client.submit(run_chunk, c, ddct, seed, str(out), threads, key=f"blind-{seed}-{c.first}",
                              retries=retries, pure=False): c for c in todo}
-    for fut in as_completed(futures):
-        r = fut.result()
-        results.append(r)
-        done += 1
-        progress(done, len(cs), futures[fut], r)
-    return results
+    return collect(futures, results, len(cs), progress)
 
 
 def merge(ddct: str, cs: list[Chunk], out: Path) -> dict:

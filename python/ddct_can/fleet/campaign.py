@@ -228,8 +228,6 @@ def run_campaign(tasks: list[Task], ddct: str, out_dir: Path, bootstrap: int, th
                  client, retries: int = 3, progress: Callable = _progress) -> list[dict]:
     """The campaign on a Dask client: one task per log, retried when a worker dies; results in
     completion order. Tasks already in the dataset are not submitted."""
-    from distributed import as_completed
-
     done_before = {t.key for t in tasks if storage.exists(result_path(out_dir, t))}
     todo = [t for t in tasks if t.key not in done_before]
     results = [{"key": t.key, "status": "done before", "rows": None, "seconds": 0.0}
@@ -239,12 +237,20 @@ def run_campaign(tasks: list[Task], ddct: str, out_dir: Path, bootstrap: int, th
                       key=f"diagnose-{n}-{t.key}", retries=retries, pure=False): t
         for n, t in enumerate(todo)
     }
+    return collect(futures, results, len(tasks), progress)
+
+
+def collect(futures: dict, results: list, total: int, progress: Callable) -> list:
+    """Appends each future's result to `results` as it completes (`futures`: future → its task,
+    given to `progress` with the count done of `total`); `results`."""
+    from distributed import as_completed
+
     done = len(results)
     for fut in as_completed(futures):
         r = fut.result()
         results.append(r)
         done += 1
-        progress(done, len(tasks), futures[fut], r)
+        progress(done, total, futures[fut], r)
     return results
 
 
