@@ -173,24 +173,35 @@ fn the_bench_harness_records_a_complete_run_on_vcan() {
     assert!(last(ids::TCU_CLUTCH_CMD) > last(ids::DCT_SENSORS));
     // The TCU cycles on its own 10 ms timer, not on DCT_Sensors: whether its answer comes before
     // the plant's next frame depends on the two timers' phase and User-Mode Linux's noisy tail
-    // (reported, asserted in simulated time elsewhere). That it answered every cycle does not:
-    // between the first and the last DCT_Sensors frame, a ClutchCmd per cycle but for start-up.
+    // (reported, asserted in simulated time elsewhere). That it answers every cycle once running
+    // does not: after its first TCU_ClutchCmd, one per plant cycle (±1 for the phase). Its start
+    // may trail the plant's first frame by a few cycles (3 in a fresh-clone CI), at most 10 here.
     let (spread, missed) =
         ddct::sim::buslog::latency(&r.frames, ids::DCT_SENSORS, ids::TCU_CLUTCH_CMD);
     println!("DCT_Sensors → TCU_ClutchCmd: {spread:?}, {missed} not answered before the next");
-    let first = r
+    let started = r
         .frames
         .iter()
-        .position(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
+        .position(|(_, f)| f.standard_id() == Some(ids::TCU_CLUTCH_CMD))
         .unwrap();
-    let cycles = n(ids::DCT_SENSORS) - 1;
-    let answers = r.frames[first..=last(ids::DCT_SENSORS).unwrap()]
-        .iter()
-        .filter(|(_, f)| f.standard_id() == Some(ids::TCU_CLUTCH_CMD))
-        .count();
+    let count = |id, frames: &[(std::time::Duration, CanFrame)]| {
+        frames
+            .iter()
+            .filter(|(_, f)| f.standard_id() == Some(id))
+            .count()
+    };
+    let before = count(ids::DCT_SENSORS, &r.frames[..started]);
     assert!(
-        answers + 2 >= cycles && answers <= cycles + 1,
-        "{answers} TCU_ClutchCmd frames over {cycles} plant cycles"
+        before <= 10,
+        "the TCU's first answer came after {before} plant cycles"
+    );
+    let (cycles, answers) = (
+        count(ids::DCT_SENSORS, &r.frames[started..]),
+        count(ids::TCU_CLUTCH_CMD, &r.frames[started + 1..]),
+    );
+    assert!(
+        answers + 1 >= cycles && answers <= cycles + 1,
+        "{answers} TCU_ClutchCmd frames over {cycles} plant cycles after the TCU's first"
     );
     assert_eq!(r.plant.send_errors, 0);
 }
