@@ -36,39 +36,89 @@ pub fn curve(e: &Effect) -> Option<Curve> {
     let Target::Class(class) = e.target else {
         return None;
     };
-    let (variable, variable_unit, term, lo, hi): (_, _, _, f64, f64) = match class {
-        C::FrictionTemperature | C::FrictionStaticTemperature => {
-            ("temperature", "°C", "relative change of μ", 0.0, 400.0)
-        }
-        C::FrictionSlip => ("slip", "rad/s", "relative change of μ", 0.0, 400.0),
-        C::FrictionClampLoad => ("clamp_load", "N", "relative change of μ", 0.0, 9000.0),
-        C::FrictionEnergy => ("friction_energy", "MJ", "relative change of μ", 0.0, 4.0),
-        C::KissPointTemperature => ("temperature", "°C", "kiss-point shift, mm", 0.0, 400.0),
-        C::KissPointEnergy => ("friction_energy", "MJ", "kiss-point shift, mm", 0.0, 4.0),
-        C::SensorTorque => ("measurement", "N·m", "reading error, N·m", -100.0, 300.0),
-        C::SensorTemperature => ("measurement", "°C", "reading error, K", 0.0, 400.0),
-        C::SensorPosition => ("measurement", "mm", "reading error, mm", 0.0, 9.0),
+    // The variable's z-mapping for a term of (13) or (9) (energies in MJ here, J in the truth's
+    // z); `None` for a reading error.
+    type Z = Option<fn(f64) -> f64>;
+    let energy: fn(f64) -> f64 = |mj| inject::z_energy(mj * 1e6);
+    let (variable, variable_unit, term, lo, hi, z): (_, _, _, f64, f64, Z) = match class {
+        C::FrictionTemperature | C::FrictionStaticTemperature => (
+            "temperature",
+            "°C",
+            "relative change of μ",
+            0.0,
+            400.0,
+            Some(inject::z_temp),
+        ),
+        C::FrictionSlip => (
+            "slip",
+            "rad/s",
+            "relative change of μ",
+            0.0,
+            400.0,
+            Some(inject::z_slip),
+        ),
+        C::FrictionClampLoad => (
+            "clamp_load",
+            "N",
+            "relative change of μ",
+            0.0,
+            9000.0,
+            Some(inject::z_clamp),
+        ),
+        C::FrictionEnergy => (
+            "friction_energy",
+            "MJ",
+            "relative change of μ",
+            0.0,
+            4.0,
+            Some(energy),
+        ),
+        C::KissPointTemperature => (
+            "temperature",
+            "°C",
+            "kiss-point shift, mm",
+            0.0,
+            400.0,
+            Some(inject::z_temp),
+        ),
+        C::KissPointEnergy => (
+            "friction_energy",
+            "MJ",
+            "kiss-point shift, mm",
+            0.0,
+            4.0,
+            Some(energy),
+        ),
+        C::SensorTorque => (
+            "measurement",
+            "N·m",
+            "reading error, N·m",
+            -100.0,
+            300.0,
+            None,
+        ),
+        C::SensorTemperature => ("measurement", "°C", "reading error, K", 0.0, 400.0, None),
+        C::SensorPosition => ("measurement", "mm", "reading error, mm", 0.0, 9.0, None),
         C::ActuatorTransfer => (
             "position",
             "mm",
             "bearing minus measured position, mm",
             0.0,
             9.0,
+            None,
         ),
         _ => return None,
     };
+    let reading = z
+        .is_none()
+        .then(|| inject::reading_reference(class))
+        .flatten()
+        .map(|(v0, v_ref)| e.reading_error(v0, v_ref));
     let value = |x: f64| -> f64 {
-        match class {
-            C::FrictionTemperature | C::FrictionStaticTemperature | C::KissPointTemperature => {
-                e.term(inject::z_temp(x))
-            }
-            C::FrictionSlip => e.term(inject::z_slip(x)),
-            C::FrictionClampLoad => e.term(inject::z_clamp(x)),
-            C::FrictionEnergy | C::KissPointEnergy => e.term(inject::z_energy(x * 1e6)),
-            _ => match inject::reading_reference(class) {
-                Some((v0, v_ref)) => e.reading_error(v0, v_ref).read(x) - x,
-                None => 0.0,
-            },
+        match (z, &reading) {
+            (Some(z), _) => e.term(z(x)),
+            (None, Some(r)) => r.read(x) - x,
+            (None, None) => 0.0,
         }
     };
     let points = (0..POINTS)

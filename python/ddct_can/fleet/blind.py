@@ -80,13 +80,11 @@ def run(cs: list[Chunk], ddct: str, seed: int, out: Path, threads: int, client=N
     """Every chunk, on the Dask client (or in a loop without one); results in completion order."""
     todo = [c for c in cs if not chunk_report(out, c).exists()]
     results = [{"first": c.first, "status": "done before", "seconds": 0.0} for c in cs if c not in todo]
-    done = len(results)
     if client is None:
         for c in todo:
             r = run_chunk(c, ddct, seed, str(out), threads)
             results.append(r)
-            done += 1
-            progress(done, len(cs), c, r)
+            progress(len(results), len(cs), c, r)
         return results
     from .campaign import collect
 
