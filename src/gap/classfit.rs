@@ -543,6 +543,10 @@ pub enum Basis {
     /// The term's change from `from` to `to` of its variable: the training records' 2 and 98 %
     /// quantiles of it, where the data pin the fitted shape down.
     Change { from: f64, to: f64 },
+    /// A multiplier's relative change from `from` to `to` (its quantiles, as for `Change`): the
+    /// term is a factor 1 + s of μ or of the spring load, and its magnitude
+    /// (1 + s(to))/(1 + s(from)) − 1 reads the same whatever level the factor multiplies.
+    Ratio { from: f64, to: f64 },
     /// The term's value of largest size over `from`…`to` of its variable, with its sign (a
     /// reading error over a fixed range of the channel).
     Largest { from: f64, to: f64 },
@@ -556,6 +560,7 @@ impl Basis {
     pub fn as_str(&self) -> &'static str {
         match self {
             Basis::Change { .. } => "change",
+            Basis::Ratio { .. } => "ratio",
             Basis::Largest { .. } => "largest",
             Basis::At { .. } => "at",
             Basis::Parameter => "parameter",
@@ -565,12 +570,17 @@ impl Basis {
     /// The variable's range (`at` for both ends of a point), `None` for a parameter.
     pub fn range(&self) -> Option<(f64, f64)> {
         match *self {
-            Basis::Change { from, to } | Basis::Largest { from, to } => Some((from, to)),
+            Basis::Change { from, to }
+            | Basis::Ratio { from, to }
+            | Basis::Largest { from, to } => Some((from, to)),
             Basis::At { at } => Some((at, at)),
             Basis::Parameter => None,
         }
     }
 }
+
+/// The unit of a multiplier's magnitude ([`Basis::Ratio`]).
+const RELATIVE: &str = "relative";
 
 /// The unit of a shape class's magnitude, the change of its fitted shape over the knots (`None`
 /// for the other classes).
@@ -583,7 +593,7 @@ fn change_unit(class: ClassId) -> Option<&'static str> {
         | FrictionSlidingAcceleration
         | FrictionEnergy
         | FrictionStaticTemperature
-        | SpringTemperature => "relative",
+        | SpringTemperature => RELATIVE,
         KissPointTemperature | KissPointEnergy => "mm",
         SupportConduction => "K/s from a clutch disk at the top of θ − θ_h",
         ConvectionSpeed => "relative convection change over the flywheel-speed range",
@@ -618,10 +628,14 @@ fn change_shape(class: ClassId, t: &super::terms::Terms) -> Option<&Shape> {
 pub fn basis(class: ClassId, m: &Model) -> Basis {
     use ClassId::*;
     let t = &m.terms;
-    if change_unit(class).is_some() {
-        return change_shape(class, t).map_or(Basis::Parameter, |s| Basis::Change {
-            from: s.z[0],
-            to: s.z[KNOTS - 1],
+    if let Some(unit) = change_unit(class) {
+        return change_shape(class, t).map_or(Basis::Parameter, |s| {
+            let (from, to) = (s.z[0], s.z[KNOTS - 1]);
+            if unit == RELATIVE {
+                Basis::Ratio { from, to }
+            } else {
+                Basis::Change { from, to }
+            }
         });
     }
     let largest = |(from, to): (f64, f64)| Basis::Largest { from, to };
@@ -654,7 +668,13 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
     use ClassId::*;
     let t = &m.terms;
     if let Some(unit) = change_unit(class) {
-        return (change_shape(class, t).map_or(0.0, Shape::span), unit);
+        let shape = change_shape(class, t);
+        let m = if unit == RELATIVE {
+            shape.map_or(0.0, |s| (1.0 + s.v[KNOTS - 1]) / (1.0 + s.v[0]) - 1.0)
+        } else {
+            shape.map_or(0.0, Shape::span)
+        };
+        return (m, unit);
     }
     match class {
         ActuatorLag => (m.p.actuator.tau_s, "s"),
@@ -910,6 +930,44 @@ mod tests {
             Basis::Change { from: 0.1, to: 0.7 }
         );
         assert_eq!(basis(ClassId::ActuatorLag, &m), Basis::Parameter);
+    }
+
+    /// A friction multiplier's magnitude is the relative change of the torque it causes from
+    /// the lower end of its range to the upper: the torque with the term over the torque
+    /// without it, at the top, against the same at the bottom.
+    #[test]
+    fn a_multipliers_magnitude_is_the_relative_change_of_the_torque() {
+        use crate::model::effects::{EffectSet, TorqueContext};
+        let p = crate::model::params::Params::default();
+        let mut m = Model::nominal(p);
+        let s = Shape {
+            z: [30.0, 60.0, 100.0, 140.0, 180.0, 220.0, 250.0],
+            v: [0.0, -0.02, -0.04, -0.05, -0.08, -0.10, -0.12],
+        };
+        m.terms.mu[0] = Some((Variable::Temperature, s));
+        let (mag, unit) = magnitude(ClassId::FrictionTemperature, &m);
+        assert_eq!(unit, "relative");
+        assert_eq!(
+            basis(ClassId::FrictionTemperature, &m),
+            Basis::Ratio {
+                from: 30.0,
+                to: 250.0
+            }
+        );
+        let factor = |theta: f64| {
+            let c = TorqueContext::new(5.5, 150.0, theta);
+            let x = super::super::terms::Extra::default();
+            let with = m.terms.torque(&p.clutch, &EffectSet::nominal(), &c, &x);
+            let without = super::super::terms::Terms::default().torque(
+                &p.clutch,
+                &EffectSet::nominal(),
+                &c,
+                &x,
+            );
+            with / without
+        };
+        let expected = factor(250.0) / factor(30.0) - 1.0;
+        assert!((mag - expected).abs() < 1e-12, "{mag} vs {expected}");
     }
 
     #[test]

@@ -66,8 +66,9 @@ pub struct FindingRow {
     pub magnitude_ci95: Option<(f64, f64)>,
     pub magnitude_unit: Option<String>,
     /// What the magnitude is measured over: `change` (of the term from `magnitude_from` to
-    /// `magnitude_to` of its variable), `largest` (its value of largest size over that range),
-    /// `at` (its value at that point) or `parameter`.
+    /// `magnitude_to` of its variable), `ratio` (a multiplier's relative change over that
+    /// range), `largest` (its value of largest size over that range), `at` (its value at that
+    /// point) or `parameter`.
     pub magnitude_basis: Option<String>,
     pub magnitude_range: Option<(f64, f64)>,
     pub share_pct: Option<f64>,

@@ -67,7 +67,7 @@ def test_findings_rows_match_the_report_and_append(ddct, records, tmp_path):
             assert [row["magnitude_lo"], row["magnitude_hi"]] == f["magnitude_ci95"]
             basis = f["magnitude_basis"]
             assert row["magnitude_basis"] == basis["kind"]
-            ends = {"change": ("from", "to"), "largest": ("from", "to"), "at": ("at", "at")}.get(basis["kind"])
+            ends = {"change": ("from", "to"), "ratio": ("from", "to"), "largest": ("from", "to"), "at": ("at", "at")}.get(basis["kind"])
             if ends:
                 assert [row["magnitude_from"], row["magnitude_to"]] == [basis[ends[0]], basis[ends[1]]]
                 assert row["magnitude_from"] <= row["magnitude_to"]

@@ -213,6 +213,8 @@ def test_the_truth_is_read_by_the_findings_definition_of_the_magnitude():
     assert truth_by_basis(curve, "change", 2.0, 4.0) == pytest.approx(12.0)
     assert truth_by_basis(curve, "change", 2.05, 4.05) == pytest.approx(4.05**2 - 2.05**2, abs=0.01)
     assert truth_by_basis(curve, "at", 1.0, 1.0) == pytest.approx(-2.0)
+    # a multiplier 1 + y: 1 + 13 at 4 over 1 + 1 at 2, less one
+    assert truth_by_basis(curve, "ratio", 2.0, 4.0) == pytest.approx(14.0 / 2.0 - 1.0)
     # the value of largest size, with its sign: −3 at 0 beats 1 at 2; 6 at 3 beats −3
     assert truth_by_basis(curve, "largest", 0.0, 2.0) == pytest.approx(-3.0)
     assert truth_by_basis(curve, "largest", 0.0, 3.0) == pytest.approx(6.0)

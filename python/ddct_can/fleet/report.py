@@ -74,13 +74,16 @@ def _interp(points: list[list[float]], x: float) -> float:
 def truth_by_basis(points: list[list[float]], basis: str | None, lo: float | None, hi: float | None) -> float | None:
     """The true magnitude by a finding's definition of it, read off the truth's curve (the
     effect's term over its variable, written by the truth generator from its own forms):
-    ``change`` — the term's change from lo to hi; ``largest`` — its value of largest size over
+    ``change`` — the term's change from lo to hi; ``ratio`` — a multiplier 1 + y's relative
+    change from lo to hi, (1 + y(hi))/(1 + y(lo)) − 1; ``largest`` — its value of largest size over
     [lo, hi] with its sign; ``at`` — its value at lo. ``None`` when the basis needs no curve or
     the range is unknown."""
     if not points or lo is None or hi is None:
         return None
     if basis == "change":
         return _interp(points, hi) - _interp(points, lo)
+    if basis == "ratio":
+        return (1.0 + _interp(points, hi)) / (1.0 + _interp(points, lo)) - 1.0
     if basis == "at":
         return _interp(points, lo)
     if basis == "largest":
