@@ -29,6 +29,7 @@ use super::context::{self, File, Scores};
 use super::dataset::{Col, Dataset};
 use super::events::SegmentOptions;
 use super::finding::{ClassFinding, Finding, OutsideFinding, RecalibrationFinding};
+use super::form_error;
 use super::keys;
 use super::lsq;
 use super::replay::{self, Measured};
@@ -745,11 +746,12 @@ fn class_finding(
     knots: &classfit::Knots,
     ambiguous: &[ClassId],
     excess0: f64,
+    left: f64,
 ) -> Finding {
     let (mag, unit) = classfit::magnitude(c.class, &c.model);
     // The delta method where every parameter the magnitude moves with is identifiable; else
     // the largest relative half-width of the parameters, at most ten times the magnitude.
-    let magnitude_ci95 =
+    let noise_ci95 =
         classfit::magnitude_ci95(c.class, knots, &c.model, &c.fit).unwrap_or_else(|| {
             let ci = c
                 .fit
@@ -761,6 +763,10 @@ fn class_finding(
             let half = (mag.abs() * ci.min(10.0)).max(0.0);
             (mag - half, mag + half)
         });
+    // Widened by the form's error: what the diagnosed model leaves above the floor on the
+    // class's channels against what the class closed.
+    let model_form_rel = form_error::relative(left, c.gain);
+    let magnitude_ci95 = form_error::widen(mag, noise_ci95, model_form_rel);
     let range_warning = c.class.member().and_then(|id| {
         let (v, _) = match classfit::member_from_shape(c.class, &c.model) {
             Some((_, v)) => (v[0], ()),
@@ -800,6 +806,8 @@ fn class_finding(
         share_pct: (100.0 * c.gain / excess0.max(1e-9)).clamp(0.0, 100.0),
         magnitude: mag,
         magnitude_ci95,
+        noise_ci95,
+        model_form_rel,
         unit,
         magnitude_basis: classfit::basis(c.class, &c.model),
         range_warning,
@@ -908,6 +916,7 @@ fn verdict(
     rounds: &[select::Round],
     setup: &Setup,
     sc_rec_v: &Scores,
+    after_val: &Scores,
     ex_rec_all: &[Excess],
     outside: Vec<OutsideFinding>,
     recal_findings: Vec<RecalibrationFinding>,
@@ -937,7 +946,14 @@ fn verdict(
                 .filter(|ch| chans.contains(ch))
                 .collect();
             let (z0, n0) = sc_rec_v.total(&aff);
-            findings.push(class_finding(c, setup.knots, &r.ambiguous, z0 - n0));
+            let (z1, n1) = after_val.total(&aff);
+            findings.push(class_finding(
+                c,
+                setup.knots,
+                &r.ambiguous,
+                z0 - n0,
+                z1 - n1,
+            ));
         }
     }
     // A kept class whose subsystem is still far above its floor explains too little of it to be
@@ -1183,6 +1199,7 @@ fn which(
         &rounds,
         setup,
         sc_rec_v,
+        &after_val,
         ex_rec_all,
         outside,
         recal_findings,

@@ -22,7 +22,14 @@ pub struct ClassFinding {
     /// Magnitude: the largest relative (or absolute, see `unit`) change the fitted term makes
     /// over the operating range of its variable in the records, with a 95 % interval.
     pub magnitude: f64,
+    /// The 95 % interval: the noise's ([`Self::noise_ci95`]) and the form's error
+    /// ([`Self::model_form_rel`]) added in quadrature (`gap::form_error`).
     pub magnitude_ci95: (f64, f64),
+    /// The 95 % interval from the records' noise alone (the delta method).
+    pub noise_ci95: (f64, f64),
+    /// The relative standard deviation of the form's error: √ of what the diagnosed model
+    /// leaves above the noise floor on the class's channels over what the class closed.
+    pub model_form_rel: f64,
     pub unit: &'static str,
     /// What the magnitude is measured over (the variable's range, or a parameter).
     pub magnitude_basis: crate::gap::classfit::Basis,

@@ -21,6 +21,7 @@ pub mod events;
 pub mod experiment;
 pub mod finding;
 pub mod findings_table;
+pub mod form_error;
 pub mod identify;
 pub mod keys;
 pub mod lsq;

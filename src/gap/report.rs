@@ -7,7 +7,8 @@
 //! when a template is given). Pure: returns the texts; the CLI writes them.
 
 use super::diagnose::{Diagnosis, Verdict};
-use super::finding::Finding;
+use super::finding::{ClassFinding, Finding};
+use super::lsq;
 use super::where_::BiasMap;
 use crate::plot::{Figure, Panel, Series, Style};
 use std::fmt::Write as _;
@@ -33,6 +34,22 @@ fn g(v: f64) -> String {
 /// The JSON report.
 pub fn json(d: &Diagnosis) -> String {
     serde_json::to_string_pretty(d).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+}
+
+/// A class finding's note: how much of its interval is the form's error (docs/gap.md
+/// "Magnitudes"), then its range warning.
+fn class_note(c: &ClassFinding) -> String {
+    let mut v = Vec::new();
+    if c.model_form_rel > 0.0 {
+        v.push(format!(
+            "noise alone {}…{}; form ±{} %",
+            g(c.noise_ci95.0),
+            g(c.noise_ci95.1),
+            f(100.0 * lsq::Z95 * c.model_form_rel, 1)
+        ));
+    }
+    v.extend(c.range_warning.clone());
+    v.join("; ")
 }
 
 /// One row of the findings table (without the index).
@@ -61,7 +78,7 @@ fn finding_row(fd: &Finding) -> String {
             c.unit,
             g(c.magnitude_ci95.0),
             g(c.magnitude_ci95.1),
-            c.range_warning.clone().unwrap_or_default()
+            class_note(c)
         ),
         Finding::Recalibration(r) => format!(
             "recalibration `{}` | {} | — | — | {} → {} ({:+.0} %) | outside the plausible range {}…{}",

@@ -250,21 +250,27 @@ pub fn fit(
 }
 
 /// The specs with the recalibration (from `nc` on) starting from nominal instead of from the
-/// base model, for a job with classes; `None` when that start is the base's already.
+/// base model, for a job with classes whose base recalibration has a parameter on a bound;
+/// `None` otherwise.
 ///
 /// The base's recalibration was fitted without the class and absorbs what it can of the
-/// effect: a friction fade over temperature taken up by the kiss point's temperature
-/// coefficients x_isp1, x_isp2 of (9), both on their bounds. Started there, the joint fit
-/// stays in that basin (a fleet's fade of −0.177 fitted as −0.077, with 1.6 times the sum of
-/// squares of the fit started from nominal, −0.138), so it starts again from nominal and the
-/// lower sum of squares is kept.
+/// effect, up to its plausible bounds: a friction fade over temperature taken up by the kiss
+/// point's temperature coefficients x_isp1, x_isp2 of (9), both on their bounds. Started there,
+/// the joint fit stays in that basin (a fleet's fade of −0.177 fitted as −0.077, with 1.6
+/// times the sum of squares of the fit started from nominal, −0.138), so it starts again from
+/// nominal and the lower sum of squares is kept. A recalibration inside its bounds has absorbed
+/// nothing it had to be pushed to: no second start (it would cost half as much again).
 fn nominal_start(
     specs: &[ParamSpec],
     nc: usize,
     job: &Job,
     nominal: &Params,
 ) -> Option<Vec<ParamSpec>> {
-    if job.classes.is_empty() {
+    let on_bound = |s: &ParamSpec| {
+        let tol = 1e-6 * (s.hi - s.lo).abs();
+        (s.init - s.lo).abs() <= tol || (s.hi - s.init).abs() <= tol
+    };
+    if job.classes.is_empty() || !specs[nc..].iter().any(on_bound) {
         return None;
     }
     let mut sp = specs.to_vec();

@@ -92,20 +92,38 @@ def truth_by_basis(points: list[list[float]], basis: str | None, lo: float | Non
     return None
 
 
+def ambiguous_with(row: dict) -> list[str]:
+    """The classes a finding's row is ambiguous with (they explain the validation records as
+    well as it does), from its detail."""
+    try:
+        return list(json.loads(row.get("detail") or "{}").get("ambiguous_with") or [])
+    except (ValueError, AttributeError):
+        return []
+
+
 def unit_points(rows: list[dict], klass: str, truth: dict[str, dict]) -> list[dict]:
     """Per log of a unit: hours, fitted magnitude and interval of `klass` (None when the log's
     diagnosis did not find it), the truth where known — by the finding's definition of the
-    magnitude where the truth has a curve, else as the truth generator states it."""
+    magnitude where the truth has a curve, else as the truth generator states it.
+
+    A log whose diagnosis names another class first with `klass` in its ambiguity set (two
+    classes the records cannot tell apart, e.g. a fade of μ and of the spring load over
+    temperature, which multiply the torque (13) alike) gives that finding's magnitude for
+    `klass`, marked with the class named (``named``); a finding of `klass` itself comes first."""
     by_log: dict[str, dict] = {}
     for r in rows:
         p = by_log.setdefault(r["log"], {"log": r["log"], "hours": r["operating_hours"], "start": r["start_time"],
                                          "fit": None, "lo": None, "hi": None, "error": None, "fit_unit": None,
-                                         "basis": None, "from": None, "to": None})
+                                         "basis": None, "from": None, "to": None, "named": None})
         if r["kind"] == "error":
             p["error"] = r["error"]
-        if r["class"] == klass and r["kind"] in ("class", "sensor"):
+        if r["kind"] not in ("class", "sensor"):
+            continue
+        exact = r["class"] == klass
+        if exact or (klass in ambiguous_with(r) and p["fit"] is None):
             p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"], fit_unit=r["magnitude_unit"],
-                     basis=r.get("magnitude_basis"), **{"from": r.get("magnitude_from"), "to": r.get("magnitude_to")})
+                     basis=r.get("magnitude_basis"), named=r["class"],
+                     **{"from": r.get("magnitude_from"), "to": r.get("magnitude_to")})
     points = list(by_log.values())
     for p in points:
         t = truth.get(p["log"])
@@ -276,6 +294,8 @@ def render(findings_dir: Path, truth_csv: Path | None = None) -> tuple[str, dict
         for p in pts:
             ci = f"[{p['lo']:.4g}, {p['hi']:.4g}]" if p["lo"] is not None else ""
             fit = f"{p['fit']:.4g}" if p["fit"] is not None else (f"<span class='err'>{e((p['error'] or 'not found')[:120])}</span>")
+            if p.get("named") and p["named"] != klass:
+                fit += f" <small>(named {e(p['named'])}, ambiguous with {e(klass)})</small>"
             tr = f"{p['truth']:.4g}" if p["truth"] is not None else ""
             out.append(f"<tr><td>{p['hours']}</td><td>{fit}</td><td>{ci}</td><td>{tr}</td><td>{e(p['log'])}</td></tr>")
         out.append("</table>")
