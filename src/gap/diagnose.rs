@@ -907,21 +907,16 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
     (m.p, m.set)
 }
 
-/// Phase 6: the verdict — a finding per kept class (less the partial fits: a class whose
-/// subsystem stays above half its recalibrated excess), then the recalibrations out of range and
-/// what is left outside the library (less the residue of a subsystem its classes closed to
-/// within 10 %); `Nothing` when none is left. Returns the findings and the outside-library
-/// findings kept.
-fn verdict(
+/// A finding per class the selection kept (and a note per class replaced or dropped), each
+/// magnitude's interval widened by what the diagnosed model (validated as `after_val`) leaves
+/// on the class's channels.
+fn kept_findings(
     rounds: &[select::Round],
     setup: &Setup,
     sc_rec_v: &Scores,
     after_val: &Scores,
-    ex_rec_all: &[Excess],
-    outside: Vec<OutsideFinding>,
-    recal_findings: Vec<RecalibrationFinding>,
     notes: &mut Vec<String>,
-) -> (Vec<Finding>, Vec<OutsideFinding>) {
+) -> Vec<Finding> {
     let chans = setup.chans;
     let mut findings: Vec<Finding> = Vec::new();
     for r in rounds {
@@ -956,6 +951,21 @@ fn verdict(
             ));
         }
     }
+    findings
+}
+
+/// Phase 6: the verdict — the kept classes' findings ([`kept_findings`]) less the partial fits
+/// (a class whose subsystem stays above half its recalibrated excess), then the recalibrations
+/// out of range and what is left outside the library (less the residue of a subsystem its
+/// classes closed to within 10 %); `Nothing` when none is left. Returns the findings and the
+/// outside-library findings kept.
+fn verdict(
+    mut findings: Vec<Finding>,
+    ex_rec_all: &[Excess],
+    outside: Vec<OutsideFinding>,
+    recal_findings: Vec<RecalibrationFinding>,
+    notes: &mut Vec<String>,
+) -> (Vec<Finding>, Vec<OutsideFinding>) {
     // A kept class whose subsystem is still far above its floor explains too little of it to be
     // the cause: it stays in the report as a partial fit and the subsystem's residual is outside
     // the library.
@@ -1195,16 +1205,8 @@ fn which(
     let (outside, blackbox) = outside_library(setup, &after, &after_val, o);
     phase_done("outside the library");
     let mut notes = Vec::new();
-    let (findings, outside) = verdict(
-        &rounds,
-        setup,
-        sc_rec_v,
-        &after_val,
-        ex_rec_all,
-        outside,
-        recal_findings,
-        &mut notes,
-    );
+    let kept = kept_findings(&rounds, setup, sc_rec_v, &after_val, &mut notes);
+    let (findings, outside) = verdict(kept, ex_rec_all, outside, recal_findings, &mut notes);
     Which {
         rounds,
         after,

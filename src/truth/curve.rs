@@ -32,15 +32,65 @@ pub struct Curve {
 /// The curve of `e` where its class acts through one physical variable the diagnosis also
 /// reports on; `None` for scalar effects and outside forms.
 pub fn curve(e: &Effect) -> Option<Curve> {
-    use ClassId as C;
     let Target::Class(class) = e.target else {
         return None;
     };
+    let Grid {
+        variable,
+        variable_unit,
+        term,
+        lo,
+        hi,
+        z,
+    } = grid(class)?;
+    let reading = z
+        .is_none()
+        .then(|| inject::reading_reference(class))
+        .flatten()
+        .map(|(v0, v_ref)| e.reading_error(v0, v_ref));
+    let value = |x: f64| -> f64 {
+        match (z, &reading) {
+            (Some(z), _) => e.term(z(x)),
+            (None, Some(r)) => r.read(x) - x,
+            (None, None) => 0.0,
+        }
+    };
+    let points = (0..POINTS)
+        .map(|k| {
+            let x = lo + (hi - lo) * k as f64 / (POINTS - 1) as f64;
+            (x, value(x))
+        })
+        .collect();
+    Some(Curve {
+        class,
+        variable,
+        variable_unit,
+        term,
+        points,
+    })
+}
+
+/// Where a class's curve is drawn: its variable (name, unit), what the term is, the grid's
+/// ends, and the variable's z-mapping for a term of (13) or (9) (`None` for a reading error).
+struct Grid {
+    variable: &'static str,
+    variable_unit: &'static str,
+    term: &'static str,
+    lo: f64,
+    hi: f64,
+    z: ZMap,
+}
+
+/// A variable's z-mapping, `None` for a reading error.
+type ZMap = Option<fn(f64) -> f64>;
+
+/// The [`Grid`] of `class`; `None` for a class without a curve.
+fn grid(class: ClassId) -> Option<Grid> {
+    use ClassId as C;
     // The variable's z-mapping for a term of (13) or (9) (energies in MJ here, J in the truth's
     // z); `None` for a reading error.
-    type Z = Option<fn(f64) -> f64>;
     let energy: fn(f64) -> f64 = |mj| inject::z_energy(mj * 1e6);
-    let (variable, variable_unit, term, lo, hi, z): (_, _, _, f64, f64, Z) = match class {
+    let (variable, variable_unit, term, lo, hi, z): (_, _, _, f64, f64, ZMap) = match class {
         C::FrictionTemperature | C::FrictionStaticTemperature => (
             "temperature",
             "°C",
@@ -109,30 +159,13 @@ pub fn curve(e: &Effect) -> Option<Curve> {
         ),
         _ => return None,
     };
-    let reading = z
-        .is_none()
-        .then(|| inject::reading_reference(class))
-        .flatten()
-        .map(|(v0, v_ref)| e.reading_error(v0, v_ref));
-    let value = |x: f64| -> f64 {
-        match (z, &reading) {
-            (Some(z), _) => e.term(z(x)),
-            (None, Some(r)) => r.read(x) - x,
-            (None, None) => 0.0,
-        }
-    };
-    let points = (0..POINTS)
-        .map(|k| {
-            let x = lo + (hi - lo) * k as f64 / (POINTS - 1) as f64;
-            (x, value(x))
-        })
-        .collect();
-    Some(Curve {
-        class,
+    Some(Grid {
         variable,
         variable_unit,
         term,
-        points,
+        lo,
+        hi,
+        z,
     })
 }
 

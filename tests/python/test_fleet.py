@@ -222,6 +222,34 @@ def test_the_truth_is_read_by_the_findings_definition_of_the_magnitude():
     assert truth_by_basis(curve, "change", None, 1.0) is None
 
 
+def test_a_finding_ambiguous_with_the_truths_class_gives_its_magnitude():
+    """A log whose diagnosis names spring_temperature first, ambiguous with friction_temperature
+    (both multiply the torque (13) over temperature alike), scores that finding for a fade; a
+    finding of the class itself wins over an ambiguous one, and an unrelated class gives none."""
+    from ddct_can.fleet.report import unit_points
+
+    curve = json.dumps([[t, 0.2 * (1 - t / 300)] for t in range(0, 301, 10)])
+    truth = {f"/f/{k}.mf4": {"unit": "u", "class": "friction_temperature", "effect_size": "5",
+                              "magnitude": "-0.2", "magnitude_unit": "1", "curve": curve} for k in "abc"}
+
+    def row(log, klass, mag, ambiguous):
+        return {"log": f"/f/{log}.mf4", "operating_hours": 1.0, "start_time": None, "kind": "class",
+                "class": klass, "magnitude": mag, "magnitude_lo": mag - 0.01, "magnitude_hi": mag + 0.01,
+                "magnitude_unit": "relative", "magnitude_basis": "ratio", "magnitude_from": 30.0,
+                "magnitude_to": 270.0, "error": None, "detail": json.dumps({"ambiguous_with": ambiguous})}
+
+    rows = [row("a", "spring_temperature", -0.15, ["friction_temperature"]),
+            row("b", "spring_temperature", -0.15, ["friction_temperature"]),
+            row("b", "friction_temperature", -0.16, ["spring_temperature"]),
+            row("c", "friction_slip", -0.1, [])]
+    pts = {p["log"][-5]: p for p in unit_points(rows, "friction_temperature", truth)}
+    assert (pts["a"]["fit"], pts["a"]["named"]) == (-0.15, "spring_temperature")
+    assert (pts["b"]["fit"], pts["b"]["named"]) == (-0.16, "friction_temperature")
+    assert pts["c"]["fit"] is None and pts["c"]["named"] is None
+    # the truth read by the ratio over 30…270 °C: (1 + 0.02)/(1 + 0.18) − 1
+    assert pts["a"]["truth"] == pytest.approx(1.02 / 1.18 - 1)
+
+
 def test_the_fleet_report_opens_in_a_browser(generated, tmp_path):
     from test_report_html import browse
 
