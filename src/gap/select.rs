@@ -1113,3 +1113,49 @@ fn backward(s: &Setup, base: &Model, sel: &mut Selection, seed: u64) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn torque_job(classes: Vec<ClassId>) -> Job {
+        Job {
+            classes,
+            form: classfit::Form::Flexible,
+            recal: recal_keys(Subsystem::TorqueCharacteristic),
+            chans: vec![],
+            wide: false,
+            cached_disk: true,
+            max_iter: 1,
+        }
+    }
+
+    /// The joint fit starts again from the nominal recalibration only where the base's
+    /// recalibration sits on a plausible bound, and only the recalibration's starts move.
+    #[test]
+    fn a_second_start_from_nominal_only_where_the_base_sits_on_a_bound() {
+        let nominal = Params::default();
+        let job = torque_job(vec![ClassId::FrictionTemperature]);
+        let mut base = Model::nominal(nominal);
+        keys::set(&mut base.p, "clutch.c4", 0.36);
+        let (specs, _, nc) = job_specs(&base, &nominal, &job);
+        assert!(nc > 0 && specs.len() > nc);
+        assert_eq!(nominal_start(&specs, nc, &job, &nominal), None);
+        // λ2 pushed to its bound, as a friction fade pushes it.
+        let (lo, hi) = plausible("clutch.x_isp2_mm_per_c2", &nominal);
+        let bound = if lo.abs() < hi.abs() { lo } else { hi };
+        keys::set(&mut base.p, "clutch.x_isp2_mm_per_c2", bound);
+        let (specs, _, nc) = job_specs(&base, &nominal, &job);
+        let sp = nominal_start(&specs, nc, &job, &nominal).expect("a second start");
+        assert_eq!(sp[..nc], specs[..nc]);
+        for (s, k) in sp[nc..].iter().zip(&job.recal) {
+            assert_eq!(s.init, keys::get(&nominal, k).unwrap(), "{k}");
+            let old = specs.iter().find(|o| o.name == s.name).unwrap();
+            assert_eq!((s.lo, s.hi), (old.lo, old.hi), "{k}: bounds unchanged");
+        }
+        // A recalibration alone (no class) has no second start.
+        let alone = torque_job(vec![]);
+        let (specs, _, nc) = job_specs(&base, &nominal, &alone);
+        assert_eq!(nominal_start(&specs, nc, &alone, &nominal), None);
+    }
+}
