@@ -151,12 +151,13 @@ fn the_bench_harness_records_a_complete_run_on_vcan() {
     let cfg = ddct::tcu::TcuConfig::default();
     let r = bench_run(&Net::Can(iface()), &sc, &cfg, || {}, std::future::pending).unwrap();
     assert!(r.settled, "the recording did not settle");
-    let n = |id| {
-        r.frames
+    let count = |id, frames: &[(std::time::Duration, CanFrame)]| {
+        frames
             .iter()
             .filter(|(_, f)| f.standard_id() == Some(id))
             .count()
     };
+    let n = |id| count(id, &r.frames);
     let cycle_s = f64::from(ddct::can::messages::DctSensors::CYCLE_MS) * 1e-3;
     assert_eq!(
         n(ids::DCT_SENSORS),
@@ -186,12 +187,6 @@ fn the_bench_harness_records_a_complete_run_on_vcan() {
         .iter()
         .position(|(_, f)| f.standard_id() == Some(ids::TCU_CLUTCH_CMD))
         .unwrap();
-    let count = |id, frames: &[(std::time::Duration, CanFrame)]| {
-        frames
-            .iter()
-            .filter(|(_, f)| f.standard_id() == Some(id))
-            .count()
-    };
     let before = count(ids::DCT_SENSORS, &r.frames[..started]);
     assert!(
         before <= 10,

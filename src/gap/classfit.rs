@@ -587,7 +587,23 @@ impl Basis {
     }
 }
 
-/// The unit of a multiplier's magnitude ([`Basis::Ratio`]).
+/// Whether a shape class's term is a factor 1 + s (of μ or of the spring load): its magnitude
+/// is the ratio ([`Basis::Ratio`]), in [`RELATIVE`] units.
+fn is_multiplier(class: ClassId) -> bool {
+    use ClassId::*;
+    matches!(
+        class,
+        FrictionTemperature
+            | FrictionSlip
+            | FrictionClampLoad
+            | FrictionSlidingAcceleration
+            | FrictionEnergy
+            | FrictionStaticTemperature
+            | SpringTemperature
+    )
+}
+
+/// The unit of a multiplier's magnitude.
 const RELATIVE: &str = "relative";
 
 /// The unit of a shape class's magnitude, the change of its fitted shape over the knots (`None`
@@ -595,13 +611,7 @@ const RELATIVE: &str = "relative";
 fn change_unit(class: ClassId) -> Option<&'static str> {
     use ClassId::*;
     Some(match class {
-        FrictionTemperature
-        | FrictionSlip
-        | FrictionClampLoad
-        | FrictionSlidingAcceleration
-        | FrictionEnergy
-        | FrictionStaticTemperature
-        | SpringTemperature => RELATIVE,
+        c if is_multiplier(c) => RELATIVE,
         KissPointTemperature | KissPointEnergy => "mm",
         SupportConduction => "K/s from a clutch disk at the top of θ − θ_h",
         ConvectionSpeed => "relative convection change over the flywheel-speed range",
@@ -636,10 +646,10 @@ fn change_shape(class: ClassId, t: &super::terms::Terms) -> Option<&Shape> {
 pub fn basis(class: ClassId, m: &Model) -> Basis {
     use ClassId::*;
     let t = &m.terms;
-    if let Some(unit) = change_unit(class) {
+    if change_unit(class).is_some() {
         return change_shape(class, t).map_or(Basis::Parameter, |s| {
             let (from, to) = (s.z[0], s.z[KNOTS - 1]);
-            if unit == RELATIVE {
+            if is_multiplier(class) {
                 Basis::Ratio { from, to }
             } else {
                 Basis::Change { from, to }
@@ -677,7 +687,7 @@ pub fn magnitude(class: ClassId, m: &Model) -> (f64, &'static str) {
     let t = &m.terms;
     if let Some(unit) = change_unit(class) {
         let shape = change_shape(class, t);
-        let m = if unit == RELATIVE {
+        let m = if is_multiplier(class) {
             shape.map_or(0.0, |s| (1.0 + s.v[KNOTS - 1]) / (1.0 + s.v[0]) - 1.0)
         } else {
             shape.map_or(0.0, Shape::span)

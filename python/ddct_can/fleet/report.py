@@ -120,7 +120,7 @@ def unit_points(rows: list[dict], klass: str, truth: dict[str, dict]) -> list[di
         if r["kind"] not in ("class", "sensor"):
             continue
         exact = r["class"] == klass
-        if exact or (klass in ambiguous_with(r) and p["fit"] is None):
+        if exact or (p["fit"] is None and klass in ambiguous_with(r)):
             p.update(fit=r["magnitude"], lo=r["magnitude_lo"], hi=r["magnitude_hi"], fit_unit=r["magnitude_unit"],
                      basis=r.get("magnitude_basis"), named=r["class"],
                      **{"from": r.get("magnitude_from"), "to": r.get("magnitude_to")})
