@@ -37,11 +37,19 @@ def a2l_objects(path: Path) -> dict[str, dict]:
 
 
 def master(channel: str):
+    """pyxcp's application and its bus. The bus is ours, handed to pyxcp as a user-supplied
+    interface, because pyxcp then also filters the slave's id in software. A bus pyxcp opens
+    itself accepts every frame that reaches the socket between its bind and its kernel filter, and
+    pyxcp feeds such a frame (say an ENG_Status, first byte < 0xFC) to the DAQ policy as a DAQ
+    packet; before the DAQ lists are set up its decoder is null and the process dies with SIGSEGV
+    (a fresh-clone CI run: `xcp_master.py --download` exited -11)."""
+    import can
     from ddct_can.dbc import frame_id
 
     from pyxcp.config import create_application_from_config, set_application
     from pyxcp.master import Master
 
+    bus = can.Bus(interface="socketcan", channel=channel)
     app = create_application_from_config({
         "Transport": {"CAN": {
             "interface": "socketcan", "channel": channel, "can_id_master": frame_id("TCU_XcpCro"),
@@ -50,7 +58,7 @@ def master(channel: str):
     })
     app.transport.layer = "CAN"
     set_application(app)
-    return app, Master
+    return app, Master, bus
 
 
 def main(argv=None) -> int:
@@ -87,9 +95,9 @@ def main(argv=None) -> int:
     measurements = [(n, objects[n]["address"], 0, "F32") for n in args.measure]
     daq = Collect([DaqList(name="tcu_10ms", event_num=0, stim=False, enable_timestamps=True,
                            measurements=measurements, priority=0, prescaler=1)])
-    app, Master = master(args.channel)
+    app, Master, bus = master(args.channel)
     result = {"measure": args.measure, "downloads": {}, "uploads": {}}
-    with Master("can", config=app, policy=daq) as x:
+    with bus, Master("can", config=app, policy=daq, transport_layer_interface=bus) as x:
         x.connect()
         for item in args.download:
             name, value = item.split("=", 1)
