@@ -36,8 +36,8 @@ def a2l(ddct, tmp_path_factory):
 
 
 def xcp(a2l, out, seconds, *extra):
-    cmd = [sys.executable, "-X", "faulthandler", str(HERE / "xcp_master.py"), "--a2l", str(a2l), "--seconds", str(seconds),
-           "--out", str(out), *extra]
+    cmd = [sys.executable, "-X", "faulthandler", str(HERE / "xcp_master.py"), "--a2l", str(a2l),
+           "--seconds", str(seconds), "--out", str(out), *extra]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-3000:]
     return json.loads(out.read_text())
