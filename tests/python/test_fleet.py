@@ -87,6 +87,22 @@ def test_local_cluster_loop_and_resume_give_the_same_findings(fleet, tmp_path):
     assert _comparable(_findings(seq)) == _comparable(rows)
 
 
+def test_a_rerun_with_every_log_done_says_so_and_gives_no_rate(ddct, tmp_path):
+    """Units of one log each are error rows written without a diagnosis (fast); the second run
+    finds both done and says so, with no logs/min (there is no rate of nothing)."""
+    for unit in ("unit-x", "unit-y"):
+        (tmp_path / "fleet" / unit).mkdir(parents=True)
+        (tmp_path / "fleet" / unit / "00.log").write_bytes(b"not a log")
+    args = ["diagnose", tmp_path / "fleet", "--out", tmp_path / "out", "--sequential", "--ddct", ddct]
+    first = _fleet(args).stdout
+    assert first.startswith("2 diagnosed (0 done before, 2 error rows)") and " logs/min;" in first, first
+    again = _fleet(args).stdout
+    assert again.startswith("0 new logs diagnosed; 2 already done"), again
+    assert "logs/min" not in again and "None" not in again, again
+    s = json.loads(_fleet([*args, "--json"]).stdout)
+    assert (s["ran"], s["skipped"], s["logs_per_min"]) == (0, 2, None), s
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

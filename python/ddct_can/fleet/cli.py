@@ -96,11 +96,23 @@ def cmd_diagnose(a) -> int:
         page, figures = render(out, truth if truth.is_file() else None)
         Path(a.report).write_text(page, encoding="utf-8")
         summary["report"] = {"file": a.report, **figures}
-    print(json.dumps(summary) if a.json else
-          f"{len(ran)} diagnosed ({summary['skipped']} done before, {errors} error rows) in {wall:.1f} s "
-          f"on {where}: {summary['logs_per_min']} logs/min; findings in {out}"
-          + (f"; report {a.report}" if a.report else ""))
+    print(json.dumps(summary) if a.json else _diagnose_line(summary, wall, a.report))
     return 0
+
+
+def _diagnose_line(summary: dict, wall: float, report: str | None) -> str:
+    """The summary of `diagnose` for a person: a rate only when something ran (a rerun over
+    logs all diagnosed before has none; its JSON `logs_per_min` is null)."""
+    where, out = summary["on"], summary["out"]
+    rate = summary["logs_per_min"]
+    if summary["ran"]:
+        line = (f"{summary['ran']} diagnosed ({summary['skipped']} done before, {summary['errors']} error rows) "
+                f"in {wall:.1f} s on {where}" + (f": {rate} logs/min" if rate is not None else "")
+                + f"; findings in {out}")
+    else:
+        line = (f"0 new logs diagnosed; {summary['skipped']} already done (nothing to run, {wall:.1f} s on "
+                f"{where}); findings in {out}")
+    return line + (f"; report {report}" if report else "")
 
 
 def cmd_generate(a) -> int:
