@@ -44,6 +44,13 @@ pub enum BusError {
     },
     #[error("bus {iface} is closed")]
     Closed { iface: String },
+    /// A SocketCAN endpoint was opened outside the tokio runtime that must own its socket (a
+    /// programming error of the caller, reported instead of the runtime's panic).
+    #[error(
+        "CAN interface {iface}: opened outside a tokio runtime (open it on the runtime that \
+         will use it, or use SocketCanBus::probe for a check without one)"
+    )]
+    NoRuntime { iface: String },
 }
 
 impl BusError {

@@ -1,6 +1,7 @@
 //! The SocketCAN bus: a raw CAN socket through the `socketcan` crate's tokio support, with kernel
 //! receive timestamps (`SO_TIMESTAMPNS`) on every frame read, blocking or not. Needs a tokio
-//! runtime with I/O enabled.
+//! runtime with I/O enabled: [`SocketCanBus::open`] refuses with [`BusError::NoRuntime`] outside
+//! one, and [`SocketCanBus::probe`] checks an interface with a blocking socket, no runtime needed.
 //!
 //! Frames already waiting are read in batches with `recvmmsg(2)` ([`Bus::try_recv_many`]), which
 //! the `socketcan` crate does not offer: one system call for up to [`MMSG_BATCH`] frames. Under a
@@ -49,12 +50,18 @@ impl std::fmt::Debug for SocketCanBus {
 
 impl SocketCanBus {
     /// Opens a raw socket on `iface` with receive timestamps; `own_echo` also delivers this
-    /// socket's own frames back to it.
+    /// socket's own frames back to it. Must be called on the tokio runtime (with I/O) that will
+    /// use the socket: outside one it is [`BusError::NoRuntime`], not the runtime's panic.
     pub fn open(iface: &str, own_echo: bool) -> Result<Self, BusError> {
         let io_err = |source: io::Error| BusError::Io {
             iface: iface.to_string(),
             source,
         };
+        if tokio::runtime::Handle::try_current().is_err() {
+            return Err(BusError::NoRuntime {
+                iface: iface.to_string(),
+            });
+        }
         let socket = socketcan::tokio::CanSocket::open(iface).map_err(io_err)?;
         socket.set_recv_timestamp(true).map_err(io_err)?;
         socket.set_recv_own_msgs(own_echo).map_err(io_err)?;
@@ -67,6 +74,18 @@ impl SocketCanBus {
             now,
             iface: iface.to_string(),
         })
+    }
+
+    /// Checks that `iface` exists and takes a raw CAN socket, with a blocking socket that is
+    /// closed again at once: for a command that must fail early, before it starts the threads
+    /// and runtimes that open their own endpoints. Needs no runtime.
+    pub fn probe(iface: &str) -> Result<(), BusError> {
+        socketcan::CanSocket::open(iface)
+            .map(drop)
+            .map_err(|source| BusError::Io {
+                iface: iface.to_string(),
+                source,
+            })
     }
 
     /// Receives only data frames with these standard ids (one kernel filter per id), so a daemon

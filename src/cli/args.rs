@@ -52,6 +52,58 @@ impl fmt::Display for Iface {
     }
 }
 
+/// Where `ddct log monitor` reads, given positionally as candump takes it: standard input
+/// (`-`), a log file that exists, or a network interface that exists (`vcan0`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Source {
+    Stdin,
+    File(std::path::PathBuf),
+    Iface(String),
+}
+
+impl Source {
+    /// Resolves a positional argument: `-`, then an existing file, then an existing network
+    /// interface; anything else is an error that says it is neither.
+    pub fn resolve(arg: &std::ffi::OsStr) -> Result<Self, String> {
+        if arg == "-" {
+            return Ok(Source::Stdin);
+        }
+        let path = std::path::Path::new(arg);
+        if path.is_file() {
+            return Ok(Source::File(path.to_path_buf()));
+        }
+        let text = arg.to_string_lossy();
+        if let Ok(Iface::Can(name)) = text.parse::<Iface>() {
+            if iface_exists(&name) {
+                return Ok(Source::Iface(name));
+            }
+            return Err(format!(
+                "{text}: neither a log file nor a network interface of this machine (to create \
+                 vcan {text} as root: `ip link add dev {text} type vcan && ip link set up \
+                 {text}`; where the kernel has no CAN: `scripts/vcan-run ddct ...`)"
+            ));
+        }
+        Err(format!("{text}: no such log file (nor an interface name)"))
+    }
+}
+
+/// A network interface that exists (`/sys/class/net/NAME`), whatever its type.
+pub fn iface_exists(name: &str) -> bool {
+    std::path::Path::new("/sys/class/net").join(name).exists()
+}
+
+/// `ddct log record IFACE`: a CAN interface name (positional, like candump); a path (a `/` in
+/// it) or `sim` is refused with what the command wants.
+pub fn can_iface(s: &str) -> Result<String, String> {
+    match s.parse::<Iface>() {
+        Ok(Iface::Can(name)) => Ok(name),
+        Ok(Iface::Sim) => Err("sim: recording needs a SocketCAN interface such as vcan0".into()),
+        Err(_) => Err(format!(
+            "{s:?} is not a CAN interface name such as vcan0 (the log file is --out FILE)"
+        )),
+    }
+}
+
 /// `--speed` of a simulation: a factor of real time, or `max` (as fast as the host computes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Speed {
@@ -124,24 +176,34 @@ pub fn tcu_config(path: Option<&std::path::Path>) -> anyhow::Result<ddct::tcu::T
     }
 }
 
-/// Opens a SocketCAN interface; when it does not exist, says how to get one.
+/// Opens a SocketCAN interface on the current tokio runtime; when it does not exist, says how
+/// to get one.
 pub fn open_can(iface: &str) -> anyhow::Result<SocketCanBus> {
-    SocketCanBus::open(iface, false).map_err(|e| {
-        let missing = std::error::Error::source(&e)
-            .and_then(|s| s.downcast_ref::<std::io::Error>())
-            .and_then(std::io::Error::raw_os_error)
-            == Some(libc::ENODEV);
-        if missing {
-            anyhow::anyhow!(
-                "CAN interface {iface} does not exist. Create a virtual one (as root): `ip link \
-                 add dev {iface} type vcan && ip link set up {iface}` (needs the vcan module), \
-                 or run the command inside `scripts/vcan-run` (User-Mode Linux with vcan0 up), \
-                 or use `--iface sim` for the in-process bus where the command has it"
-            )
-        } else {
-            anyhow::Error::new(e).context(format!("opening CAN interface {iface}"))
-        }
-    })
+    SocketCanBus::open(iface, false).map_err(|e| can_error(iface, e))
+}
+
+/// Checks that a SocketCAN interface exists, without a runtime (a blocking socket closed at
+/// once): for a command that opens its endpoints later, on threads of their own.
+pub fn probe_can(iface: &str) -> anyhow::Result<()> {
+    SocketCanBus::probe(iface).map_err(|e| can_error(iface, e))
+}
+
+/// A bus error for the user: a missing interface with how to create one.
+fn can_error(iface: &str, e: ddct::can::BusError) -> anyhow::Error {
+    let missing = std::error::Error::source(&e)
+        .and_then(|s| s.downcast_ref::<std::io::Error>())
+        .and_then(std::io::Error::raw_os_error)
+        == Some(libc::ENODEV);
+    if missing {
+        anyhow::anyhow!(
+            "CAN interface {iface} does not exist. Create a virtual one (as root): `ip link \
+             add dev {iface} type vcan && ip link set up {iface}` (needs the vcan module), \
+             or run the command inside `scripts/vcan-run` (User-Mode Linux with vcan0 up), \
+             or use `--iface sim` for the in-process bus where the command has it"
+        )
+    } else {
+        anyhow::Error::new(e).context(format!("opening CAN interface {iface}"))
+    }
 }
 
 #[cfg(test)]
@@ -166,6 +228,31 @@ mod tests {
         for bad in ["", "a/b", "can 0", "x:1", "sixteen_chars_xx"] {
             assert!(bad.parse::<Iface>().is_err(), "{bad:?}");
         }
+    }
+
+    #[test]
+    fn positional_sources_are_stdin_a_file_or_an_existing_interface() {
+        use std::ffi::OsStr;
+        assert_eq!(Source::resolve(OsStr::new("-")), Ok(Source::Stdin));
+        let f = std::env::temp_dir().join(format!("ddct-src-{}.log", std::process::id()));
+        std::fs::write(&f, "").unwrap();
+        assert_eq!(Source::resolve(f.as_os_str()), Ok(Source::File(f.clone())));
+        std::fs::remove_file(&f).unwrap();
+        // `lo` exists on every Linux machine (a network interface, if not a CAN one).
+        assert_eq!(
+            Source::resolve(OsStr::new("lo")),
+            Ok(Source::Iface("lo".into()))
+        );
+        let e = Source::resolve(OsStr::new("vcan97")).unwrap_err();
+        assert!(
+            e.contains("neither a log file nor a network interface"),
+            "{e}"
+        );
+        let e = Source::resolve(OsStr::new("no/such/file.log")).unwrap_err();
+        assert!(e.contains("no such log file"), "{e}");
+        assert_eq!(can_iface("vcan0"), Ok("vcan0".into()));
+        assert!(can_iface("out/x.log").unwrap_err().contains("--out FILE"));
+        assert!(can_iface("sim").is_err());
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //! Each daemon and the recorder run on their own thread, runtime and socket (endpoint).
 //! `ddct bench --analyze LOG` runs the analysis on a candump log recorded elsewhere.
 
-use super::args::{open_can, rt_priority, Iface};
+use super::args::{probe_can, rt_priority, Iface};
 use super::shutdown_signal;
 use anyhow::Context;
 use clap::Args;
@@ -46,14 +46,18 @@ pub struct BenchArgs {
     /// config/tcu.toml with config/params.toml, so no working directory is needed).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Output folder: bench.log (candump -l of the run), echo.log, figures, summary.json.
-    #[arg(long, default_value = "out/bench")]
-    out: PathBuf,
+    /// Output folder: bench.log (candump -l of the run), echo.log, figures, summary.json
+    /// (default: out/bench for a run; out/analyze/LOG_STEM with `--analyze LOG`, so an analysis
+    /// never overwrites the last run's).
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Seconds of bare frame echo measured before the run (0 ..= 600; 0: none).
     #[arg(long, default_value_t = 10.0, value_parser = super::args::number_in(0.0, 600.0, "seconds"))]
     echo: f64,
-    /// Analyse a candump -l log instead of running (the scenario still names the launch target).
-    #[arg(long)]
+    /// Analyse a candump -l log instead of running. Needs `--scenario`: the scenario the log
+    /// played, whose driver, duration and `[limits]` the analysis and the verdict read (a log
+    /// does not say which scenario made it).
+    #[arg(long, requires = "scenario")]
     analyze: Option<PathBuf>,
     /// Run the plant, TCU, echo and recorder threads under the real-time FIFO scheduler at this
     /// priority (1..=99; needs root; a warning when refused).
@@ -65,6 +69,21 @@ pub struct BenchArgs {
     /// Write the verdict (the scenario's `[limits]` checks) as JUnit XML to this file.
     #[arg(long)]
     junit: Option<PathBuf>,
+}
+
+impl BenchArgs {
+    /// The output folder: `--out`, else out/bench for a run and out/analyze/LOG_STEM for
+    /// `--analyze LOG`.
+    fn out(&self) -> PathBuf {
+        match (&self.out, &self.analyze) {
+            (Some(o), _) => o.clone(),
+            (None, Some(log)) => Path::new("out/analyze").join(
+                log.file_stem()
+                    .map_or_else(|| "log".into(), |s| s.to_string_lossy().into_owned()),
+            ),
+            (None, None) => PathBuf::from("out/bench"),
+        }
+    }
 }
 
 /// The default run (`--scenario` omitted): built in, so `ddct bench` works from any directory.
@@ -142,7 +161,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
             DEFAULT_SCENARIO,
         )?,
     };
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let out = a.out();
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let recorded = match &a.analyze {
         Some(p) => Recorded {
             iface: "log".to_string(),
@@ -154,7 +174,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         },
         None => record(&a, &sc, &cfg)?,
     };
-    let summary = analyse(&a.out, &sc, &cfg, recorded)?;
+    let summary = analyse(&out, &sc, &cfg, recorded)?;
     report(&a, &summary)
 }
 
@@ -163,8 +183,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
 fn record(a: &BenchArgs, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Recorded> {
     let net = match a.iface.clone() {
         Some(Iface::Can(name)) => {
-            // A missing interface is named with how to create one.
-            open_can(&name)?;
+            // A missing interface is named with how to create one. Each daemon thread opens
+            // its own socket later, on its own runtime; this check needs none.
+            probe_can(&name)?;
             Net::Can(name)
         }
         _ => Net::Sim(InProcessBus::new("sim")),
@@ -176,7 +197,7 @@ fn record(a: &BenchArgs, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Re
         let e = echo_run(&net, a.echo, move || realtime(prio));
         pb.finish_and_clear();
         let e = e?;
-        write_log(&a.out.join("echo.log"), &net.name(), &e)?;
+        write_log(&a.out().join("echo.log"), &net.name(), &e)?;
         Some(e)
     } else {
         None
@@ -199,7 +220,7 @@ fn record(a: &BenchArgs, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Re
              (a plant frame or the TCU's last answer missing)"
         );
     }
-    let log = a.out.join("bench.log");
+    let log = a.out().join("bench.log");
     write_log(&log, &net.name(), &r.frames)?;
     Ok(Recorded {
         iface: net.name(),
@@ -255,15 +276,8 @@ fn analyse(
         .as_ref()
         .filter(|e| e.n > 0 && e.p99_us > 0.0 && timing.tcu_latency.n > 0)
         .map(|e| timing.tcu_latency.p99_us / e.p99_us);
-    // The TCU's reaction to the plant stopping first (an ENG_Status timeout after its last
-    // frame) is the end of the run, not a fault of it.
     let in_run = Metrics {
-        status_events: bus
-            .status_events
-            .iter()
-            .filter(|e| plant_window.is_none_or(|(_, end)| e.t_s <= end))
-            .copied()
-            .collect(),
+        status_events: run_events(&bus, plant_window),
         ..bus.clone()
     };
     let verdict = verdict::judge(sc.limits.as_ref(), &in_run, latency_ratio);
@@ -285,11 +299,24 @@ fn analyse(
     })
 }
 
+/// The TCU's status while the plant ran and the TCU was past Init: the one set of events both
+/// the verdict's fault check and the printed fault codes read. The TCU starts before the plant
+/// (Init, waiting for its inputs) and stops after it (an ENG_Status timeout once the plant's
+/// last frame is gone): neither is a fault of the run.
+fn run_events(bus: &Metrics, plant_window: Option<(f64, f64)>) -> Vec<metrics::StatusEvent> {
+    bus.status_events
+        .iter()
+        .filter(|e| e.state != TcuState::Init)
+        .filter(|e| plant_window.is_none_or(|(a, b)| e.t_s >= a && e.t_s <= b))
+        .copied()
+        .collect()
+}
+
 /// Writes summary.json, report.html and the JUnit file, prints the summary and the verdict;
 /// the exit code is the verdict's.
 fn report(a: &BenchArgs, summary: &BenchSummary) -> anyhow::Result<ExitCode> {
     std::fs::write(
-        a.out.join("summary.json"),
+        a.out().join("summary.json"),
         serde_json::to_string_pretty(summary)?,
     )?;
     let runs = [(summary.scenario.clone(), summary.verdict.clone())];
@@ -300,8 +327,11 @@ fn report(a: &BenchArgs, summary: &BenchSummary) -> anyhow::Result<ExitCode> {
         println!();
         print!("{}", verdict::table(&runs));
     }
-    eprintln!("bench: summary in {}", a.out.join("summary.json").display());
-    let html = a.out.join("report.html");
+    eprintln!(
+        "bench: summary in {}",
+        a.out().join("summary.json").display()
+    );
+    let html = a.out().join("report.html");
     std::fs::write(&html, html_report(summary)?)
         .with_context(|| format!("writing {}", html.display()))?;
     eprintln!("bench: report in {}", html.display());
@@ -510,14 +540,9 @@ fn print_bus_findings(s: &BenchSummary) {
         "estimator vs SIM_Truth (bus): RMSE {:.2} / {:.2} °C, max {:.2} / {:.2} °C",
         e.rmse_c[0], e.rmse_c[1], e.max_abs_c[0], e.max_abs_c[1]
     );
-    // While the plant ran (the TCU starts before it and stops after it, and reports the missing
-    // plant as a timeout then).
-    let faults: Vec<_> = s
-        .bus
-        .status_events
+    let faults: Vec<_> = run_events(&s.bus, s.plant_window)
         .iter()
-        .filter(|x| x.fault != FaultCode::None && x.state != TcuState::Init)
-        .filter(|x| s.plant_window.is_none_or(|(a, b)| x.t_s >= a && x.t_s <= b))
+        .filter(|x| x.fault != FaultCode::None)
         .map(|x| format!("{:.2}s {:?}", x.t_s, x.fault))
         .collect();
     println!(

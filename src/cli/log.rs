@@ -3,7 +3,7 @@
 mod convert;
 mod csv;
 
-use super::args::open_can;
+use super::args::{open_can, Source};
 use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Subcommand, ValueEnum};
@@ -63,12 +63,15 @@ pub enum LogCmd {
     /// codes by name), frames, rate, age of the last frame and E2E errors; redrawn four times a
     /// second on a terminal, printed once at the end otherwise.
     Monitor {
-        /// CAN interface to listen on, e.g. vcan0.
-        #[arg(long, conflicts_with = "input", required_unless_present = "input")]
+        /// Where to listen, as candump takes it: a CAN interface (`vcan0`), a candump log or
+        /// candump's screen output, or `-` for standard input (`candump vcan0 | ddct log
+        /// monitor -`). A name that is neither an existing file nor an existing interface is
+        /// refused with what to do.
+        #[arg(conflicts_with = "iface", required_unless_present = "iface")]
+        source: Option<std::ffi::OsString>,
+        /// The CAN interface, as a flag (the same as giving it positionally).
+        #[arg(long)]
         iface: Option<String>,
-        /// A candump log or candump's screen output instead of an interface (`-`: standard
-        /// input, e.g. `candump vcan0 | ddct log monitor -`).
-        input: Option<PathBuf>,
         /// Stop after this many seconds (default: until SIGINT/SIGTERM or the end of the input).
         #[arg(long, value_parser = super::args::seconds)]
         duration: Option<Duration>,
@@ -84,9 +87,16 @@ pub enum LogCmd {
     /// Record every frame of a SocketCAN interface into a candump -l log; at exit, the frames
     /// per id and those the kernel dropped because the receive queue was full.
     Record {
-        /// CAN interface, e.g. vcan0.
-        #[arg(long)]
-        iface: String,
+        /// CAN interface, e.g. vcan0 (positional like candump's, or as `--iface`).
+        #[arg(
+            value_parser = super::args::can_iface,
+            conflicts_with = "iface",
+            required_unless_present = "iface"
+        )]
+        interface: Option<String>,
+        /// The CAN interface, as a flag (the same as giving it positionally).
+        #[arg(long, value_parser = super::args::can_iface)]
+        iface: Option<String>,
         /// Output log file.
         #[arg(long)]
         out: PathBuf,
@@ -208,17 +218,30 @@ pub fn run(cmd: LogCmd) -> anyhow::Result<ExitCode> {
             out,
         } => plot(&file, &signals, sim.as_deref(), config.as_deref(), out),
         LogCmd::Monitor {
+            source,
             iface,
-            input,
             duration,
-        } => monitor(iface.as_deref(), input.as_ref(), duration),
+        } => {
+            let source = match (source, iface) {
+                (_, Some(i)) => Source::Iface(i),
+                (Some(s), None) => Source::resolve(&s).map_err(anyhow::Error::msg)?,
+                (None, None) => bail!("ddct log monitor: give an interface, a log file or -"),
+            };
+            monitor(&source, duration)
+        }
         LogCmd::Record {
+            interface,
             iface,
             out,
             count,
             duration,
             ready_file,
-        } => record(&iface, &out, count, duration, ready_file.as_deref()),
+        } => {
+            let Some(iface) = interface.or(iface) else {
+                bail!("ddct log record: give the CAN interface, e.g. `ddct log record vcan0`")
+            };
+            record(&iface, &out, count, duration, ready_file.as_deref())
+        }
         LogCmd::Replay {
             file,
             iface,
@@ -901,11 +924,7 @@ fn draw(text: &str, tty: bool) {
     }
 }
 
-fn monitor(
-    iface: Option<&str>,
-    input: Option<&PathBuf>,
-    limit: Option<Duration>,
-) -> anyhow::Result<ExitCode> {
+fn monitor(source: &Source, limit: Option<Duration>) -> anyhow::Result<ExitCode> {
     use std::io::IsTerminal as _;
     let tty = std::io::stdout().is_terminal();
     let mut decoder = LogDecoder::default();
@@ -913,30 +932,42 @@ fn monitor(
     let started = Instant::now();
     let mut last_draw = Instant::now();
     let mut now = Duration::ZERO;
-    if let Some(file) = input {
-        for item in LogReader::any_format(open_input(file)?, Box::new(wall_clock)) {
-            match item {
-                Ok(r) => {
-                    now = r.timestamp;
-                    mon.push(&decoder.decode(&r));
-                }
-                Err(LogError::Line { line, kind }) => {
-                    eprintln!("{}:{line}: {kind}", file.display())
-                }
-                Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
+    let file = match source {
+        Source::Stdin => PathBuf::from("-"),
+        Source::File(f) => f.clone(),
+        Source::Iface(iface) => return monitor_live(iface, limit, tty, decoder, mon),
+    };
+    for item in LogReader::any_format(open_input(&file)?, Box::new(wall_clock)) {
+        match item {
+            Ok(r) => {
+                now = r.timestamp;
+                mon.push(&decoder.decode(&r));
             }
-            if tty && last_draw.elapsed() >= MONITOR_REDRAW {
-                draw(&mon.render(now), tty);
-                last_draw = Instant::now();
+            Err(LogError::Line { line, kind }) => {
+                eprintln!("{}:{line}: {kind}", file.display())
             }
-            if limit.is_some_and(|l| started.elapsed() >= l) {
-                break;
-            }
+            Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
         }
-        draw(&mon.render(now), tty);
-        return Ok(ExitCode::SUCCESS);
+        if tty && last_draw.elapsed() >= MONITOR_REDRAW {
+            draw(&mon.render(now), tty);
+            last_draw = Instant::now();
+        }
+        if limit.is_some_and(|l| started.elapsed() >= l) {
+            break;
+        }
     }
-    let iface = iface.unwrap_or_default();
+    draw(&mon.render(now), tty);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The monitor on a live interface, until a signal or `limit`.
+fn monitor_live(
+    iface: &str,
+    limit: Option<Duration>,
+    tty: bool,
+    mut decoder: LogDecoder,
+    mut mon: ddct::can::monitor::Monitor,
+) -> anyhow::Result<ExitCode> {
     let rt = runtime()?;
     rt.block_on(async {
         let mut bus = open_can(iface)?;
