@@ -10,7 +10,7 @@ in the CRC byte (byte 7).
 from __future__ import annotations
 
 import functools
-from typing import Mapping
+from typing import Mapping, Optional
 
 from .dbc import MessageRef, load_dbc, message
 
@@ -30,6 +30,9 @@ UNKNOWN_ID = "unknown_id"
 BAD_LENGTH = "bad_length"
 COUNTER_REPEATED = "counter_repeated"
 COUNTER_SKIPPED = "counter_skipped"
+# Not an E2E error: a counter gap the receiver's own losses explain (frames the receiver's queue
+# dropped between the two frames of the message, ``rx.Receiver``), so the bus may be fine.
+LOCAL_DROP = "local_drop"
 
 
 class DbcLayoutError(ValueError):
@@ -146,19 +149,34 @@ def check(frame_id: int, data: bytes) -> str:
 
 
 class E2EChecker:
-    """Receiver-side check of a frame sequence: CRC, then the alive counter per message."""
+    """Receiver-side check of a frame sequence: CRC, then the alive counter per message.
+
+    ``check(..., lost=N)``: N is the receiver's running count of frames it lost itself (its
+    socket's drops, ``rx.Receiver.lost``) when this frame arrived. A counter gap of k missing
+    frames with at least k frames lost by the receiver since the message's previous frame is
+    ``LOCAL_DROP`` — the receiver cannot tell which frames it lost, so the gap may be its own,
+    and is no evidence against the bus; a gap larger than the receiver's losses (or any gap
+    without ``lost``) is ``COUNTER_SKIPPED`` (or ``COUNTER_REPEATED``: 15 missing, or a frozen
+    counter): at least part of it is on the bus."""
 
     def __init__(self) -> None:
         self.last: dict[int, int] = {}
+        self._lost_at: dict[int, Optional[int]] = {}
 
-    def check(self, frame_id: int, data: bytes) -> str:
+    def check(self, frame_id: int, data: bytes, lost: Optional[int] = None) -> str:
         verdict = check(frame_id, data)
         if verdict != OK:
             return verdict
         _, _, length = e2e_layout(message(frame_id))
+        modulus = 1 << length
         counter = counter_of(frame_id, data)
         previous = self.last.get(frame_id)
+        lost_before = self._lost_at.get(frame_id)
         self.last[frame_id] = counter
-        if previous is None or counter == (previous + 1) % (1 << length):
+        self._lost_at[frame_id] = lost
+        if previous is None or counter == (previous + 1) % modulus:
             return OK
+        missing = (counter - previous - 1) % modulus  # a repeated counter: modulus - 1 missing
+        if lost is not None and lost_before is not None and lost - lost_before >= missing:
+            return LOCAL_DROP
         return COUNTER_REPEATED if counter == previous else COUNTER_SKIPPED

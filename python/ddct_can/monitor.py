@@ -5,6 +5,8 @@ thread, and waits on them.
         seen = mon.wait_state("Drive", timeout=4.0)   # every message's latest values then
         assert seen, f"the TCU is in {mon.tcu_state()}"
         slip = seen["ENG_Status"]["EngSpeed"] - seen["DCT_Sensors"]["InShaft1Speed"]
+    assert not mon.e2e_errors     # what the bus itself showed (CRC, length, counter)
+    mon.dropped, mon.local_drops  # what the monitor itself lost (its socket's queue overflowed)
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from typing import Callable, Iterable, Optional
 import can
 
 from .dbc import choice, label, load_dbc, message
-from .e2e import NOT_PROTECTED, OK, E2EChecker
+from .e2e import LOCAL_DROP, NOT_PROTECTED, OK, E2EChecker
+from .rx import Receiver
 
 
 class Monitor:
@@ -25,6 +28,16 @@ class Monitor:
     (CRC and alive counter, ``E2EChecker``); a frame with a bad length or CRC is counted in
     ``e2e_errors`` and not decoded, a counter out of sequence is counted and still decoded.
     ``frames`` counts the decoded frames per message name.
+
+    The monitor's own losses are kept apart from the bus's: on SocketCAN it reads the bus's
+    socket itself with the kernel's drop counter on (``rx.Receiver``, SO_RXQ_OVFL), so a frame
+    the kernel dropped because the monitor fell behind (a busy python process, a starved guest)
+    is counted in ``dropped``, and a counter gap that such drops explain is counted in
+    ``local_drops`` (message name -> gaps), not in ``e2e_errors``. ``e2e_errors`` then holds
+    only what the bus itself shows: a CRC or length error, a counter skipped or repeated beyond
+    what the monitor lost. On other buses (python-can's ``virtual``) ``dropped`` is None and
+    every gap is an E2E error. Do not read the same bus object elsewhere while a monitor runs
+    (each frame goes to one reader).
 
     ``messages``: only these (names); the monitor then sets kernel filters on ``bus`` for their
     IDs (``bus.set_filters``: this applies to everything that receives on that bus object), so
@@ -36,8 +49,10 @@ class Monitor:
         if messages is not None:
             wanted = [message(m) for m in messages]
             bus.set_filters([{"can_id": m.frame_id, "can_mask": 0x7FF, "extended": False} for m in wanted])
+        self.rx = Receiver(bus)
         self.frames: Counter = Counter()
-        self.e2e_errors: Counter = Counter()  # (message name, verdict) -> count
+        self.e2e_errors: Counter = Counter()  # (message name, verdict) -> count: the bus's errors
+        self.local_drops: Counter = Counter()  # message name -> counter gaps the monitor's own drops explain
         self._by_id = {m.frame_id: m for m in load_dbc().messages}
         self._by_name = {m.name: m for m in self._by_id.values()}
         self._latest: dict[str, bytes] = {}
@@ -47,6 +62,12 @@ class Monitor:
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._error: Optional[BaseException] = None
+
+    @property
+    def dropped(self) -> Optional[int]:
+        """Frames the kernel dropped from the monitor's receive queue since it was made (its own
+        losses, not the bus's); None when the bus cannot tell (not SocketCAN)."""
+        return self.rx.dropped_now()
 
     def start(self) -> "Monitor":
         self._stop.clear()
@@ -74,22 +95,26 @@ class Monitor:
 
     def _run(self) -> None:
         try:
+            rx = self.rx
             while not self._stop.is_set():
-                msg = self.bus.recv(timeout=0.05)
-                if msg is not None:
-                    self.feed(msg.arbitration_id, bytes(msg.data), msg.is_extended_id)
+                got = rx.recv_frame(0.05)
+                if got is not None:
+                    self.feed(got[0], got[1], got[2], rx.lost)
         except BaseException as e:  # noqa: BLE001 - reported by stop() and the waits
             self._error = e
             with self._cond:
                 self._cond.notify_all()
 
-    def feed(self, frame_id: int, data: bytes, extended: bool = False) -> None:
-        """Take one frame (the receiver thread calls this; a test may too)."""
+    def feed(self, frame_id: int, data: bytes, extended: bool = False, lost: Optional[int] = None) -> None:
+        """Take one frame (the receiver thread calls this; a test may too). ``lost``: the
+        receiver's own losses so far (``E2EChecker.check``)."""
         m = self._by_id.get(frame_id)
         if extended or m is None:
             return
-        verdict = self._checker.check(frame_id, data)
-        if verdict not in (OK, NOT_PROTECTED):
+        verdict = self._checker.check(frame_id, data, lost)
+        if verdict == LOCAL_DROP:
+            self.local_drops[m.name] += 1
+        elif verdict not in (OK, NOT_PROTECTED):
             self.e2e_errors[(m.name, verdict)] += 1
             if len(data) != m.length or verdict == "bad_crc":
                 return

@@ -109,3 +109,40 @@ def test_candump_line_round_trip():
     assert ddct_can.parse_candump_line(line) == (1_700_000_000.25, "vcan0", 0x7A5, False, b"\x01\x02")
     with pytest.raises(ValueError):
         ddct_can.parse_candump_line("vcan0 7A5#0102")
+
+
+def test_e2e_checker_tells_the_receivers_own_drops_from_the_bus():
+    """``lost``: the receiver's own running drop count. A gap of k missing frames with at least
+    k frames dropped by the receiver since the message's previous frame is the receiver's
+    (local_drop); a gap larger than its drops, or with no drops, is the bus's."""
+    fid = ddct_can.frame_id("ENG_Status")
+    f = lambda c: ddct_can.encode("ENG_Status", {"EngSpeed": 800.0, "EngTorqueAct": 0.0}, counter=c)  # noqa: E731
+    chk = ddct_can.E2EChecker()
+    seq = [  # (counter, receiver's drops so far, verdict)
+        (0, 0, "ok"),
+        (3, 2, "local_drop"),       # 2 missing, 2 dropped locally in between
+        (6, 3, "counter_skipped"),  # 2 missing, 1 dropped locally: at least one lost on the bus
+        (7, 9, "ok"),               # drops of other messages, no gap: nothing
+        (9, 9, "counter_skipped"),  # 1 missing, no local drop
+        (9, 30, "local_drop"),      # a repeat = 15 missing, 21 dropped locally
+        (9, 30, "counter_repeated"),
+        (12, None, "counter_skipped"),  # drops unknown: a gap is the bus's
+        (14, 40, "counter_skipped"),    # no known count at the previous frame: the bus's
+        (0, 41, "local_drop"),          # wraps 14 -> 0: one missing, one dropped
+    ]
+    assert [chk.check(fid, f(c), lost=n) for c, n, _ in seq] == [v for _, _, v in seq]
+    assert ddct_can.LOCAL_DROP == "local_drop"
+
+
+def test_e2e_checker_counts_drops_from_each_messages_own_previous_frame():
+    eng, sens = ddct_can.frame_id("ENG_Status"), ddct_can.frame_id("DCT_Sensors")
+    e = lambda c: ddct_can.encode("ENG_Status", {"EngSpeed": 800.0, "EngTorqueAct": 0.0}, counter=c)  # noqa: E731
+    s = lambda c: ddct_can.encode("DCT_Sensors", {"InShaft1Speed": 0.0, "InShaft2Speed": 0.0, "OutShaftSpeed": 0.0,  # noqa: E731
+                                                  "HousingTemp": 40.0}, counter=c)
+    chk = ddct_can.E2EChecker()
+    assert chk.check(eng, e(0), lost=0) == "ok"
+    assert chk.check(sens, s(0), lost=0) == "ok"
+    assert chk.check(sens, s(2), lost=1) == "local_drop"  # one DCT_Sensors frame lost here
+    # ENG_Status's gap of 1 spans that drop too: the receiver cannot tell which frame it lost.
+    assert chk.check(eng, e(2), lost=1) == "local_drop"
+    assert chk.check(eng, e(4), lost=1) == "counter_skipped"  # no drop since ENG_Status's last frame
