@@ -1,8 +1,8 @@
 """The plant and TCU daemons of ``ddct`` on a CAN interface, as a context manager.
 
-    with Bench("vcan0", ddct="target/release/ddct", tcu_config="config/tcu.toml") as bench:
-        ...                      # both daemons listen on vcan0
-    bench.tcu_report             # the TCU's JSON exit report
+    with Bench("vcan0") as bench:  # the binary: find_ddct(); the calibrations: the binary's own
+        ...                        # both daemons listen on vcan0
+    bench.tcu_report               # the TCU's JSON exit report
 
 The TCU starts first and the plant once the TCU listens (each writes its ready file once its
 socket is open and its signal handlers are installed); leaving the block stops the plant, then
@@ -28,16 +28,39 @@ class BenchError(RuntimeError):
     """A daemon could not start, died, did not stop, or exited with a failure."""
 
 
-def find_ddct(ddct: Optional[PathLike] = None) -> Path:
-    """The ddct binary: ``ddct`` if given, else $DDCT_BIN, else ``ddct`` on PATH."""
-    cand = ddct or os.environ.get("DDCT_BIN") or shutil.which("ddct")
-    if not cand:
-        raise BenchError("no ddct binary: pass ddct=PATH, set DDCT_BIN or put ddct on PATH "
-                         "(cargo build --release --bin ddct builds target/release/ddct)")
-    path = Path(cand).resolve()
-    if not (path.is_file() and os.access(path, os.X_OK)):
-        raise BenchError(f"ddct binary not found or not executable: {path}")
-    return path
+# A developer checkout with the package installed in editable mode (pip install -e python):
+# python/ddct_can/ -> the checkout's root, which holds Cargo.toml and target/release/ddct.
+CHECKOUT = Path(__file__).resolve().parents[2]
+
+
+def checkout_ddct() -> Optional[Path]:
+    """``target/release/ddct`` of the ddct checkout this package lives in (None when the package
+    is not in a checkout, e.g. installed into site-packages)."""
+    return CHECKOUT / "target" / "release" / "ddct" if (CHECKOUT / "Cargo.toml").is_file() else None
+
+
+def find_ddct(ddct: Optional[PathLike] = None, given_as: str = "ddct=PATH") -> Path:
+    """The ddct binary: ``ddct`` if given, else $DDCT_BIN, else ``ddct`` on PATH, else (a
+    developer checkout, the package installed in editable mode) ``target/release/ddct`` of the
+    checkout this package lives in, if built. ``given_as`` is how the error names the explicit
+    way (the python argument; a pytest option or a command-line flag for their callers)."""
+    own = checkout_ddct()
+    for how, cand in (
+        (given_as, ddct or None),
+        ("$DDCT_BIN", os.environ.get("DDCT_BIN") or None),
+        ("PATH", shutil.which("ddct")),
+        ("this checkout", own if own is not None and own.exists() else None),
+    ):
+        if cand:
+            path = Path(cand).expanduser().resolve()
+            if not (path.is_file() and os.access(path, os.X_OK)):
+                raise BenchError(f"ddct binary not found or not executable: {path} (from {how})")
+            return path
+    build = (f"or build {own} (cargo build --release in {CHECKOUT})" if own is not None else
+             "or, with this package installed from a ddct checkout in editable mode (pip install -e "
+             "python), build the checkout's target/release/ddct (cargo build --release)")
+    raise BenchError(f"no ddct binary: pass {given_as}, set DDCT_BIN=PATH, put ddct on PATH (cargo "
+                     f"install --path . in a ddct checkout puts it in ~/.cargo/bin), {build}")
 
 
 class Daemon:
@@ -107,9 +130,12 @@ class Daemon:
 class Bench:
     """The plant and TCU daemons on ``iface``.
 
-    ``ddct``: the binary (default $DDCT_BIN, then PATH). ``tcu_config``/``plant_config``: their
-    configuration files (default: the TCU's ``config/tcu.toml`` relative to ``cwd``, the plant's
-    built-in one). ``tcu_args``/``plant_args``: further flags (e.g. ``["--faults", F]``).
+    ``ddct``: the binary (default: ``find_ddct()``: $DDCT_BIN, then ``ddct`` on PATH, then the
+    ``target/release/ddct`` of the checkout an editable install lives in).
+    ``tcu_config``/``plant_config``: their configuration files (default: none passed, so each
+    daemon runs with the calibration built into the binary, ``config/tcu.toml`` and
+    ``config/plant.toml`` of its source: the same from any directory). ``tcu_args``/
+    ``plant_args``: further flags (e.g. ``["--faults", F]``; relative paths resolve in ``cwd``).
     ``workdir``: where the daemons' reports (``PREFIXtcu.json``, ``PREFIXplant.json``), stderr
     and ready files go (default: a temporary directory, removed on exit unless ``keep=True``).
     ``cwd``: the daemons' working directory. A plant given ``--duration`` may exit by itself

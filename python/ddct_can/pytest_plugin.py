@@ -2,19 +2,21 @@
 so installing the package makes them available to any test).
 
 Fixtures:
-    ddct_bin       the ddct binary (--ddct-bin, else $DDCT_BIN, else ddct on PATH)
+    ddct_bin       the ddct binary (--ddct-bin, else $DDCT_BIN, else ddct on PATH, else the
+                   target/release/ddct of the checkout an editable install of the package lives in)
     ddct_iface     the CAN interface (--ddct-iface, else $DDCT_IFACE, else vcan0); it must exist,
                    be a CAN interface and be up
     ddct_bus       a python-can socketcan bus on it
     ddct_monitor   a Monitor on ddct_bus, running; on the whole bus, or only on the messages a
                    test names with ``@pytest.mark.ddct_monitor(messages=[...])`` (kernel-filtered:
-                   a single-CPU guest cannot decode the whole bus in python without starving the
-                   daemons)
+                   less work for a small machine). ``e2e_errors`` holds what the bus showed; the
+                   frames the monitor itself lost when its python fell behind (a starved
+                   single-CPU guest) are in ``dropped`` and ``local_drops``, not errors
     ddct_driver    a Driver on ddct_bus, sending (lever N, brake held)
     ddct_bench     the plant and TCU daemons (Bench), started after the monitor and the driver,
-                   stopped and checked at teardown; the TCU's config is --ddct-tcu-config, else
-                   config/tcu.toml under the rootdir or the invocation directory (the daemons
-                   then run there), else the TCU's default
+                   stopped and checked at teardown; the TCU's calibration is --ddct-tcu-config,
+                   else the one built into the binary (config/tcu.toml of its source), so the
+                   tests run the same from any directory
 
 A missing binary or interface fails the test (it never skips).
 """
@@ -38,9 +40,11 @@ def pytest_configure(config):
 
 def pytest_addoption(parser):
     g = parser.getgroup("ddct_can", "ddct CAN bench")
-    g.addoption("--ddct-bin", default=None, help="the ddct binary (default $DDCT_BIN, then PATH)")
+    g.addoption("--ddct-bin", default=None,
+                help="the ddct binary (default $DDCT_BIN, then ddct on PATH, then an editable checkout's target/release/ddct)")
     g.addoption("--ddct-iface", default=None, help="CAN interface of the bench (default $DDCT_IFACE or vcan0)")
-    g.addoption("--ddct-tcu-config", default=None, help="the TCU's config (default config/tcu.toml under the rootdir)")
+    g.addoption("--ddct-tcu-config", default=None,
+                help="the TCU's calibration file (default: the one built into the binary)")
 
 
 def interface_problem(iface: str):
@@ -60,9 +64,10 @@ def ddct_bin(pytestconfig) -> Path:
     from .daemons import BenchError, find_ddct
 
     try:
-        return find_ddct(pytestconfig.getoption("ddct_bin"))
+        return find_ddct(pytestconfig.getoption("ddct_bin"), given_as="--ddct-bin PATH")
     except BenchError as e:
-        pytest.fail(str(e), pytrace=False)
+        why = str(e)
+    pytest.fail(why, pytrace=False)  # outside the except: no chained BenchError in the report
 
 
 @pytest.fixture(scope="session")
@@ -107,12 +112,6 @@ def ddct_driver(ddct_bus):
 def ddct_bench(pytestconfig, ddct_bin, ddct_iface, ddct_monitor, ddct_driver, tmp_path):
     from .daemons import Bench
 
-    cfg = pytestconfig.getoption("ddct_tcu_config")
-    cwd = Path(pytestconfig.invocation_params.dir)
-    if cfg is None:
-        for base in (pytestconfig.rootpath, cwd):
-            if (base / "config" / "tcu.toml").is_file():
-                cfg, cwd = base / "config" / "tcu.toml", base
-                break
-    with Bench(ddct_iface, ddct=ddct_bin, tcu_config=cfg, workdir=tmp_path / "bench", cwd=cwd) as bench:
+    cfg = pytestconfig.getoption("ddct_tcu_config")  # None: the binary's built-in calibration
+    with Bench(ddct_iface, ddct=ddct_bin, tcu_config=cfg, workdir=tmp_path / "bench") as bench:
         yield bench

@@ -1,5 +1,6 @@
 """Bench's life cycle against a stand-in for the ddct binary (no CAN needed): start order and
-ready files, SIGTERM, exit statuses and reports, and the errors when a daemon misbehaves."""
+ready files, SIGTERM, exit statuses and reports, and the errors when a daemon misbehaves; where
+the binary is found, and the calibration built into it used by default."""
 
 from __future__ import annotations
 
@@ -8,10 +9,11 @@ import os
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import pytest
 
-from ddct_can import Bench, BenchError
+from ddct_can import Bench, BenchError, daemons, find_ddct
 
 FAKE = textwrap.dedent(
     """\
@@ -121,12 +123,72 @@ def test_an_error_in_the_body_is_not_masked(fake, monkeypatch):
 def test_missing_binary_and_config(tmp_path, monkeypatch):
     monkeypatch.delenv("DDCT_BIN", raising=False)
     monkeypatch.setenv("PATH", str(tmp_path))
-    with pytest.raises(BenchError, match="no ddct binary"):
+    monkeypatch.setattr(daemons, "CHECKOUT", tmp_path / "not-a-checkout")
+    with pytest.raises(BenchError, match="no ddct binary") as e:
         Bench("vcan0")
-    with pytest.raises(BenchError, match="not found or not executable"):
+    # Every way to provide it, named for a python caller.
+    for way in ("pass ddct=PATH", "set DDCT_BIN=PATH", "put ddct on PATH", "cargo install --path .",
+                "installed from a ddct checkout in editable mode", "target/release/ddct"):
+        assert way in str(e.value), (way, str(e.value))
+    with pytest.raises(BenchError, match=r"not found or not executable: .*nope \(from ddct=PATH\)"):
         Bench("vcan0", ddct=tmp_path / "nope")
+    monkeypatch.setenv("DDCT_BIN", str(tmp_path / "gone"))
+    with pytest.raises(BenchError, match=r"gone \(from \$DDCT_BIN\)"):
+        Bench("vcan0")
     exe = tmp_path / "ddct"
     exe.write_text("#!/bin/sh\n")
     exe.chmod(0o755)
     with pytest.raises(BenchError, match="TCU config not found"):
         Bench("vcan0", ddct=exe, tcu_config=tmp_path / "missing.toml")
+
+
+def executable(path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("#!/bin/sh\n")
+    path.chmod(0o755)
+    return path.resolve()
+
+
+def test_the_binary_is_found_argument_env_path_then_the_checkout(tmp_path, monkeypatch):
+    checkout = tmp_path / "checkout"
+    (checkout / "python" / "ddct_can").mkdir(parents=True)
+    (checkout / "Cargo.toml").write_text("")
+    own = executable(checkout / "target" / "release" / "ddct")
+    on_path = executable(tmp_path / "bin" / "ddct")
+    env = executable(tmp_path / "env" / "ddct")
+    arg = executable(tmp_path / "arg" / "ddct")
+    monkeypatch.setattr(daemons, "CHECKOUT", checkout)
+    monkeypatch.setenv("DDCT_BIN", str(env))
+    monkeypatch.setenv("PATH", str(tmp_path / "bin"))
+    assert find_ddct(arg) == arg
+    assert find_ddct() == env
+    monkeypatch.delenv("DDCT_BIN")
+    assert find_ddct() == on_path
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    assert find_ddct() == own  # a developer checkout: its own release build
+    own.unlink()
+    with pytest.raises(BenchError, match=rf"or build {own} \(cargo build --release in {checkout}\)"):
+        find_ddct()
+    (checkout / "Cargo.toml").unlink()  # not a checkout (site-packages): never looked at
+    own = executable(own)
+    with pytest.raises(BenchError, match="no ddct binary"):
+        find_ddct()
+
+
+def test_the_package_knows_the_checkout_it_lives_in():
+    """Installed in editable mode (scripts/setup), the package's checkout is this repository."""
+    assert daemons.CHECKOUT == Path(__file__).resolve().parents[2]
+    assert daemons.checkout_ddct() == daemons.CHECKOUT / "target" / "release" / "ddct"
+
+
+def test_without_tcu_config_the_tcu_runs_its_built_in_calibration(fake, tmp_path, monkeypatch):
+    """No --config (the binary carries config/tcu.toml), whatever the directory holds."""
+    exe, log = fake
+    (tmp_path / "config").mkdir()
+    (tmp_path / "config" / "tcu.toml").write_text("# a decoy: must not be used\n")
+    monkeypatch.chdir(tmp_path)
+    with Bench("vcanX", ddct=exe, workdir=tmp_path / "w"):
+        pass
+    tcu, plant = calls(log)
+    assert tcu["role"] == "tcu" and "--config" not in tcu["args"], tcu["args"]
+    assert plant["role"] == "plant" and "--config" not in plant["args"], plant["args"]
