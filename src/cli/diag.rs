@@ -10,6 +10,7 @@ use clap::{Args, Subcommand};
 use ddct::bench::tester::{TesterTiming, UdsTester};
 use ddct::can::messages::ids;
 use ddct::can::socketcan::SocketCanBus;
+use ddct::diag::dtc::{self, Dtc};
 use ddct::diag::isotp::IsoTpConfig;
 use ddct::diag::values::{Calibration, Measurement};
 use std::path::PathBuf;
@@ -322,8 +323,17 @@ async fn list_dtcs(a: &DtcArgs) -> anyhow::Result<()> {
         println!("no DTC matches status mask {:#04x}", a.mask);
     }
     for r in records.chunks_exact(4) {
-        let dtc = u32::from_be_bytes([0, r[0], r[1], r[2]]);
-        println!("DTC {dtc:#08x} status {}", status_bits(r[3]));
+        let dtc = Dtc::from_bytes([r[0], r[1], r[2]]);
+        // The SAE form and the TCU fault code it stands for (the TCU's own table).
+        let fault = dtc::TABLE
+            .iter()
+            .find(|(_, d)| *d == dtc)
+            .map_or(String::new(), |(f, _)| format!(" {}", f.label()));
+        println!(
+            "DTC {:#08x} {dtc}{fault} status {}",
+            dtc.value(),
+            status_bits(r[3])
+        );
         let req = [0x19, 0x04, r[0], r[1], r[2], 0x01];
         if let Ok(snap) = positive(&mut t, &req).await {
             print_snapshot(&snap);
