@@ -4,6 +4,11 @@
 thread floods the bus with frames of an id outside the contract whose first byte is 0x00, and
 prints how many runs failed, with the stack of each crash (python -X faulthandler).
 
+Progress goes to stderr: at the start how many runs and about how long they take, then one line
+per run (its exit status, its duration, the failures so far and an estimate of the time left,
+from the mean duration of the runs done). stdout is as before: each failed run's exit status and
+stderr (its start and its end), then "F of N runs failed".
+
 A pyxcp master that opens the bus itself reads the frames that reach its socket before the
 kernel filter is set, and takes one whose first byte is below 0xFC for a DAQ packet; fed before
 the DAQ setup, pyxcp's decoder is null and the master dies with SIGSEGV. Measured: 4 of 15 runs
@@ -27,6 +32,33 @@ sys.path.insert(0, str(REPO / "tests" / "diag"))
 
 import ddct_can  # noqa: E402
 from diag_helpers import bench  # noqa: E402
+
+# Seconds one run of the master takes under the flood in User-Mode Linux on the 2-core build
+# machine (about 46 s; 91 and 114 s while a cargo build and other tests shared the machine): the
+# estimate before a run is done; after, the mean of the runs done.
+PRIOR_RUN_S = 46.0
+
+
+def duration(s: float) -> str:
+    """`s` as "42 s", "3 min 05 s" or "1 h 02 min"."""
+    s = max(0, round(s))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+def excerpt(text: str, head: int = 1500, tail: int = 1500) -> str:
+    """The start and the end of a failed run's stderr: a rich traceback's locals fill its start,
+    the exception itself is at its end."""
+    if len(text) <= head + tail:
+        return text
+    return f"{text[:head]}\n[... {len(text) - head - tail} characters ...]\n{text[-tail:]}"
+
+
+def progress(line: str) -> None:
+    print(f"xcp_flood: {line}", file=sys.stderr, flush=True)
 
 
 def stray_id() -> int:
@@ -52,14 +84,20 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="xcp_flood."))
     a2l = work / "tcu.a2l"
     subprocess.run([str(ddct), "diag", "a2l", "--out", str(a2l)], check=True)
+    progress(f"{n} runs of tests/diag/xcp_master.py --download (0.2 s of DAQ) while id 0x{stray_id():03X} "
+             f"floods vcan0; about {PRIOR_RUN_S:.0f} s a run in User-Mode Linux, so about "
+             f"{duration(n * PRIOR_RUN_S)} in all")
     failed = 0
     stop = threading.Event()
+    t_start = time.monotonic()
     with bench(ddct, work) as (_b, _driver):
         time.sleep(1.0)
         flooder = threading.Thread(target=flood, args=(stop,))
         flooder.start()
+        t_runs = time.monotonic()
         try:
             for i in range(n):
+                t0 = time.monotonic()
                 r = subprocess.run(
                     [sys.executable, "-X", "faulthandler", str(REPO / "tests" / "diag" / "xcp_master.py"),
                      "--a2l", str(a2l), "--seconds", "0.2", "--out", str(work / "out.json"),
@@ -67,10 +105,16 @@ def main() -> int:
                     capture_output=True, text=True, timeout=120)
                 if r.returncode != 0:
                     failed += 1
-                    print(f"run {i}: exit {r.returncode}\n{r.stderr[:3000]}", flush=True)
+                    print(f"run {i}: exit {r.returncode}\n{excerpt(r.stderr)}", flush=True)
+                now = time.monotonic()
+                left = (n - i - 1) * (now - t_runs) / (i + 1)
+                status = "ok" if r.returncode == 0 else f"FAILED (exit {r.returncode})"
+                progress(f"[{i + 1}/{n}] run {i}: {status} in {now - t0:.1f} s; {failed} failed so far; "
+                         + (f"about {duration(left)} left" if i + 1 < n else "done"))
         finally:
             stop.set()
             flooder.join()
+    progress(f"{n} runs in {duration(time.monotonic() - t_start)}")
     print(f"{failed} of {n} runs failed", flush=True)
     return 1 if failed else 0
 
