@@ -99,8 +99,19 @@ pub enum LineError {
 pub enum LogError {
     #[error("line {line}: {kind}")]
     Line { line: usize, kind: LineError },
+    /// Not an error of the log: the logger before us lost `frames` frames here (a `candump -d`
+    /// `DROPCOUNT` line), so a counter gap after it may be missing input rather than the bus's.
+    #[error("line {line}: the logger lost {frames} frame(s) here (DROPCOUNT)")]
+    InputLost { line: usize, frames: u64 },
     #[error("reading log: {0}")]
     Io(#[from] io::Error),
+}
+
+/// The frames a `candump -d` `DROPCOUNT` line reports lost ("DROPCOUNT: dropped 3 CAN frames on
+/// 'vcan0' socket (total drops 7)"); `None` for any other line.
+pub fn dropcount(line: &str) -> Option<u64> {
+    let rest = line.trim().strip_prefix("DROPCOUNT: dropped ")?;
+    rest.split_whitespace().next()?.parse().ok()
 }
 
 /// The value of each byte as a hex digit (either case); `NOT_HEX` for the others.
@@ -395,6 +406,12 @@ impl<R: Read> LogReader<R> {
         if let Some(r) = parse_canonical(line) {
             return Some(Ok(r));
         }
+        if let Some(frames) = std::str::from_utf8(line).ok().and_then(dropcount) {
+            return Some(Err(LogError::InputLost {
+                line: line_no,
+                frames,
+            }));
+        }
         // Not UTF-8: what reading it as a line of text reported.
         let parsed = std::str::from_utf8(line)
             .map_err(|_| LineError::Timestamp)
@@ -498,6 +515,28 @@ impl<W: Write> LogWriter<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// candump -d's drop notices (can-utils candump.c) are the logger's losses, with their line.
+    #[test]
+    fn dropcount_lines_are_input_losses() {
+        assert_eq!(
+            dropcount("DROPCOUNT: dropped 3 CAN frames on 'vcan0' socket (total drops 7)"),
+            Some(3)
+        );
+        assert_eq!(
+            dropcount("DROPCOUNT: dropped 1 CAN frame on 'vcan0' socket (total drops 1)"),
+            Some(1)
+        );
+        assert_eq!(dropcount("(1.0) vcan0 100#00"), None);
+        let log = "  vcan0  100   [1]  00\nDROPCOUNT: dropped 2 CAN frames on 'vcan0' socket (total drops 2)\n  vcan0  100   [1]  01\n";
+        let mut r = LogReader::any_format(log.as_bytes(), Box::new(|| Duration::ZERO));
+        assert!(r.next().unwrap().is_ok());
+        match r.next().unwrap() {
+            Err(LogError::InputLost { line: 2, frames: 2 }) => {}
+            other => panic!("{other:?}"),
+        }
+        assert!(r.next().unwrap().is_ok());
+    }
 
     const SAMPLE: &str = "(1436509052.249713) vcan0 044#2A366C2BBA";
 

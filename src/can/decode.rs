@@ -18,6 +18,11 @@ pub enum E2eVerdict {
     /// The frame is not a message of the contract (unknown id, extended or remote frame).
     NotInContract,
     Failed(E2eError),
+    /// A counter gap the logger's own losses explain ([`InputLoss`]): frames missing from the
+    /// input, not an error of the bus.
+    MissingInput {
+        skipped: u8,
+    },
 }
 
 impl E2eVerdict {
@@ -28,6 +33,46 @@ impl E2eVerdict {
             E2eVerdict::NotProtected => "not_protected",
             E2eVerdict::NotInContract => "not_in_contract",
             E2eVerdict::Failed(e) => e.kind(),
+            E2eVerdict::MissingInput { .. } => "missing_input",
+        }
+    }
+}
+
+/// Frames the logger lost before the decoder read them (candump -d's `DROPCOUNT` lines), and
+/// the counter gaps they explain: a message's counter gap of k frames after losses of at least
+/// k frames since its previous frame is [`E2eVerdict::MissingInput`], not an error of the bus.
+#[derive(Debug, Default, Clone)]
+pub struct InputLoss {
+    /// Frames lost so far.
+    total: u64,
+    /// Per message id: `total` when its last frame was read.
+    seen_at: std::collections::HashMap<u32, u64>,
+}
+
+impl InputLoss {
+    /// The logger lost `frames` frames here.
+    pub fn lost(&mut self, frames: u64) {
+        self.total += frames;
+    }
+
+    /// Frames lost so far.
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
+    /// The verdict of a frame of `id` once the losses are accounted for.
+    pub fn explain(&mut self, id: u32, verdict: E2eVerdict) -> E2eVerdict {
+        let since = self
+            .seen_at
+            .insert(id, self.total)
+            .map_or(0, |at| self.total - at);
+        match verdict {
+            E2eVerdict::Failed(E2eError::CounterSkipped { skipped, .. })
+                if since >= u64::from(skipped) =>
+            {
+                E2eVerdict::MissingInput { skipped }
+            }
+            v => v,
         }
     }
 }
@@ -127,6 +172,7 @@ pub struct LogDecoder {
     checker: Option<E2eChecker>,
     config: E2eConfig,
     silences: Silences<'static, u16>,
+    loss: InputLoss,
 }
 
 impl Default for LogDecoder {
@@ -141,7 +187,18 @@ impl LogDecoder {
             checker: None,
             config,
             silences: Silences::default(),
+            loss: InputLoss::default(),
         }
+    }
+
+    /// The logger before this decoder lost `frames` frames here (a `DROPCOUNT` line).
+    pub fn input_lost(&mut self, frames: u64) {
+        self.loss.lost(frames);
+    }
+
+    /// Frames the logger reported lost so far.
+    pub fn frames_lost(&self) -> u64 {
+        self.loss.total()
     }
 
     /// Decodes one record.
@@ -182,10 +239,11 @@ impl LogDecoder {
             .checker
             .get_or_insert_with(|| E2eChecker::all(self.config, timestamp));
         let e2e = if def.e2e {
-            match checker.check(timestamp, id, frame.bytes()) {
+            let v = match checker.check(timestamp, id, frame.bytes()) {
                 Ok(()) => E2eVerdict::Ok,
                 Err(e) => E2eVerdict::Failed(e),
-            }
+            };
+            self.loss.explain(id, v)
         } else {
             E2eVerdict::NotProtected
         };
@@ -263,6 +321,37 @@ mod tests {
         }
         assert_eq!(tracked.gaps(), full.gaps());
         assert!(!full.gaps().is_empty());
+    }
+
+    /// A counter gap the logger's DROPCOUNT explains is missing input; a gap larger than the
+    /// frames lost, or one with no loss before it, is still the bus's `counter_skipped`.
+    #[test]
+    fn counter_gaps_after_input_losses_are_missing_input() {
+        let mut tx = E2eSender::new();
+        let mut dec = LogDecoder::default();
+        let mut next = |skip: u8, t: u64| {
+            let mut d = EngStatus::default().encode().unwrap();
+            for _ in 0..=skip {
+                tx.protect(ids::ENG_STATUS, &mut d);
+            }
+            rec(t, ids::ENG_STATUS, &d)
+        };
+        let verdict = |dec: &mut LogDecoder, r: &LogRecord| dec.decode(r).e2e;
+        assert_eq!(verdict(&mut dec, &next(0, 0)), E2eVerdict::Ok);
+        // The bus skipped two frames, nothing lost on the way: an error of the bus.
+        assert_eq!(verdict(&mut dec, &next(2, 10)).as_str(), "counter_skipped");
+        // The logger lost three frames, the message skipped two: missing input.
+        dec.input_lost(3);
+        assert_eq!(
+            verdict(&mut dec, &next(2, 20)),
+            E2eVerdict::MissingInput { skipped: 2 }
+        );
+        // The loss is spent on that message: its next gap is the bus's again.
+        assert_eq!(verdict(&mut dec, &next(1, 30)).as_str(), "counter_skipped");
+        // A gap longer than the frames lost is not explained.
+        dec.input_lost(1);
+        assert_eq!(verdict(&mut dec, &next(4, 40)).as_str(), "counter_skipped");
+        assert_eq!(dec.frames_lost(), 4);
     }
 
     #[test]

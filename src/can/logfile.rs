@@ -31,6 +31,13 @@ pub enum LogFileError {
     },
     #[error("{}: {source}", file.display())]
     Mf4 { file: PathBuf, source: Mf4Error },
+    /// A `candump -d` `DROPCOUNT` line: the logger lost frames, so the record has holes.
+    #[error("{}:{line}: the logger lost {frames} frame(s) here (DROPCOUNT): the record has a hole", file.display())]
+    InputLost {
+        file: PathBuf,
+        line: usize,
+        frames: u64,
+    },
 }
 
 impl LogFileError {
@@ -44,6 +51,11 @@ impl LogFileError {
             LogError::Io(source) => LogFileError::Io {
                 file: file.into(),
                 source,
+            },
+            LogError::InputLost { line, frames } => LogFileError::InputLost {
+                file: file.into(),
+                line,
+                frames,
             },
         }
     }

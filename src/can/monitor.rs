@@ -23,6 +23,8 @@ struct Entry {
     e2e_errors: BTreeMap<&'static str, u64>,
     /// Frames the strict decode refused (DLC, range, value table).
     decode_errors: u64,
+    /// Counter gaps the input's own losses explain (not the bus's errors).
+    missing_input: u64,
 }
 
 /// Latest values and statistics per CAN id.
@@ -48,8 +50,10 @@ impl Monitor {
         {
             e.recent.pop_front();
         }
-        if let E2eVerdict::Failed(err) = d.e2e {
-            *e.e2e_errors.entry(err.kind()).or_default() += 1;
+        match d.e2e {
+            E2eVerdict::Failed(err) => *e.e2e_errors.entry(err.kind()).or_default() += 1,
+            E2eVerdict::MissingInput { .. } => e.missing_input += 1,
+            _ => {}
         }
         e.decode_errors += u64::from(d.error.is_some());
         e.signals.clear();
@@ -81,6 +85,9 @@ impl Monitor {
                 .collect();
             if e.decode_errors > 0 {
                 errors.push(format!("decode {}", e.decode_errors));
+            }
+            if e.missing_input > 0 {
+                errors.push(format!("(input lost: {} gap(s))", e.missing_input));
             }
             let age = now.saturating_sub(e.last).as_millis();
             let _ = writeln!(

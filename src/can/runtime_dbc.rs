@@ -27,7 +27,7 @@
 
 use super::candump::LogRecord;
 use super::codec::{decimals_of, MessageDef};
-use super::decode::{E2eVerdict, Gap, Silences};
+use super::decode::{E2eVerdict, Gap, InputLoss, Silences};
 use super::e2e::{E2eChecker, E2eConfig};
 use super::messages::message_def;
 use embedded_can::Frame as _;
@@ -589,14 +589,26 @@ pub struct Decoder<'a> {
     config: E2eConfig,
     checker: Option<E2eChecker>,
     silences: Silences<'a, usize>,
+    loss: InputLoss,
 }
 
 impl<'a> Decoder<'a> {
+    /// The logger before this decoder lost `frames` frames here (a `DROPCOUNT` line).
+    pub fn input_lost(&mut self, frames: u64) {
+        self.loss.lost(frames);
+    }
+
+    /// Frames the logger reported lost so far.
+    pub fn frames_lost(&self) -> u64 {
+        self.loss.total()
+    }
+
     pub fn new(dbc: &'a RuntimeDbc, config: E2eConfig) -> Self {
         Self {
             dbc,
             config,
             checker: None,
+            loss: InputLoss::default(),
             silences: Silences::default(),
         }
     }
@@ -636,10 +648,11 @@ impl<'a> Decoder<'a> {
             let checker = self
                 .checker
                 .get_or_insert_with(|| E2eChecker::for_ids(self.config, r.timestamp, twins));
-            match checker.check(r.timestamp, u32::from(def.id), data) {
+            let v = match checker.check(r.timestamp, u32::from(def.id), data) {
                 Ok(()) => E2eVerdict::Ok,
                 Err(e) => E2eVerdict::Failed(e),
-            }
+            };
+            self.loss.explain(u32::from(def.id), v)
         });
         let (signals, mux_issue) = decode_signals(m, data);
         let issue = if data.len() < m.size {

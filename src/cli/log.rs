@@ -455,10 +455,23 @@ enum AnyDecoder<'a> {
     Runtime(runtime_dbc::Decoder<'a>),
 }
 
+impl AnyDecoder<'_> {
+    /// The logger lost `frames` frames before the next one (none: nothing to tell).
+    fn input_lost(&mut self, frames: u64) {
+        match self {
+            _ if frames == 0 => {}
+            AnyDecoder::Builtin(d) => d.input_lost(frames),
+            AnyDecoder::Runtime(d) => d.input_lost(frames),
+        }
+    }
+}
+
 /// Why an item of the input is not a frame.
 enum Unread {
     /// A malformed line or frame: named (after the file name), counted and skipped.
     Skip(String),
+    /// The logger before us lost this many frames here (candump -d's `DROPCOUNT`).
+    Lost(u64),
     /// The input cannot be read further.
     Fatal(anyhow::Error),
 }
@@ -467,6 +480,7 @@ impl From<LogError> for Unread {
     fn from(e: LogError) -> Self {
         match e {
             LogError::Line { line, kind } => Unread::Skip(format!(":{line}: {kind}")),
+            LogError::InputLost { frames, .. } => Unread::Lost(frames),
             other => Unread::Fatal(other.into()),
         }
     }
@@ -492,6 +506,10 @@ struct Decoding<'a> {
     bad_lines: usize,
     /// Frames by E2E verdict (a handful of verdicts: a list, not a map, per frame).
     verdicts: Vec<(&'static str, usize)>,
+    /// Frames the logger reported lost (DROPCOUNT lines) and not yet told to the decoder.
+    lost_pending: u64,
+    /// DROPCOUNT lines read.
+    loss_lines: usize,
 }
 
 impl Decoding<'_> {
@@ -513,6 +531,11 @@ impl Decoding<'_> {
             Ok(r) => Ok(Some(r)),
             Err(Unread::Skip(what)) => {
                 self.bad_item(&what);
+                Ok(None)
+            }
+            Err(Unread::Lost(frames)) => {
+                self.lost_pending += frames;
+                self.loss_lines += 1;
                 Ok(None)
             }
             Err(Unread::Fatal(e)) => Err(e).with_context(|| format!("{}", self.file.display())),
@@ -583,6 +606,8 @@ fn decode(
         filter,
         bad_lines: 0,
         verdicts: Vec::new(),
+        lost_pending: 0,
+        loss_lines: 0,
     };
     let decoded = match (&mut decoder, format) {
         (AnyDecoder::Builtin(dec), Format::Csv) if mf4.is_none() => {
@@ -612,11 +637,11 @@ fn decode(
             .with_context(|| format!("writing {}", p.display()))?;
         eprintln!("{}: {rows} rows", p.display());
     }
-    let gaps = match &decoder {
-        AnyDecoder::Builtin(dec) => dec.gaps(),
-        AnyDecoder::Runtime(dec) => dec.gaps(),
+    let (gaps, lost) = match &decoder {
+        AnyDecoder::Builtin(dec) => (dec.gaps(), dec.frames_lost()),
+        AnyDecoder::Runtime(dec) => (dec.gaps(), dec.frames_lost()),
     };
-    report_decoding(&run, gaps, quiet)
+    report_decoding(&run, gaps, lost, quiet)
 }
 
 /// Where `ddct log decode` writes text: the `--out` file, else standard output (around the
@@ -634,16 +659,38 @@ fn text_sink(file: Option<File>, pb: &ProgressBar) -> Box<dyn Write + Send> {
     }
 }
 
+/// What the input itself says of frames missing from it: the logger's DROPCOUNT lines (the
+/// counter gaps they explain are `missing_input`, not the bus's), or, reading a pipe without
+/// them, that a reader falling behind loses frames too and how to have candump say so.
+fn report_input_loss(run: &Decoding<'_>, lost: u64, skipped: Option<usize>) {
+    if run.loss_lines > 0 {
+        eprintln!(
+            "input: the logger lost {lost} frame(s) before ddct read them ({} DROPCOUNT \
+             line(s)); the counter gaps they explain are counted as missing_input, not as the \
+             bus's E2E errors",
+            run.loss_lines
+        );
+    } else if run.file.as_os_str() == "-" && skipped.is_some() {
+        eprintln!(
+            "input: standard input said nothing of frames it lost; a candump that falls behind \
+             loses frames too, and they show as counter_skipped here: run `candump -d` so that \
+             its DROPCOUNT lines tell its own losses from the bus's"
+        );
+    }
+}
+
 /// The summary of `ddct log decode` on stderr: frames by E2E verdict, the silences (unless
 /// `quiet`), the malformed lines (exit code 2).
 fn report_decoding(
     run: &Decoding<'_>,
     gaps: &[ddct::can::decode::Gap<'_>],
+    lost: u64,
     quiet: bool,
 ) -> anyhow::Result<ExitCode> {
     let by_name: BTreeMap<_, _> = run.verdicts.iter().copied().collect();
     let summary: Vec<String> = by_name.iter().map(|(k, v)| format!("{k} {v}")).collect();
     eprintln!("frames by E2E verdict: {}", summary.join(", "));
+    report_input_loss(run, lost, by_name.get("counter_skipped").copied());
     for g in gaps.iter().filter(|_| !quiet) {
         eprintln!(
             "gap: {} silent from {:.6} to {:.6} s ({} ms)",
@@ -682,6 +729,7 @@ fn frame_by_frame<E: Into<Unread>, W: Write + Send>(
         let Some(rec) = run.record(item)? else {
             continue;
         };
+        decoder.input_lost(std::mem::take(&mut run.lost_pending));
         run.frames_read(1);
         // Every frame goes through the decoder (its E2E and gap tracking); only the selected
         // ones are turned into output.
@@ -731,6 +779,10 @@ fn read_any_format(file: &PathBuf) -> anyhow::Result<Vec<LogRecord>> {
         match item {
             Ok(r) => records.push(r),
             Err(LogError::Line { line, kind }) => bail!("{}:{line}: {kind}", file.display()),
+            Err(LogError::InputLost { line, frames }) => eprintln!(
+                "{}:{line}: the logger lost {frames} frame(s) here (DROPCOUNT)",
+                file.display()
+            ),
             Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
         }
     }
@@ -946,6 +998,7 @@ fn monitor(source: &Source, limit: Option<Duration>) -> anyhow::Result<ExitCode>
             Err(LogError::Line { line, kind }) => {
                 eprintln!("{}:{line}: {kind}", file.display())
             }
+            Err(LogError::InputLost { frames, .. }) => decoder.input_lost(frames),
             Err(e) => return Err(e).with_context(|| format!("{}", file.display())),
         }
         if tty && last_draw.elapsed() >= MONITOR_REDRAW {

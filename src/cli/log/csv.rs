@@ -75,6 +75,7 @@ fn decode_blocks<R: Read>(
         let Some(rec) = run.record(item)? else {
             continue;
         };
+        dec.input_lost(std::mem::take(&mut run.lost_pending));
         block.frames_read += 1;
         // Every frame goes through the decoder (its E2E and gap tracking); only the selected
         // ones are turned into rows.
