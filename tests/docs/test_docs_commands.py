@@ -1,0 +1,117 @@
+"""Every command README.md and docs/ show is run, as written, from the repository root, with
+`ddct` on PATH as the README says (`export PATH=$PWD/target/release:$PATH`).
+
+The manifest tests/docs/commands.toml says per command its part and what its output must show:
+  host  run by scripts/test's `docs` part (commands that boot User-Mode Linux themselves through
+        scripts/vcan-run are host commands too)
+  vcan  need vcan0 without saying `scripts/vcan-run` (a machine with vcan): run inside
+        scripts/vcan-run by the `vcan:pytest:tests/docs` part
+  long  minutes of CPU: scripts/test's `docs-long` part
+A command shown in the docs and missing from the manifest fails, and so does a manifest entry no
+page shows any more; a deselected part is not a skip: each part runs in its own scripts/test part.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import time
+
+import pytest
+
+import docs_commands as dc
+
+ENTRIES = dc.manifest()
+COUNTS: dict[str, int] = {}
+
+
+def env() -> dict:
+    e = dict(os.environ)
+    e["PATH"] = f"{dc.REPO / 'target' / 'release'}{os.pathsep}{e.get('PATH', '')}"
+    e.pop("DDCT_OUT", None)
+    return e
+
+
+def test_every_shown_command_is_in_the_manifest():
+    shown = dc.shown_commands()
+    known = {e.cmd for e in ENTRIES}
+    missing = [f"{s.cmd!r} ({', '.join(s.where)})" for s in shown.values() if s.cmd not in known]
+    stale = [c for c in known if c not in shown]
+    assert not missing, "commands shown in the docs without a tests/docs/commands.toml entry:\n" + "\n".join(missing)
+    assert not stale, "tests/docs/commands.toml entries no page shows:\n" + "\n".join(stale)
+    dupes = {e.cmd for e in ENTRIES if sum(x.cmd == e.cmd for x in ENTRIES) > 1}
+    assert not dupes, dupes
+    by_part = {p: sum(e.part == p for e in ENTRIES) for p in dc.PARTS}
+    print(f"\ndocs commands: {len(shown)} shown in {len(dc.doc_files())} pages; by part {by_part}")
+
+
+def test_no_command_hides_outside_a_sh_block():
+    assert not dc.untagged_command_blocks(), (
+        "blocks without a language that hold commands (tag them ```sh, or ```text for a synopsis): "
+        f"{dc.untagged_command_blocks()}")
+    shown = dc.shown_commands()
+    loose = [f"{w}: `{c}`" for w, c in dc.inline_commands() if c not in shown]
+    assert not loose, ("complete commands in prose that no ```sh block shows (so no test runs them); "
+                       "put them in a block, or write a placeholder:\n" + "\n".join(loose))
+
+
+def run_entry(e: dc.Entry) -> tuple[int, str]:
+    for s in e.setup:
+        r = subprocess.run(["bash", "-c", s], cwd=dc.REPO, env=env(), text=True, stdin=subprocess.DEVNULL,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=e.timeout_s)
+        assert r.returncode == 0, f"setup `{s}` exited {r.returncode}:\n{r.stdout[-3000:]}"
+    beside = None
+    if e.beside:
+        beside = subprocess.Popen(["bash", "-c", e.beside], cwd=dc.REPO, env=env(), stdin=subprocess.DEVNULL,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        time.sleep(0.5)
+    try:
+        p = subprocess.Popen(["bash", "-c", e.cmd], cwd=dc.REPO, env=env(), text=True, stdin=subprocess.DEVNULL,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            if e.stop_after_s is not None:
+                try:
+                    out, _ = p.communicate(timeout=e.stop_after_s)
+                    return p.returncode, out  # ended by itself before the stop
+                except subprocess.TimeoutExpired:
+                    os.killpg(p.pid, signal.SIGINT)
+            out, _ = p.communicate(timeout=e.timeout_s)
+            return p.returncode, out
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            out, _ = p.communicate()
+            pytest.fail(f"`{e.cmd}` did not end within {e.timeout_s} s:\n{out[-3000:]}")
+    finally:
+        if beside is not None:
+            try:
+                os.killpg(beside.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+            beside.wait(30)
+
+
+def test_covered_commands_are_run_by_the_test_that_claims_them():
+    """A command another test runs (the main job, the whole suite) must be written in that test
+    as shown, so the docs and the test cannot drift apart."""
+    for e in ENTRIES:
+        if e.covered_by:
+            text = (dc.REPO / e.covered_by).read_text()
+            parts = [p.strip() for p in e.cmd.split("&&")]
+            assert e.cmd in text or all(p in text for p in parts), f"{e.covered_by} does not run `{e.cmd}`"
+
+
+@pytest.mark.parametrize(
+    "entry",
+    [pytest.param(e, id=e.cmd[:90], marks=getattr(pytest.mark, e.part)) for e in ENTRIES if not e.covered_by],
+)
+def test_command(entry: dc.Entry):
+    rc, out = run_entry(entry)
+    assert "panicked at" not in out, out[-4000:]
+    assert rc == entry.exit, f"`{entry.cmd}` exited {rc}, expected {entry.exit}:\n{out[-4000:]}"
+    for pat in entry.expect:
+        assert re.search(pat, out, re.M), f"`{entry.cmd}`: no match for {pat!r} in its output:\n{out[-4000:]}"
+    for pat in entry.refuse:
+        assert not re.search(pat, out, re.M), f"`{entry.cmd}`: {pat!r} in its output:\n{out[-4000:]}"
+    COUNTS[entry.part] = COUNTS.get(entry.part, 0) + 1
