@@ -149,8 +149,10 @@ class Entry:
     setup: list[str] = field(default_factory=list)
     beside: str | None = None
     timeout_s: float = 600.0
-    # A test file (or .ci/run) that runs this exact command itself.
+    # A test file (or .ci/run, scripts/test) that runs this command itself, and the text by
+    # which it does (default: the command).
     covered_by: str | None = None
+    covered_as: str | None = None
     why: str = ""
 
 

@@ -2,9 +2,13 @@
 fresh clone of this repository, with no environment override, so the bench runs on vcan0 (the host
 kernel's, or User-Mode Linux through scripts/vcan-run) — the user's path, not an easier one.
 
-The clone is of HEAD (what CI clones); a build cache of this checkout (target/release) is copied
-into it first, so cargo rebuilds only ddct itself, not its dependencies. That changes no path the
-user's commands take: the clone runs its own setup (its own .venv) and its own build.
+The clone is of HEAD (what CI clones). Where this checkout's sources are HEAD's (no uncommitted
+change to what cargo builds), its build cache (target/release) is copied into the clone, and the
+clone's files are dated back so that cargo, comparing dates, takes the cache for what it is: the
+build of the same sources. That changes no path the user's commands take: the clone runs its own
+setup (its own .venv) and its own `cargo build`, which finds nothing to do. With uncommitted
+changes the cache is not copied (it would be the build of other sources), and the clone builds
+from scratch.
 
 Second case: on a machine with neither vcan nor User-Mode Linux (DDCT_VCAN_MODE=none makes
 scripts/vcan-run answer as it does there) scripts/bench says what to do and runs on the in-process
@@ -45,8 +49,17 @@ def clone(tmp_path_factory) -> Path:
                            capture_output=True).stdout
     if dirty:
         print(f"\nnote: the clone is of HEAD; uncommitted changes are not in it:\n{dirty}")
+    built_from_head = not any(
+        line[3:].startswith(("src/", "build.rs", "Cargo.", "dbc/", "config/", "benches/"))
+        for line in dirty.splitlines())
     cache = REPO / "target" / "release"
-    if cache.is_dir():
+    if built_from_head:
+        # The cache is the build of this checkout's sources (HEAD's) once this has run.
+        subprocess.run(["cargo", "build", "--release", "--quiet", "--bin", "ddct"], cwd=REPO, check=True,
+                       timeout=2400, env={k: v for k, v in os.environ.items() if k != "CARGO_TARGET_DIR"})
+    if cache.is_dir() and built_from_head:
+        files = subprocess.run(["git", "ls-files", "-z"], cwd=dest, capture_output=True, check=True).stdout
+        subprocess.run(["xargs", "-0", "touch", "-h", "-d", "@946684800"], cwd=dest, input=files, check=True)
         (dest / "target").mkdir()
         subprocess.run(["cp", "-a", str(cache), str(dest / "target" / "release")], check=True, timeout=600)
     return dest
