@@ -24,7 +24,14 @@ import pytest
 import docs_commands as dc
 
 ENTRIES = dc.manifest()
+SHOWN = dc.shown_commands()
 COUNTS: dict[str, int] = {}
+
+
+def entry_id(e: dc.Entry) -> str:
+    """Where the page shows the command (file:line), and its first words."""
+    where = SHOWN[e.cmd].where[0] if e.cmd in SHOWN else "not shown"
+    return f"{where} {e.cmd[:60]}"
 
 
 def env() -> dict:
@@ -114,7 +121,7 @@ def test_covered_commands_are_run_by_the_test_that_claims_them():
 
 @pytest.mark.parametrize(
     "entry",
-    [pytest.param(e, id=e.cmd[:90], marks=getattr(pytest.mark, e.part)) for e in ENTRIES if not e.covered_by],
+    [pytest.param(e, id=entry_id(e), marks=getattr(pytest.mark, e.part)) for e in ENTRIES if not e.covered_by],
 )
 def test_command(entry: dc.Entry):
     rc, out = run_entry(entry)
