@@ -14,7 +14,8 @@ from ddct_testlib import ddct_can
 
 def eng_status(n: int) -> list[str]:
     """n ENG_Status frames 10 ms apart with consecutive alive counters, as candump -l lines."""
-    return [ddct_can.candump_line(1_700_000_000.0 + 0.01 * k, "vcan0", 0x100,
+    fid = ddct_can.load_dbc().get_message_by_name("ENG_Status").frame_id
+    return [ddct_can.candump_line(1_700_000_000.0 + 0.01 * k, "vcan0", fid,
                                   ddct_can.encode("ENG_Status", {"EngSpeed": 800.0, "EngTorqueAct": 10.0}, counter=k % 16))
             for k in range(n)]
 
