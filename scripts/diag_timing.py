@@ -37,6 +37,7 @@ sys.path.insert(0, str(REPO / "tests" / "diag"))
 sys.path.insert(0, str(REPO / "tests" / "python"))
 
 from diag_helpers import DID, bench, uds_client  # noqa: E402
+from progress_text import duration  # noqa: E402  (scripts/ is on sys.path: the script's own folder)
 
 # Seconds a run takes beyond --seconds, in User-Mode Linux on the 2-core build machine alone:
 # quiet, the bench's start and stop, 1 s settling and 2 s more (23-24 s for 20 s); busy, the XCP
@@ -89,16 +90,6 @@ def one_run(ddct: Path, busy: bool, seconds: float, work: Path, tcu_args: list) 
             time.sleep(seconds + 2.0)
     report = b.tcu_report
     return {"busy": busy, **{k: report.get(k) for k in FIGURES}, **counts}
-
-
-def duration(s: float) -> str:
-    """`s` as "42 s", "3 min 05 s" or "1 h 02 min"."""
-    s = max(0, round(s))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 def progress(line: str) -> None:

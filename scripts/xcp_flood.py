@@ -32,21 +32,12 @@ sys.path.insert(0, str(REPO / "tests" / "diag"))
 
 import ddct_can  # noqa: E402
 from diag_helpers import bench  # noqa: E402
+from progress_text import duration  # noqa: E402  (scripts/ is on sys.path: the script's own folder)
 
 # Seconds one run of the master takes under the flood in User-Mode Linux on the 2-core build
 # machine (about 46 s; 91 and 114 s while a cargo build and other tests shared the machine): the
 # estimate before a run is done; after, the mean of the runs done.
 PRIOR_RUN_S = 46.0
-
-
-def duration(s: float) -> str:
-    """`s` as "42 s", "3 min 05 s" or "1 h 02 min"."""
-    s = max(0, round(s))
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 def excerpt(text: str, head: int = 1500, tail: int = 1500) -> str:
