@@ -143,13 +143,21 @@ async fn queued_frames_are_read_in_batches_with_their_timestamps() {
 #[test]
 #[ignore = "needs vcan0: run through scripts/vcan-run"]
 fn the_bench_harness_records_a_complete_run_on_vcan() {
-    use ddct::bench::{bench_run, Net};
+    use ddct::bench::{bench_run, BenchPacing, Net};
     use ddct::sim::SimScenario;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut sc = SimScenario::load(&root.join("config/scenarios/launch_50.toml")).unwrap();
     sc.duration_s = 2.0;
     let cfg = ddct::tcu::TcuConfig::default();
-    let r = bench_run(&Net::Can(iface()), &sc, &cfg, || {}, std::future::pending).unwrap();
+    let r = bench_run(
+        &Net::Can(iface()),
+        &sc,
+        &cfg,
+        BenchPacing::RealTime,
+        || {},
+        std::future::pending,
+    )
+    .unwrap();
     assert!(r.settled, "the recording did not settle");
     let count = |id, frames: &[(std::time::Duration, CanFrame)]| {
         frames

@@ -7,10 +7,10 @@ use super::recorder::{Recorder, RecorderError, READY_TIMEOUT};
 use crate::can::messages::ids;
 use crate::can::{Bus, BusError, CanFrame};
 use crate::daemon::plant::{
-    run as run_plant, Pacing, PlantDaemonConfig, PlantDaemonError, PlantReport,
+    run as run_plant, Lockstep, Pacing, PlantDaemonConfig, PlantDaemonError, PlantReport,
 };
 use crate::daemon::tcu::{
-    run as run_tcu, TcuDaemonConfig, TcuDaemonError, TcuReport, CYCLE, INPUT_IDS,
+    run as run_tcu, TcuClock, TcuDaemonConfig, TcuDaemonError, TcuReport, CYCLE, INPUT_IDS,
 };
 use crate::daemon::{runtime, Periodic};
 use crate::sim::SimScenario;
@@ -42,6 +42,39 @@ pub enum BenchError {
     #[error("the {0} thread panicked")]
     Panicked(&'static str),
 }
+
+/// How the plant and the TCU keep time on the bench.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BenchPacing {
+    /// The plant paced in real time waits, after each 10 ms cycle, for the TCU's answer (each
+    /// of the five messages of its cycle) before it simulates the next ([`LOCKSTEP_TIMEOUT`] at most), and the TCU counts
+    /// time in the plant's DCT_Sensors frames ([`TcuClock::Bus`]). A host that stalls either
+    /// daemon (a loaded machine, User-Mode Linux's one virtual CPU) slows the run down instead
+    /// of changing it: the physics and the verdict are the same on any host.
+    #[default]
+    Lockstep,
+    /// Both daemons free-running on their own clocks, as two ECUs on a real bus: the plant
+    /// integrates the cycles a stall made it miss with the TCU's last command, so the verdict
+    /// also measures the host's real-time behaviour.
+    RealTime,
+}
+
+/// Lockstep bench: wall time the plant waits for the TCU's answer to a cycle before it
+/// simulates on without it (a cycle counted in the report's `lockstep_timeouts`).
+pub const LOCKSTEP_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// The TCU's messages the plant acts on (what its socket hears in real time).
+const PLANT_INPUTS: [u16; 3] = [ids::TCU_CLUTCH_CMD, ids::TCU_ENGINE_REQ, ids::TCU_GEAR_CMD];
+
+/// The TCU's cycle: every message it sends per computation (a lockstep cycle's answer).
+const TCU_CYCLE: [u16; 5] = [
+    ids::TCU_CLUTCH_CMD,
+    ids::TCU_ENGINE_REQ,
+    ids::TCU_GEAR_CMD,
+    ids::TCU_STATUS,
+    ids::TCU_ESTIMATES,
+];
 
 /// Resolves when `stop` turns true (or its sender is gone).
 async fn stopped(mut stop: watch::Receiver<bool>) {
@@ -84,13 +117,15 @@ fn join<T>(
     h.join().map_err(|_| BenchError::Panicked(who))?
 }
 
-/// The plant and TCU daemons play `sc` in real time on `net`, with the recorder. `before` runs
-/// first on every thread the run starts (the real-time priority); `shutdown`, called on the
-/// plant's runtime, gives the future that ends the plant early (SIGINT, SIGTERM).
+/// The plant and TCU daemons play `sc` in real time on `net` (in lockstep or free-running:
+/// `pacing`), with the recorder. `before` runs first on every thread the run starts (the
+/// real-time priority); `shutdown`, called on the plant's runtime, gives the future that ends
+/// the plant early (SIGINT, SIGTERM).
 pub fn bench_run<S: Future<Output = ()>>(
     net: &Net,
     sc: &SimScenario,
     cfg: &TcuConfig,
+    pacing: BenchPacing,
     before: impl Fn() + Clone + Send + 'static,
     shutdown: impl FnOnce() -> S,
 ) -> Result<RunResult, BenchError> {
@@ -106,7 +141,10 @@ pub fn bench_run<S: Future<Output = ()>>(
             tcu: tcu_cfg,
             duration: None,
             log: None,
-            clock: Default::default(),
+            clock: match pacing {
+                BenchPacing::Lockstep => TcuClock::Bus,
+                BenchPacing::RealTime => TcuClock::Monotonic,
+            },
             diag: None,
         };
         Ok(run_tcu(bus, stopped(stop_rx), c).await?)
@@ -119,13 +157,21 @@ pub fn bench_run<S: Future<Output = ()>>(
         pacing: Pacing::RealTime { speed: 1.0 },
         duration: Some(Duration::from_secs_f64(sc.duration_s)),
         log: None,
-        lockstep: None,
+        // The plant plays the driver itself: the TCU's answer is all it waits for, its whole
+        // cycle (were it TCU_ClutchCmd alone, the other commands could act a cycle late, and
+        // the recorder could see the plant's next cycle before the TCU's status of this one).
+        lockstep: (pacing == BenchPacing::Lockstep).then(|| Lockstep {
+            messages: TCU_CYCLE.to_vec(),
+            timeout: LOCKSTEP_TIMEOUT,
+        }),
     };
     let rt = runtime().map_err(BenchError::Runtime)?;
     let (plant, settled) = rt.block_on(async {
         // The plant plays the driver itself.
-        let bus =
-            net.open_filtered(&[ids::TCU_CLUTCH_CMD, ids::TCU_ENGINE_REQ, ids::TCU_GEAR_CMD])?;
+        let bus = net.open_filtered(match pacing {
+            BenchPacing::Lockstep => &TCU_CYCLE[..],
+            BenchPacing::RealTime => &PLANT_INPUTS[..],
+        })?;
         let plant = run_plant(bus, shutdown(), plant_cfg).await?;
         let settled = rec.settle(plant.frames_sent, SETTLE_TIMEOUT).await;
         Ok::<_, BenchError>((plant, settled))
@@ -216,6 +262,7 @@ mod tests {
             &net,
             &sc,
             &TcuConfig::default(),
+            BenchPacing::RealTime,
             || {},
             std::future::pending,
         )
@@ -236,6 +283,46 @@ mod tests {
         };
         assert!(last(ids::TCU_CLUTCH_CMD) > last(ids::DCT_SENSORS));
         assert!(wall < Duration::from_secs(5), "{wall:?}");
+    }
+
+    /// The lockstep bench is deterministic: two one-second runs of the 50 % launch on the
+    /// in-process bus carry the same payloads, message by message (how the TCU's answer
+    /// interleaves with the rest of the plant's cycle, and the receive times, may differ), every
+    /// plant cycle answered in time by the TCU's whole cycle.
+    #[test]
+    fn a_lockstep_bench_run_gives_the_same_frames_every_time() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut sc = SimScenario::load(&root.join("config/scenarios/launch_50.toml")).unwrap();
+        sc.duration_s = 1.0;
+        let run = |name: &str| {
+            let net = Net::Sim(InProcessBus::new(name));
+            let r = bench_run(
+                &net,
+                &sc,
+                &TcuConfig::default(),
+                BenchPacing::Lockstep,
+                || {},
+                std::future::pending,
+            )
+            .unwrap();
+            assert!(r.settled);
+            assert_eq!(r.plant.lockstep_timeouts, 0);
+            assert_eq!(r.plant.cycles, 101);
+            let mut by_id = std::collections::BTreeMap::<u16, Vec<CanFrame>>::new();
+            for (_, f) in r.frames {
+                by_id.entry(f.standard_id().unwrap()).or_default().push(f);
+            }
+            by_id
+        };
+        let (a, b) = (run("lockstep-a"), run("lockstep-b"));
+        assert_eq!(a[&ids::TCU_ESTIMATES].len(), 101);
+        assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+        for (id, frames) in &a {
+            assert!(
+                frames == &b[id],
+                "message {id:#x} differs between two lockstep runs"
+            );
+        }
     }
 
     /// Half a second of bare echo: 50 pings, each answered and recorded.

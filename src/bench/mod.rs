@@ -17,7 +17,7 @@ pub mod recorder;
 pub mod tester;
 pub mod timing;
 
-pub use harness::{bench_run, echo_run, BenchError, RunResult};
+pub use harness::{bench_run, echo_run, BenchError, BenchPacing, RunResult, LOCKSTEP_TIMEOUT};
 pub use net::{AnyBus, Net};
 pub use recorder::{Recorder, Seen};
 pub use timing::{timing, Timing};

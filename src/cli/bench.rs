@@ -15,13 +15,13 @@ use super::args::{probe_can, rt_priority, Iface};
 use super::shutdown_signal;
 use anyhow::Context;
 use clap::Args;
-use ddct::bench::{bench_run, echo_run, timing, Net, Timing};
+use ddct::bench::{bench_run, echo_run, timing, BenchPacing, Net, Timing};
 use ddct::can::candump::{LogReader, LogWriter};
 use ddct::can::messages::{ids, FaultCode, TcuState};
 use ddct::can::{CanFrame, InProcessBus};
 use ddct::daemon::plant::PlantReport;
 use ddct::daemon::tcu::{set_realtime_priority, TcuReport};
-use ddct::sim::buslog::{self, Spread};
+use ddct::sim::buslog::{self, Spread, TimeAxis};
 use ddct::sim::html::{self, Table};
 use ddct::sim::metrics::{self, Metrics};
 use ddct::sim::verdict::{self, Check};
@@ -59,6 +59,19 @@ pub struct BenchArgs {
     /// does not say which scenario made it).
     #[arg(long, requires = "scenario")]
     analyze: Option<PathBuf>,
+    /// How the daemons keep time: `lockstep` (the plant, paced in real time, waits for the TCU's
+    /// answer to each 10 ms cycle, and the TCU counts time in the plant's frames: a host that
+    /// stalls them slows the run instead of changing its physics and verdict) or `real-time`
+    /// (both free-running on their own clocks, like two ECUs: the verdict then also measures
+    /// the host's real-time behaviour).
+    #[arg(long, value_enum, default_value_t = PacingArg::Lockstep)]
+    pacing: PacingArg,
+    /// The clock the analysis reads the recording's physics on (lock-up times, windows, the
+    /// plots): `bus` (the plant's simulated time, 10 ms per DCT_Sensors frame: a stalled host or
+    /// recorder moves nothing) or `receive` (the recorder's timestamps). Latency and cycle
+    /// jitter are always read on the receive timestamps.
+    #[arg(long, value_enum, default_value_t = TimeAxisArg::Bus)]
+    time: TimeAxisArg,
     /// Run the plant, TCU, echo and recorder threads under the real-time FIFO scheduler at this
     /// priority (1..=99; needs root; a warning when refused).
     #[arg(long, value_parser = rt_priority)]
@@ -69,6 +82,38 @@ pub struct BenchArgs {
     /// Write the verdict (the scenario's `[limits]` checks) as JUnit XML to this file.
     #[arg(long)]
     junit: Option<PathBuf>,
+}
+
+/// `--pacing` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum PacingArg {
+    Lockstep,
+    RealTime,
+}
+
+/// `--time` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum TimeAxisArg {
+    Bus,
+    Receive,
+}
+
+impl From<TimeAxisArg> for TimeAxis {
+    fn from(t: TimeAxisArg) -> Self {
+        match t {
+            TimeAxisArg::Bus => TimeAxis::Bus,
+            TimeAxisArg::Receive => TimeAxis::Receive,
+        }
+    }
+}
+
+impl From<PacingArg> for BenchPacing {
+    fn from(p: PacingArg) -> Self {
+        match p {
+            PacingArg::Lockstep => BenchPacing::Lockstep,
+            PacingArg::RealTime => BenchPacing::RealTime,
+        }
+    }
 }
 
 impl BenchArgs {
@@ -137,6 +182,8 @@ pub struct BenchSummary {
     pub plots: Vec<PathBuf>,
     /// First and last DCT_Sensors frame, relative to the first frame of the log (s).
     pub plant_window: Option<(f64, f64)>,
+    /// The clock of the physics (rows, windows, plots): bus or receive time.
+    pub time_axis: TimeAxis,
     /// The checks of the scenario's `[limits]` on the bus run (`ddct::sim::verdict`).
     pub verdict: Vec<Check>,
 }
@@ -174,7 +221,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
         },
         None => record(&a, &sc, &cfg)?,
     };
-    let summary = analyse(&out, &sc, &cfg, recorded)?;
+    let summary = analyse(&out, &sc, &cfg, recorded, a.time.into())?;
     report(&a, &summary)
 }
 
@@ -209,9 +256,19 @@ fn record(a: &BenchArgs, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Re
         sc.name
     );
     // The spinner's ticker thread first: threads started after `realtime` inherit SCHED_FIFO.
-    let pb = super::spinner(format!("{}, {} s in real time", sc.name, sc.duration_s));
+    let pb = super::spinner(format!(
+        "{}, {} s in real time ({:?})",
+        sc.name, sc.duration_s, a.pacing
+    ));
     realtime(prio);
-    let r = bench_run(&net, sc, cfg, move || realtime(prio), shutdown_signal);
+    let r = bench_run(
+        &net,
+        sc,
+        cfg,
+        a.pacing.into(),
+        move || realtime(prio),
+        shutdown_signal,
+    );
     pb.finish_and_clear();
     let r = r?;
     if !r.settled {
@@ -239,9 +296,11 @@ fn analyse(
     sc: &SimScenario,
     cfg: &TcuConfig,
     r: Recorded,
+    axis: TimeAxis,
 ) -> anyhow::Result<BenchSummary> {
     let mut plots = Vec::new();
-    let rows = buslog::rows(&r.frames);
+    let physics = buslog::on_axis(&r.frames, axis);
+    let rows = buslog::rows(&physics);
     let mut tcfg = cfg.clone();
     sc.tcu.apply(&mut tcfg);
     let bus = metrics::compute(&rows, &tcfg);
@@ -262,9 +321,8 @@ fn analyse(
     let title = format!("{} in lockstep simulation: {}", sc.name, sc.description);
     std::fs::write(&p, plots::run_figure(&title, &srun.rows))?;
     plots.push(p);
-    let t0 = r.frames.first().map_or(Duration::ZERO, |f| f.0);
-    let sensors: Vec<f64> = r
-        .frames
+    let t0 = physics.first().map_or(Duration::ZERO, |f| f.0);
+    let sensors: Vec<f64> = physics
         .iter()
         .filter(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
         .map(|(t, _)| t.saturating_sub(t0).as_secs_f64())
@@ -280,10 +338,12 @@ fn analyse(
         status_events: run_events(&bus, plant_window),
         ..bus.clone()
     };
-    let verdict = verdict::judge(sc.limits.as_ref(), &in_run, latency_ratio);
+    let mut verdict = verdict::judge(sc.limits.as_ref(), &in_run, latency_ratio);
+    verdict.extend(r.plant.as_ref().and_then(lockstep_check));
     Ok(BenchSummary {
         verdict,
         plant_window,
+        time_axis: axis,
         iface: r.iface,
         scenario: sc.name.clone(),
         description: sc.description.clone(),
@@ -310,6 +370,22 @@ fn run_events(bus: &Metrics, plant_window: Option<(f64, f64)>) -> Vec<metrics::S
         .filter(|e| plant_window.is_none_or(|(a, b)| e.t_s >= a && e.t_s <= b))
         .copied()
         .collect()
+}
+
+/// A lockstep run's own check: the TCU answered every plant cycle within the lockstep timeout
+/// (a cycle without its answer was simulated on the TCU's previous command, as a free-running
+/// plant would).
+fn lockstep_check(p: &PlantReport) -> Option<Check> {
+    p.lockstep.as_ref()?;
+    Some(Check {
+        name: "lockstep_answers",
+        limit: format!(
+            "every cycle answered within {} s",
+            ddct::bench::LOCKSTEP_TIMEOUT.as_secs_f64()
+        ),
+        measured: format!("{} of {} cycles unanswered", p.lockstep_timeouts, p.cycles),
+        pass: p.lockstep_timeouts == 0,
+    })
 }
 
 /// Writes summary.json, report.html and the JUnit file, prints the summary and the verdict;
@@ -589,10 +665,16 @@ fn print_daemons(s: &BenchSummary) {
         );
     }
     if let Some(p) = &s.plant {
-        println!(
-            "plant daemon: {} cycles, overruns {}, deadline misses {}",
-            p.cycles, p.overruns, p.deadline_misses
-        );
+        match &p.lockstep {
+            Some(_) => println!(
+                "plant daemon: {} cycles in lockstep with the TCU, {} without its answer in time, wall {:.2} s for {:.2} s simulated",
+                p.cycles, p.lockstep_timeouts, p.wall_time_s, p.sim_time_s
+            ),
+            None => println!(
+                "plant daemon: {} cycles, overruns {}, deadline misses {}",
+                p.cycles, p.overruns, p.deadline_misses
+            ),
+        }
     }
     if let Some(w) = s.sim_wall_s {
         println!(

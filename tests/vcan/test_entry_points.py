@@ -59,15 +59,15 @@ def recording(ddct, tmp_path: Path, name: str, seconds: float):
 def test_bench_on_vcan0_runs_and_its_log_analyses_the_same(ddct, tmp_path):
     """`ddct bench --iface vcan0`: the daemons on the real bus, a verdict, summary.json on vcan0
     and report.html; then `ddct bench --analyze` of its own bench.log with the same scenario gives
-    the same verdict, and its printed fault codes agree with its `faults` row. The PASS verdict of
-    the timing-sensitive limits is the main job's test (tests/main); here a FAIL of one of them
-    (a flare a stalled guest CPU lets through) still shows the entry point works on vcan0."""
+    the same verdict, and its printed fault codes agree with its `faults` row. The bench runs in
+    lockstep by default (the plant waits for the TCU's answer each cycle), so a stalled guest CPU
+    slows it down without changing its verdict: PASS, every cycle answered."""
     out = tmp_path / "bench"
     rt = ["--rt-priority", "50"] if os.geteuid() == 0 else []
     r = lib.run([ddct, "bench", "--iface", IFACE, "--echo", "1", "--out", out, *rt], check=False, timeout=300)
     text = r.stdout + r.stderr
     no_panic(text)
-    assert r.returncode in (0, 1), text[-4000:]
+    assert r.returncode == 0, text[-4000:]
     assert re.search(r"^launch_shift_20s +lockup_s_max +(PASS|FAIL) ", r.stdout, re.M), r.stdout[-3000:]
     summary = json.loads((out / "summary.json").read_text())
     verdict = {c["name"]: c for c in summary["verdict"]}
@@ -76,6 +76,7 @@ def test_bench_on_vcan0_runs_and_its_log_analyses_the_same(ddct, tmp_path):
         assert verdict[functional]["pass"], verdict[functional]
     print("bench on vcan0:", {k: c["measured"] for k, c in verdict.items() if not c["pass"]} or "PASS")
     assert summary["iface"] == IFACE
+    assert verdict["lockstep_answers"]["pass"], verdict["lockstep_answers"]
     assert (out / "report.html").stat().st_size > 0 and list(out.glob("*.svg"))
     counts = ids_in(out / "bench.log")
     assert counts["DCT_Sensors"] > 1500 and counts["TCU_ClutchCmd"] > 1500, counts
@@ -90,7 +91,9 @@ def test_bench_on_vcan0_runs_and_its_log_analyses_the_same(ddct, tmp_path):
     assert r.returncode == (0 if all(verdict[k]["pass"] for k in verdict) else 1), (r.stdout + r.stderr)[-4000:]
     again = json.loads((an / "summary.json").read_text())
     # The same checks but the latency ratio (a log carries no echo measurement to compare with).
-    live = [(c["name"], c["pass"]) for c in summary["verdict"] if c["name"] != "latency_ratio_max"]
+    # (nor the plant's report of its lockstep answers).
+    live = [(c["name"], c["pass"]) for c in summary["verdict"]
+            if c["name"] not in ("latency_ratio_max", "lockstep_answers")]
     assert [(c["name"], c["pass"]) for c in again["verdict"]] == live
     faults_row = next(c for c in again["verdict"] if c["name"] == "faults")
     printed = re.search(r"^fault codes on the bus: (.*)$", r.stdout, re.M).group(1)
