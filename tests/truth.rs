@@ -32,6 +32,8 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
             "model::integrator",
             "gap::candidates",
             "gap::replay",
+            "gap::measured",
+            "gap::fast_replay",
             "gap::synth",
             "gap::diagnose",
             "gap::stats",

@@ -8,7 +8,8 @@
 //! variable's terms are dropped) say what the missing physics depends on.
 
 use super::candidates::Channel;
-use super::replay::{self, Measured};
+use super::measured::Measured;
+use super::series;
 use crate::model::clutch;
 use crate::model::params::Params;
 use nalgebra::{DMatrix, DVector};
@@ -67,10 +68,10 @@ fn extra(m: &Measured, disk: &[Vec<f64>; 2]) -> Extra {
             })
             .collect::<Vec<f64>>()
     });
-    let dth = [0, 1].map(|i| replay::derivative(&disk[i], m.dt, 10));
+    let dth = [0, 1].map(|i| series::derivative(&disk[i], m.dt, 10));
     let acc = [0, 1].map(|i| {
         let mag: Vec<f64> = m.slip[i].iter().map(|w| w.abs()).collect();
-        replay::derivative(&mag, m.dt, 3)
+        series::derivative(&mag, m.dt, 3)
     });
     Extra { p_filt, dth, acc }
 }

@@ -13,10 +13,13 @@
 
 #![allow(clippy::needless_range_loop)]
 
+use super::series;
+use super::set_hooks::SetHooks;
 use std::sync::Arc;
 
 use super::disk::{self, DiskRun};
-use super::replay::{self, Measured, Shared};
+use super::measured::{Measured, Shared};
+use super::replay;
 use super::shape::Shape;
 use super::slip_shapes::SlipShapes;
 use super::terms::{self, Extra, Surface, Terms, X_REF_MM};
@@ -25,10 +28,6 @@ use crate::model::effects::{self, EffectId, EffectSet, Subsystem, TorqueContext}
 use crate::model::params::{ActuatorParams, ClutchParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5State, ThermalInputs};
-
-/// An effect set as powertrain hooks (no backlash state: the replays see the measured position).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct SetHooks(pub EffectSet, pub Option<terms::ThermalTerms>);
 
 impl SetHooks {
     /// The hooks of a model: its library effects and its thermal class terms.
@@ -44,18 +43,6 @@ impl SetHooks {
                 partition: t.partition,
             }),
         )
-    }
-}
-
-impl SetHooks {
-    /// [`disk::Heat::Zero`] when the hooks' extra heat is zero in every state: no heat effect
-    /// ([`effects::HEAT_EFFECTS`]) and no thermal term.
-    pub fn heat(&self) -> disk::Heat {
-        if self.0.only(&effects::HEAT_EFFECTS).is_nominal() && self.1.is_none() {
-            disk::Heat::Zero
-        } else {
-            disk::Heat::Hooks
-        }
     }
 }
 
@@ -314,7 +301,7 @@ fn surface_temperatures(surface: &Surface, m: &Measured, disk: &[Vec<f64>; 2]) -
     if m.n == 0 {
         return out;
     }
-    let sites = m.power_sites.get(&surface.rise, m);
+    let sites = m.power_sites(&surface.rise);
     // Both clutches in one loop: two independent chains of steps side by side.
     let mut th = [disk[0][0], disk[1][0]];
     for k in 0..m.n {
@@ -406,7 +393,7 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
     if t.temp_lag_s > 0.0 {
         let half = ((1.0 / m.dt).round() as usize).max(1);
         let unlag = |v: &Shared| -> Shared {
-            let d = replay::derivative(v, m.dt, half);
+            let d = series::derivative(v, m.dt, half);
             v.iter()
                 .zip(&d)
                 .map(|(x, dx)| x + t.temp_lag_s * dx)
@@ -416,14 +403,16 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         c.cd = unlag(&c.cd);
     }
     if let Some(g) = &t.torque_sensor {
-        for i in 0..2 {
+        let mut e_cum = m.e_cum.clone();
+        let power = [0, 1].map(|i| {
             let power: Vec<f64> = (0..m.n)
                 .map(|k| g.invert(m.torque[i][k], 0.0) * m.slip[i][k])
                 .collect();
             let e0 = m.e_cum[i].first().copied().unwrap_or(0.0);
-            c.e_cum[i] = replay::cumulative_energy(&power, e0, m.dt).into();
-            c.power[i] = power.into();
-        }
+            e_cum[i] = series::cumulative_energy(&power, e0, m.dt).into();
+            Shared::from(power)
+        });
+        c = c.with_power(power, e_cum);
     }
     Some(c)
 }
@@ -447,9 +436,34 @@ pub struct ReplayMemo {
 }
 
 /// Surface temperatures of both clutches kept by surface model and the disk estimate they were
-/// computed on (its series' addresses and lengths: a record's cached estimate lives as long as
-/// the record).
-type SurfaceMemo = Vec<((Surface, [(usize, usize); 2]), Arc<[Vec<f64>; 2]>)>;
+/// computed on (a copy, compared bit for bit: an equal estimate wherever it is stored finds the
+/// entry, another one never does), the last used first, two at most.
+type SurfaceMemo = Vec<(Surface, [Vec<f64>; 2], Arc<[Vec<f64>; 2]>)>;
+
+/// The surface temperatures of `sf` over the disk estimate `dk` from `kept`, else made by `make`
+/// (and kept).
+fn recall_surface(
+    kept: &mut SurfaceMemo,
+    sf: Surface,
+    dk: &[Vec<f64>; 2],
+    make: impl FnOnce() -> Arc<[Vec<f64>; 2]>,
+) -> Arc<[Vec<f64>; 2]> {
+    let same = |d: &[Vec<f64>; 2]| (0..2).all(|i| same_bits(&d[i], &dk[i]));
+    match kept.iter().position(|(s, d, _)| *s == sf && same(d)) {
+        Some(i) => kept[..=i].rotate_right(1),
+        None => {
+            let made = make();
+            kept.insert(0, (sf, dk.clone(), made));
+            kept.truncate(2);
+        }
+    }
+    kept[0].2.clone()
+}
+
+/// Whether two series hold the same numbers, bit for bit (NaN included).
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
 
 /// Per channel, a prediction vector whose residuals a fit has taken ([`ReplayMemo::recycle`]):
 /// NaN but at the channel's samples, which the next prediction on the same samples writes again
@@ -459,10 +473,10 @@ type SurfaceMemo = Vec<((Surface, [(usize, usize); 2]), Arc<[Vec<f64>; 2]>)>;
 #[derive(Debug, Default)]
 struct Spare(Vec<Option<SpareVec>>);
 
-/// A spare vector and the samples (the slice's address and length) it holds values at.
+/// A spare vector and the samples it holds values at (their indices, compared by value).
 #[derive(Debug)]
 struct SpareVec {
-    at: (usize, usize),
+    at: Vec<usize>,
     v: Vec<f64>,
 }
 
@@ -476,9 +490,8 @@ impl Spare {
     /// A vector of `n` for channel `c` at the samples `at`: NaN but where the previous one of
     /// the same samples had values (which the caller overwrites).
     fn take(&mut self, c: Channel, at: &[usize], n: usize) -> Vec<f64> {
-        let key = (at.as_ptr() as usize, at.len());
         match self.0.get_mut(c.index()).and_then(Option::take) {
-            Some(s) if s.at == key && s.v.len() == n => s.v,
+            Some(s) if s.at == at && s.v.len() == n => s.v,
             _ => vec![f64::NAN; n],
         }
     }
@@ -493,10 +506,7 @@ impl ReplayMemo {
         for (c, v) in Channel::ALL.iter().zip(p.y) {
             if !v.is_empty() {
                 let at = s.get(*c);
-                spare[c.index()] = Some(SpareVec {
-                    at: (at.as_ptr() as usize, at.len()),
-                    v,
-                });
+                spare[c.index()] = Some(SpareVec { at: at.to_vec(), v });
             }
         }
     }
@@ -762,10 +772,7 @@ fn predict_torques(
     let surface = surface_of(model).map(|sf| {
         let make = || Arc::new(surface_temperatures(&sf, m, dk));
         match reuse.surface.as_deref_mut() {
-            Some(kept) => {
-                let on = [0, 1].map(|i| (dk[i].as_ptr() as usize, dk[i].len()));
-                recall(kept, (sf, on), |_| make()).clone()
-            }
+            Some(kept) => recall_surface(kept, sf, dk, make),
             None => make(),
         }
     });
@@ -773,9 +780,9 @@ fn predict_torques(
         t.mu.iter()
             .flatten()
             .any(|(v, _)| *v == super::class::Variable::SlidingAcceleration)
-            .then(|| m.slides.get(m));
+            .then_some(&*m.slides);
     let skew = t.torque_skew_s / m.dt;
-    let shapes = m.slip_shapes.get(&p.clutch, m);
+    let shapes = m.slip_shapes(&p.clutch);
     for i in 0..2 {
         let c = Channel::Torque(i);
         if !wanted(s, chans, c) {
@@ -788,7 +795,7 @@ fn predict_torques(
                 dk,
                 bearing.as_ref(),
                 surface.as_deref(),
-                slide.as_deref().map(|s| &s.acc),
+                slide,
                 &shapes,
                 i,
                 k,
@@ -830,7 +837,7 @@ fn predict_temperatures(
     let t = &model.terms;
     // The temperatures are read at every `stride`-th sample: the replay steps by it.
     let stride = s.temp_stride;
-    let tr = super::windows::thermal_replay_fast(p, &h, m, stride);
+    let tr = super::fast_replay::thermal_replay_fast(p, &h, m, stride);
     for j in 0..3 {
         let c = Channel::Temp(j);
         if !wanted(s, chans, c) {
@@ -923,12 +930,6 @@ fn predict_engine(
     v
 }
 
-/// Sliding acceleration d|ω_fc|/dt (rad/s²) by a centred difference over ±2 samples.
-pub fn slide_acceleration(slip: &[f64], dt: f64) -> Vec<f64> {
-    let a: Vec<f64> = slip.iter().map(|w| w.abs()).collect();
-    replay::derivative(&a, dt, 2)
-}
-
 /// Residuals (measured − predicted) of the channels at their samples, in channel order.
 pub fn residuals(
     m: &Measured,
@@ -949,7 +950,7 @@ pub fn residuals(
 mod tests {
     use super::*;
 
-    use crate::gap::replay::test_record as record;
+    use crate::gap::measured::test_record as record;
 
     fn same(a: &Predictions, b: &Predictions) {
         for (x, y) in a.y.iter().zip(&b.y) {
@@ -1116,5 +1117,41 @@ mod tests {
                 model.terms.pos_sensor
             );
         }
+    }
+
+    /// Two records of equal contents in different allocations predict the same numbers, bit for
+    /// bit, whichever is evaluated first and however often: nothing kept is keyed by where a
+    /// record or a sample set lives (a surface term, the slip shapes and the windowed thermal
+    /// replay all read their memos).
+    #[test]
+    fn equal_records_in_other_allocations_predict_the_same_in_either_order() {
+        let p = Params::default();
+        let mut model = Model::nominal(p);
+        let z = std::array::from_fn(|j| j as f64 * 5e3);
+        model.terms.surface = Some(Surface {
+            rise: Shape {
+                z,
+                v: z.map(|w| 0.02 * w),
+            },
+            tau_s: 0.2,
+        });
+        let chans = Channel::ALL;
+        let run = |first: &Measured, second: &Measured| {
+            [first, second, first].map(|m| {
+                let s = Samples::new(m, 1, 10);
+                predict(&model, m, &s, &chans).y
+            })
+        };
+        let (a, b) = (record(&p), record(&p));
+        assert!(!Arc::ptr_eq(&a.power[0], &b.power[0]));
+        let bits =
+            |y: &[Vec<f64>]| -> Vec<u64> { y.iter().flatten().map(|v| v.to_bits()).collect() };
+        let ab = run(&a, &b);
+        let (c, d) = (record(&p), record(&p));
+        let dc = run(&d, &c);
+        for y in ab.iter().chain(&dc) {
+            assert_eq!(bits(y), bits(&ab[0]));
+        }
+        assert!(ab[0].iter().any(|v| v.iter().any(|x| x.is_finite())));
     }
 }

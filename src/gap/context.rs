@@ -12,7 +12,8 @@
 use super::candidates::{self, Channel, Model, Predictions, Samples};
 use super::dataset::Dataset;
 use super::events::SegmentOptions;
-use super::replay::Measured;
+use super::measured::Measured;
+use super::set_hooks::SetHooks;
 use crate::model::params::Params;
 
 /// Practical tolerance of a channel (RMS, the channel's unit): a model that is right but
@@ -382,7 +383,7 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
 /// Caches each record's disk temperature estimate under `model`.
 pub fn cache_disk(model: &Model, files: &mut [File]) {
     for f in files.iter_mut() {
-        let h = candidates::SetHooks::of(model);
+        let h = SetHooks::of(model);
         f.disk = Some(super::replay::disk_estimate(&model.p, &h, &f.m));
     }
 }

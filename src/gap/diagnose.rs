@@ -32,8 +32,11 @@ use super::finding::{ClassFinding, Finding, OutsideFinding, RecalibrationFinding
 use super::form_error;
 use super::keys;
 use super::lsq;
-use super::replay::{self, Measured};
+use super::measured;
+use super::measured::Measured;
+use super::replay;
 use super::select::{self, Job, Round, Setup};
+use super::set_hooks::SetHooks;
 use super::shape::Shape;
 use super::stats::{self, Rng};
 use super::terms::{self, Extra};
@@ -245,7 +248,7 @@ pub struct Trace {
 pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
     let any = |c: Col| ds.iter().any(|d| d.has(c));
     // The engine and the driveline are seen in vehicle records only.
-    let vehicle: Vec<&Dataset> = ds.iter().filter(|d| !replay::is_rig_record(d)).collect();
+    let vehicle: Vec<&Dataset> = ds.iter().filter(|d| !measured::is_rig_record(d)).collect();
     let engine = vehicle.iter().any(|d| d.has(Col::Te));
     let driveline = !vehicle.is_empty()
         && vehicle
@@ -431,8 +434,7 @@ fn knots(model: &Model, train: &[File]) -> Knots {
     for f in train {
         let Some(dk) = &f.disk else { continue };
         // The record's kept sliding accelerations: the fits that read them take the same.
-        let slide = f.m.slides.get(&f.m);
-        let slide = &slide.acc;
+        let slide = &*f.m.slides;
         for i in 0..2 {
             for &k in f.fit.get(Channel::Torque(i)) {
                 let c = f.m.context(i, k, dk[i][k]);
@@ -1628,7 +1630,7 @@ fn replay_gaps(nominal: &Model, after: &Model, files: &[File]) -> Vec<ReplayGap>
     let mut n = [0usize; 5];
     for f in files {
         for (j, model) in [nominal, after].iter().enumerate() {
-            let h = candidates::SetHooks::of(model);
+            let h = SetHooks::of(model);
             let r = replay::full_replay(&model.p, &h, &f.m);
             for k in 0..f.m.n {
                 if !f.m.valid[k] {

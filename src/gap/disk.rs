@@ -12,7 +12,8 @@
 
 use std::sync::Arc;
 
-use super::replay::Measured;
+use super::measured::Measured;
+pub use super::set_hooks::Heat;
 use crate::model::params::{Params, ThermalParams5};
 use crate::model::powertrain::Hooks;
 use crate::model::thermal::{Thermal5State, ThermalInputs};
@@ -38,16 +39,6 @@ pub fn thermal_params(a: &ThermalParams5, partition: bool) -> [f64; 5] {
         a.alpha6_per_s,
         a.alpha7_k_per_j,
     ]
-}
-
-/// Whether a replay asks the hooks for their extra heat of (16) at every step, or the caller
-/// knows it to be exactly zero in every state (no heat effect, no thermal term): the replay then
-/// adds zero without the call — the same numbers, and a step's dependency chain without a call
-/// on it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Heat {
-    Hooks,
-    Zero,
 }
 
 /// [`run`]'s temperatures.
@@ -305,7 +296,7 @@ fn beta_index(b: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::replay::test_record;
+    use crate::gap::measured::test_record;
     use crate::model::effects::{EffectId, EffectSet};
     use crate::model::powertrain::Nominal;
 
@@ -352,7 +343,7 @@ mod tests {
             assert_ne!(bits(&resumed), bits(&reference));
         }
         // An engagement effect, through the hooks.
-        let wear = crate::gap::candidates::SetHooks(
+        let wear = crate::gap::set_hooks::SetHooks(
             EffectSet::single(EffectId::KissPointWear, &[0.02]).unwrap(),
             None,
         );
@@ -363,11 +354,11 @@ mod tests {
     /// Hooks without extra heat: the replay that adds zero without asking them ([`Heat::Zero`])
     /// is the one that asks, bit for bit — from the start and resumed, at moved kiss points,
     /// under an engagement effect, at a rate λ·dt below the exact update's threshold (the Euler
-    /// step) — and [`SetHooks::heat`](crate::gap::candidates::SetHooks::heat) says `Zero` exactly
+    /// step) — and [`SetHooks::heat`](crate::gap::set_hooks::SetHooks::heat) says `Zero` exactly
     /// when the hooks' extra heat is zero in every state.
     #[test]
     fn a_replay_without_extra_heat_is_the_one_that_asks() {
-        use crate::gap::candidates::SetHooks;
+        use crate::gap::set_hooks::SetHooks;
         use crate::gap::terms::{Partition, ThermalTerms};
         let p = Params::default();
         let m = test_record(&p);
@@ -442,7 +433,7 @@ mod tests {
         };
         for partition in [true, false] {
             let hooks = |a: ThermalParams5| {
-                crate::gap::candidates::SetHooks(
+                crate::gap::set_hooks::SetHooks(
                     EffectSet::nominal(),
                     Some(ThermalTerms {
                         a,

@@ -26,7 +26,8 @@ use super::dataset::Dataset;
 use super::events::{EventKind, SegmentOptions};
 use super::keys;
 use super::lsq::{self, LmOptions, ParamSpec};
-use super::replay::{self, Measured};
+use super::measured::Measured;
+use super::replay;
 use crate::model::params::{Params, ParamsError};
 use crate::model::powertrain::{Hooks, Nominal};
 

@@ -18,305 +18,13 @@
 //!
 //! Reality effects enter through the powertrain's [`Hooks`], exactly as in the plant.
 
-use std::sync::Arc;
-
-use super::dataset::{Col, Dataset};
-use super::events::{segment, SegmentOptions, Segmentation};
+use super::measured::Measured;
+use super::series::{derivative, window_mean};
 use crate::model::actuator;
-use crate::model::clutch;
 use crate::model::integrator::rk4_step_with;
 use crate::model::params::{ActuatorParams, Params};
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5, Thermal5State, ThermalInputs};
-
-/// A measured series, shared: clones of a [`Measured`] (the sensor classes correct a few of its
-/// inputs per evaluation) copy only what they change.
-pub type Shared = Arc<[f64]>;
-
-/// Measured quantities of one dataset, precomputed once.
-#[derive(Debug, Clone)]
-pub struct Measured {
-    pub source: String,
-    pub n: usize,
-    pub dt: f64,
-    pub time: Shared,
-    pub x: [Shared; 2],
-    pub slip: [Shared; 2],
-    pub torque: [Shared; 2],
-    pub pp: [Shared; 2],
-    pub cd: Shared,
-    pub th: Shared,
-    pub w_f: Shared,
-    /// Measured friction power T_c·ω_fc (W).
-    pub power: [Shared; 2],
-    /// Cumulative friction energy from the start of the first file of the sequence (J).
-    pub e_cum: [Shared; 2],
-    /// Position requests of each clutch, where logged (one logged column checks its actuator).
-    pub x_req: [Option<Shared>; 2],
-    pub t_e: Option<Shared>,
-    pub w_out: Option<Shared>,
-    pub gears: Option<[Shared; 2]>,
-    pub valid: Arc<[bool]>,
-    /// A test-rig record (input held by a dyno, output braked): the engine report is the dyno's.
-    pub rig: bool,
-    pub seg: Segmentation,
-    /// Samples that inform the torque characteristic of each clutch (near or past the kiss
-    /// point, or with measurable torque), valid only.
-    pub torque_idx: [Arc<[usize]>; 2],
-    /// The (16) state the free replays start from: [`Self::thermal_at`] the first sample of the
-    /// thermocouples as read (corrected for a reading error where a term says so). A lag undone
-    /// (θ + τ·dθ/dt) leaves it as it is: undoing a lag of seconds multiplies the readings' noise
-    /// by τ over the derivative's ±1 s window, and an error in the slow states' start (the
-    /// disks, the central disk: time constants of minutes) lasts the whole record. The lag term
-    /// is applied to the replay from this reading on (the sensor settled at the start).
-    pub start: Thermal5State,
-    /// The model-free part of the thermal replay's steps, per stride
-    /// ([`super::windows::thermal_replay_fast`]), made on first use.
-    pub windows: super::windows::WindowCache,
-    /// Q(ω) of (6) at every sample ([`super::slip_shapes`]), made on first use.
-    pub slip_shapes: super::slip_shapes::SlipShapeCache,
-    /// The sliding acceleration at every sample ([`super::slip_shapes::SlideCache`]), made on
-    /// first use.
-    pub slides: super::slip_shapes::SlideCache,
-    /// The friction power located on a surface rise's knots ([`super::power_sites`]), made on
-    /// first use.
-    pub power_sites: super::power_sites::PowerSiteCache,
-}
-
-impl Measured {
-    /// Precomputes a dataset. `e0` is the friction energy dissipated before this file (J), so
-    /// that energy-driven effects (wear) continue across files given in time order.
-    pub fn new(d: &Dataset, p: &Params, e0: [f64; 2], seg: &SegmentOptions) -> Measured {
-        let n = d.len();
-        let slip = [d.slip(0), d.slip(1)];
-        let torque = [d.req(Col::T1).to_vec(), d.req(Col::T2).to_vec()];
-        let power: [Vec<f64>; 2] = [0, 1].map(|i| {
-            (0..n)
-                .map(|k| torque[i][k] * slip[i][k])
-                .collect::<Vec<f64>>()
-        });
-        let e_cum = [0, 1].map(|i| cumulative_energy(&power[i], e0[i], d.dt));
-        let x = [d.req(Col::X1).to_vec(), d.req(Col::X2).to_vec()];
-        // Samples near or past the kiss point: x_to above x_ISP at a temperature well above the
-        // hottest measured neighbour of the disk (the disk may run hotter than its plates), or
-        // with measurable torque.
-        let pp = [d.req(Col::Pp1), d.req(Col::Pp2)];
-        let cdm = d.req(Col::Cd);
-        let torque_idx = [0, 1].map(|i| {
-            (0..n)
-                .filter(|&k| {
-                    let hot = pp[i][k].max(cdm[k]) + 80.0;
-                    let gate = (0..=8)
-                        .map(|j| {
-                            clutch::x_isp(
-                                &p.clutch,
-                                p.clutch.theta_a_c + j as f64 * (hot - p.clutch.theta_a_c) / 8.0,
-                            )
-                        })
-                        .fold(f64::INFINITY, f64::min)
-                        - 0.4;
-                    d.valid[k] && (x[i][k] >= gate || torque[i][k].abs() > 1.5)
-                })
-                .collect::<Vec<usize>>()
-        });
-        let x_req = [Col::X1Req, Col::X2Req].map(|c| d.get(c).map(Shared::from));
-        let gears = match (d.get(Col::GearOdd), d.get(Col::GearEven)) {
-            (Some(a), Some(b)) => Some([a.into(), b.into()]),
-            _ => None,
-        };
-        let series = |v: [Vec<f64>; 2]| v.map(Shared::from);
-        let rig = is_rig_record(d);
-        let mut m = Measured {
-            rig,
-            source: d.source.clone(),
-            n,
-            dt: d.dt,
-            time: d.time.as_slice().into(),
-            x: series(x),
-            slip: series(slip),
-            torque: series(torque),
-            pp: [d.req(Col::Pp1).into(), d.req(Col::Pp2).into()],
-            cd: d.req(Col::Cd).into(),
-            th: d.req(Col::Th).into(),
-            w_f: d.req(Col::Wf).into(),
-            power: series(power),
-            e_cum: series(e_cum),
-            x_req,
-            t_e: d.get(Col::Te).map(Shared::from),
-            w_out: d.get(Col::Wout).map(Shared::from),
-            gears,
-            valid: d.valid.as_slice().into(),
-            seg: segment(d, seg),
-            torque_idx: torque_idx.map(Arc::from),
-            start: Thermal5State::default(),
-            windows: Default::default(),
-            slip_shapes: Default::default(),
-            slides: Default::default(),
-            power_sites: Default::default(),
-        };
-        m.start = m.thermal_at(0);
-        m
-    }
-
-    /// Prepares files given in time order, carrying the friction energy across them.
-    pub fn sequence(ds: &[Dataset], p: &Params, seg: &SegmentOptions) -> Vec<Measured> {
-        Measured::sequence_from(ds, p, seg, [0.0; 2])
-    }
-
-    /// [`Measured::sequence`] starting at friction energies `e0` (J) already dissipated.
-    pub fn sequence_from(
-        ds: &[Dataset],
-        p: &Params,
-        seg: &SegmentOptions,
-        e0: [f64; 2],
-    ) -> Vec<Measured> {
-        let mut e0 = e0;
-        ds.iter()
-            .map(|d| {
-                let m = Measured::new(d, p, e0, seg);
-                e0 = [0, 1].map(|i| *m.e_cum[i].last().unwrap_or(&e0[i]));
-                m
-            })
-            .collect()
-    }
-
-    /// Measured temperatures at sample k as a (16) state, the disks at the mean of their
-    /// neighbours (they are not measured). At the first sample the temperatures are taken over
-    /// the open lead-in (up to 2 s before the first engagement) against sensor noise: the mean,
-    /// or, when the lead-in drifts significantly (a preheated pack cooling), the intercept at
-    /// t = 0 of a straight line fitted over it (a plain mean would start the replay late on that
-    /// slope).
-    pub fn thermal_at(&self, k: usize) -> Thermal5State {
-        let avg = |v: &[f64]| -> f64 {
-            if k != 0 {
-                return v[k];
-            }
-            let first = self
-                .seg
-                .events
-                .iter()
-                .filter(|e| e.clutch.is_some())
-                .map(|e| e.start)
-                .min()
-                .unwrap_or(self.n);
-            let m = first.min((2.0 / self.dt) as usize).max(1).min(self.n);
-            let mean = v[..m].iter().sum::<f64>() / m as f64;
-            if m < 3 {
-                return mean;
-            }
-            // Least-squares line over samples 0..m, evaluated at 0 when its slope is significant
-            // (|t| > 3); otherwise the mean, which has a quarter of the intercept's variance.
-            let kbar = (m - 1) as f64 / 2.0;
-            let (mut sxy, mut sxx) = (0.0, 0.0);
-            for (j, x) in v[..m].iter().enumerate() {
-                let dk = j as f64 - kbar;
-                sxy += dk * (x - mean);
-                sxx += dk * dk;
-            }
-            let slope = sxy / sxx;
-            let s2 = v[..m]
-                .iter()
-                .enumerate()
-                .map(|(j, x)| (x - mean - slope * (j as f64 - kbar)).powi(2))
-                .sum::<f64>()
-                / (m - 2) as f64;
-            if slope.abs() > 3.0 * (s2 / sxx).sqrt() {
-                mean - slope * kbar
-            } else {
-                mean
-            }
-        };
-        let (p1, p2, cd) = (avg(&self.pp[0]), avg(&self.pp[1]), avg(&self.cd));
-        Thermal5State {
-            pp1: p1,
-            pp2: p2,
-            c1: 0.5 * (p1 + cd),
-            c2: 0.5 * (p2 + cd),
-            cd,
-        }
-    }
-
-    /// The samples `k0..k1` of the series a [`ClutchContext`] reads, for loops over many
-    /// samples: indexing a [`Span`] needs one bounds check, not five, and the series a loop does
-    /// not read are not loaded at all.
-    pub fn span(&self, k0: usize, k1: usize) -> Span<'_> {
-        let r = k0..k1;
-        Span {
-            x: [&self.x[0][r.clone()], &self.x[1][r.clone()]],
-            slip: [&self.slip[0][r.clone()], &self.slip[1][r.clone()]],
-            pp: [&self.pp[0][r.clone()], &self.pp[1][r.clone()]],
-            cd: &self.cd[r.clone()],
-            e_cum: [&self.e_cum[0][r.clone()], &self.e_cum[1][r]],
-        }
-    }
-
-    /// Context of clutch `i` at sample `k` with an estimated disk temperature.
-    #[inline]
-    pub fn context(&self, i: usize, k: usize, theta_c: f64) -> ClutchContext {
-        ClutchContext {
-            clutch: i,
-            x_to_mm: self.x[i][k],
-            slip_radps: self.slip[i][k],
-            theta_c,
-            theta_pp: self.pp[i][k],
-            theta_cd: self.cd[k],
-            e_fric_j: self.e_cum[i][k],
-        }
-    }
-}
-
-/// The series of a [`Measured`] a [`ClutchContext`] reads, over a range of samples
-/// ([`Measured::span`]): sample `j` of the span is sample `k0 + j` of the record.
-#[derive(Debug, Clone, Copy)]
-pub struct Span<'a> {
-    x: [&'a [f64]; 2],
-    slip: [&'a [f64]; 2],
-    pp: [&'a [f64]; 2],
-    cd: &'a [f64],
-    e_cum: [&'a [f64]; 2],
-}
-
-impl Span<'_> {
-    /// Number of samples.
-    #[inline]
-    pub fn len(&self) -> usize {
-        self.cd.len()
-    }
-
-    /// True when the span has no sample.
-    #[inline]
-    pub fn is_empty(&self) -> bool {
-        self.cd.is_empty()
-    }
-
-    /// [`Measured::context`] of clutch `i` at the span's sample `j`.
-    #[inline]
-    pub fn context(&self, i: usize, j: usize, theta_c: f64) -> ClutchContext {
-        ClutchContext {
-            clutch: i,
-            x_to_mm: self.x[i][j],
-            slip_radps: self.slip[i][j],
-            theta_c,
-            theta_pp: self.pp[i][j],
-            theta_cd: self.cd[j],
-            e_fric_j: self.e_cum[i][j],
-        }
-    }
-}
-
-/// Friction energy dissipated up to each sample (J), from `e0` at the first, by the trapezoid
-/// rule over the friction power `power` (W) sampled every `dt` s.
-pub fn cumulative_energy(power: &[f64], e0: f64, dt: f64) -> Vec<f64> {
-    let mut e = e0;
-    let mut v = Vec::with_capacity(power.len());
-    for (k, p) in power.iter().enumerate() {
-        v.push(e);
-        if let Some(next) = power.get(k + 1) {
-            e += 0.5 * (p + next) * dt;
-        }
-    }
-    v
-}
 
 pub use super::disk::disk_estimate;
 
@@ -417,14 +125,6 @@ pub fn thermal_replay_every<H: Hooks + ?Sized>(
         u.beta2 = b2 / len;
         u
     })
-}
-
-/// The mean of `v` over the step from sample `k0` to `k1` by the energy it delivers: the mean of
-/// the per-sample midpoints (trapezoid rule), as [`thermal_replay_every`] averages its inputs.
-#[inline]
-pub fn window_mean(v: &[f64], k0: usize, k1: usize) -> f64 {
-    let len = (k1 - k0) as f64;
-    (v[k0] + 2.0 * v[k0 + 1..k1].iter().sum::<f64>() + v[k1]) / (2.0 * len)
 }
 
 /// The stepping of [`thermal_replay_every`]: one RK4 step per `stride` samples from the measured
@@ -581,22 +281,6 @@ fn lag_substeps(a: &ActuatorParams, mut x: f64, r: f64, h: f64, n: usize) -> f64
     x
 }
 
-/// Smoothed derivative by a centred difference over ±`half` samples.
-pub fn derivative(v: &[f64], dt: f64, half: usize) -> Vec<f64> {
-    let n = v.len();
-    (0..n)
-        .map(|k| {
-            let a = k.saturating_sub(half);
-            let b = (k + half).min(n.saturating_sub(1));
-            if b > a {
-                (v[b] - v[a]) / ((b - a) as f64 * dt)
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
-
 /// Flywheel balance residual of (18a): T_e − T_c1 − T_c2 − J_eq·ω̇_f (N·m); `None` without T_e.
 pub fn engine_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
     let te = m.t_e.as_ref()?;
@@ -650,40 +334,11 @@ pub fn driveline_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
     )
 }
 
-/// A test-rig record: the output held (|ω_out| < 1 rad/s) or, without ω_out, the input held at
-/// one speed (the dyno), 99 % of the time. On the rig the engine report is the dyno's.
-pub fn is_rig_record(d: &Dataset) -> bool {
-    let n = d.len();
-    if n == 0 {
-        return false;
-    }
-    match d.get(Col::Wout) {
-        Some(wo) => wo.iter().filter(|w| w.abs() < 1.0).count() as f64 >= 0.99 * n as f64,
-        None => {
-            let w_f = d.req(Col::Wf);
-            let mut v = w_f.to_vec();
-            v.sort_by(f64::total_cmp);
-            let med = v[n / 2];
-            w_f.iter().filter(|w| (*w - med).abs() < 2.0).count() as f64 >= 0.99 * n as f64
-        }
-    }
-}
-
-/// A short identification record of the nominal rig under `p` (6 engagements, 40 s, 10 ms
-/// samples), for the tests of the replays and the predictions.
-#[cfg(test)]
-pub fn test_record(p: &Params) -> Measured {
-    use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
-    use crate::model::powertrain::Nominal;
-    let exp = RigExperiment::identification(6, 40.0);
-    let frames = rig_frames(p, Nominal, &exp, SensorNoise::default(), 3, 0.005).unwrap();
-    let d = Dataset::from_records("rig", frames.into_iter().map(Ok), 0.01).unwrap();
-    Measured::new(&d, p, [0.0; 2], &SegmentOptions::default())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gap::dataset::Dataset;
+    use crate::gap::events::SegmentOptions;
     use crate::gap::synth::{rig_frames, RigExperiment, SensorNoise};
     use crate::model::powertrain::Nominal;
 

@@ -8,7 +8,7 @@
 
 use super::candidates::{self, Channel, Model, Predictions, Samples};
 use super::lsq;
-use super::replay::Measured;
+use super::measured::Measured;
 use super::stats;
 
 /// Bin edges of the bias maps.
