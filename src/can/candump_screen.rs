@@ -5,7 +5,7 @@
 //! lengths (`[08]`) are refused naming why. A line without a time has none: the reader stamps it
 //! on arrival ([`super::candump::LogReader::any_format`]).
 
-use super::candump::{Direction, LineError};
+use super::candump_line::{parse_timestamp, Direction, LineError};
 use super::frame::CanFrame;
 use embedded_can::Frame as _;
 use std::time::Duration;
@@ -29,7 +29,7 @@ fn parse_time(t: &str) -> Result<Duration, LineError> {
     if t.contains(['-', ':', ' ']) {
         return Err(LineError::DateTime);
     }
-    super::candump::parse_timestamp(t)
+    parse_timestamp(t)
 }
 
 /// Parses one line of candump's screen output.

@@ -5,6 +5,7 @@
 
 pub mod bus;
 pub mod candump;
+mod candump_line;
 pub mod candump_screen;
 pub mod codec;
 pub mod columnar;
