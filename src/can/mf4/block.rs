@@ -1,8 +1,17 @@
 //! MDF 4 blocks (ASAM MCD-2 MDF 4.1, section 5): the 24-byte header (`##XX`, reserved, length,
 //! link count), the links and the data section; reading one at a file offset with bounds checked,
-//! and appending them to a file being built with their links patched afterwards.
+//! and appending them to a file being built with their links patched afterwards; and the
+//! identification block that starts every MDF file ([`MAGIC`], [`ID_BLOCK_LEN`]).
 
-use super::Mf4Error;
+use super::error::Mf4Error;
+
+/// The first 8 bytes of every MDF file.
+pub const MAGIC: &[u8; 8] = b"MDF     ";
+
+/// Whether `head` (the first bytes of a file) starts like an MDF file.
+pub fn is_mdf(head: &[u8]) -> bool {
+    head.starts_with(MAGIC)
+}
 
 /// Size of the identification block at the start of every MDF file.
 pub const ID_BLOCK_LEN: u64 = 64;

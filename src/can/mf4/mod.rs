@@ -17,17 +17,15 @@
 //! `tests/python/test_mf4.py`.
 
 mod block;
+mod error;
 pub mod layout;
 mod read;
 mod write;
 
+pub use block::{is_mdf, MAGIC};
+pub use error::Mf4Error;
 pub use read::{read, Mf4Frames};
 pub use write::Mf4Writer;
-
-use thiserror::Error;
-
-/// The first 8 bytes of every MDF file.
-pub const MAGIC: &[u8; 8] = b"MDF     ";
 
 /// Offset of the header's start time (ns since the epoch, u64): the HD block follows the
 /// 64-byte identification block, its 24-byte header and 6 links.
@@ -46,56 +44,4 @@ pub fn start_time_ns(head: &[u8]) -> Option<u64> {
             .try_into()
             .ok()?,
     ))
-}
-
-/// Whether `head` (the first bytes of a file) starts like an MDF file.
-pub fn is_mdf(head: &[u8]) -> bool {
-    head.starts_with(MAGIC)
-}
-
-/// What is wrong with an MDF file.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum Mf4Error {
-    #[error("not an MDF file (it does not start with \"MDF     \")")]
-    NotMdf,
-    #[error("MDF version {0}: only MDF 4.x is read")]
-    Version(u16),
-    #[error("the file is not finalized (unfinalized flags 0x{0:04X}, custom 0x{1:04X}); finalize it with the logger's tool first")]
-    Unfinalized(u16, u16),
-    #[error("link to offset {at} points outside the file")]
-    Link { at: u64 },
-    #[error("no block at offset {at} (no \"##\")")]
-    NotABlock { at: u64 },
-    #[error("{kind} block at offset {at} runs past the end of the file (truncated)")]
-    Truncated { kind: String, at: u64 },
-    #[error("block at offset {at}: expected ##{expected}, found ##{found}")]
-    WrongBlock {
-        at: u64,
-        expected: String,
-        found: String,
-    },
-    #[error("{kind} block: {need} bytes of data needed, it has {have}")]
-    ShortBlock {
-        kind: String,
-        need: usize,
-        have: usize,
-    },
-    #[error("data block at offset {at}: deflate data is corrupt")]
-    Inflate { at: u64 },
-    #[error("channel group {group} ({name}): {what}")]
-    Channel {
-        group: usize,
-        name: String,
-        what: String,
-    },
-    #[error("data group at offset {at}: record id {id} belongs to no channel group")]
-    RecordId { at: u64, id: u64 },
-    #[error("data group at offset {at}: the data ends inside a record")]
-    PartialRecord { at: u64 },
-    #[error("unsupported: {0}")]
-    Unsupported(String),
-    #[error("frame {index}: {what}")]
-    Frame { index: usize, what: String },
-    #[error(transparent)]
-    Io(#[from] crate::io_error::IoError),
 }

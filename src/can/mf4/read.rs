@@ -4,8 +4,8 @@
 //! frames merged in time order.
 
 use super::block::{self, Block};
+use super::error::Mf4Error;
 use super::layout::{FrameKind, ID_IDE_BIT, ID_MASK};
-use super::Mf4Error;
 use crate::can::candump::{Direction, LogRecord};
 use crate::can::frame::CanFrame;
 use embedded_can::{ExtendedId, Id, StandardId};
@@ -123,7 +123,7 @@ pub struct Mf4Frames {
 
 /// Reads the CAN frames of an MDF 4 file held in memory.
 pub fn read(file: &[u8]) -> Result<Mf4Frames, Mf4Error> {
-    if !super::is_mdf(file) {
+    if !block::is_mdf(file) {
         return Err(Mf4Error::NotMdf);
     }
     let id = block::Block {

@@ -3,12 +3,12 @@
 //! (identification, header, file history, then per group DG → CG → SI and the channels, then
 //! the `DT` blocks).
 
-use super::block::{block_header, Builder, ID_BLOCK_LEN};
+use super::block::{block_header, Builder, ID_BLOCK_LEN, MAGIC};
+use super::error::Mf4Error;
 use super::layout::{
     FrameKind, Member, BUS_CHANNEL, DATA_BYTES, DATA_DIR, DATA_LENGTH, DLC, DT_BYTES, DT_FLOAT_LE,
     ID, IDE, ID_IDE_BIT, REMOTE_DIR, TIME_BYTES,
 };
-use super::{Mf4Error, MAGIC};
 use crate::can::candump::{Direction, LogRecord};
 use embedded_can::Frame as _;
 use std::io::Write;
