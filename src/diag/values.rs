@@ -5,7 +5,8 @@
 //! - A [`Measurement`] is read from a [`Snapshot`] of one TCU step (the values of (17) and
 //!   (23)–(27): estimated clutch temperatures, torque and position references, kiss points
 //!   x_ISP(θ̂) of (9), state and gear).
-//! - A [`Calibration`] is a key of the TCU calibration ([`TcuConfig`]) with its declared range;
+//! - A [`Calibration`] is a key of the TCU calibration ([`crate::tcu::TcuConfig`]), which the
+//!   TCU core owns ([`crate::tcu::calibration`]); here it gets its unit and declared range;
 //!   a write is range-checked by the calibration's own validation and takes effect at the next
 //!   cycle ([`crate::tcu::Tcu::set_calibration`]).
 //!
@@ -15,7 +16,8 @@
 
 use crate::can::messages::{FaultCode, TcuState};
 use crate::model::gear::Gear;
-use crate::tcu::{TcuConfig, TcuOutputs};
+pub use crate::tcu::calibration::Calibration;
+use crate::tcu::TcuOutputs;
 
 /// Address of the first measurement in the XCP memory map.
 pub const MEASUREMENT_BASE: u32 = 0x0001_0000;
@@ -228,96 +230,59 @@ impl Measurement {
     }
 }
 
-/// One calibration reachable on the bus: a key of the TCU calibration file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Calibration {
-    /// `control.clutch_kp_per_s`: clutch speed controller proportional gain (23)–(27).
-    ClutchKp,
-    /// `control.clutch_ki_per_s2`: clutch speed controller integral gain.
-    ClutchKi,
-    /// `control.engine_kp_per_s`: engine speed controller proportional gain.
-    EngineKp,
-    /// `control.engine_ki_per_s2`: engine speed controller integral gain.
-    EngineKi,
-    /// `launch.lockup_time_s`: launch lock-up time.
-    LaunchLockupTime,
-    /// `safety.over_temp_warn_c`: over-temperature warning threshold.
-    OverTempWarn,
-    /// `compensation.temperature`: temperature compensation of the inverse (0/1).
-    CompTemperature,
-    /// `compensation.slip`: slip compensation of the inverse (0/1).
-    CompSlip,
-}
-
+/// What the bus says of a TCU calibration: its A2L name (the calibration key), unit, limits
+/// and XCP address.
 impl Calibration {
-    /// Every calibration, in address order.
-    pub const ALL: [Calibration; 8] = [
-        Calibration::ClutchKp,
-        Calibration::ClutchKi,
-        Calibration::EngineKp,
-        Calibration::EngineKi,
-        Calibration::LaunchLockupTime,
-        Calibration::OverTempWarn,
-        Calibration::CompTemperature,
-        Calibration::CompSlip,
-    ];
-
     /// Name, unit, description and limits (the key's declared range in the calibration; the
     /// unit test `limits_are_the_calibration_ranges` holds them to it).
     pub fn meta(self) -> Meta {
         use Calibration::*;
         match self {
             ClutchKp => meta(
-                "control.clutch_kp_per_s",
+                self.key(),
                 "1/s",
                 "Clutch speed controller proportional gain",
                 0.0,
                 200.0,
             ),
             ClutchKi => meta(
-                "control.clutch_ki_per_s2",
+                self.key(),
                 "1/s^2",
                 "Clutch speed controller integral gain",
                 0.0,
                 5000.0,
             ),
             EngineKp => meta(
-                "control.engine_kp_per_s",
+                self.key(),
                 "1/s",
                 "Engine speed controller proportional gain",
                 0.0,
                 200.0,
             ),
             EngineKi => meta(
-                "control.engine_ki_per_s2",
+                self.key(),
                 "1/s^2",
                 "Engine speed controller integral gain",
                 0.0,
                 5000.0,
             ),
-            LaunchLockupTime => meta(
-                "launch.lockup_time_s",
-                "s",
-                "Launch lock-up time",
-                0.2,
-                10.0,
-            ),
+            LaunchLockupTime => meta(self.key(), "s", "Launch lock-up time", 0.2, 10.0),
             OverTempWarn => meta(
-                "safety.over_temp_warn_c",
+                self.key(),
                 "degC",
                 "Over-temperature warning threshold",
                 50.0,
                 400.0,
             ),
             CompTemperature => meta(
-                "compensation.temperature",
+                self.key(),
                 "",
                 "Temperature compensation of the inverse (0 off, 1 on)",
                 0.0,
                 1.0,
             ),
             CompSlip => meta(
-                "compensation.slip",
+                self.key(),
                 "",
                 "Slip compensation of the inverse (0 off, 1 on)",
                 0.0,
@@ -329,43 +294,6 @@ impl Calibration {
     /// The A2L-friendly name (dots replaced).
     pub fn symbol(self) -> String {
         self.meta().name.replace('.', "_")
-    }
-
-    /// Its value in `c`.
-    pub fn get(self, c: &TcuConfig) -> f64 {
-        use Calibration::*;
-        match self {
-            ClutchKp => c.control.clutch_kp_per_s,
-            ClutchKi => c.control.clutch_ki_per_s2,
-            EngineKp => c.control.engine_kp_per_s,
-            EngineKi => c.control.engine_ki_per_s2,
-            LaunchLockupTime => c.launch.lockup_time_s,
-            OverTempWarn => c.safety.over_temp_warn_c,
-            CompTemperature => f64::from(u8::from(c.compensation.temperature)),
-            CompSlip => f64::from(u8::from(c.compensation.slip)),
-        }
-    }
-
-    /// `c` with this calibration set to `v`, without any check (see
-    /// [`crate::tcu::Tcu::set_calibration`] for the checked write). A switch is on for any
-    /// value ≥ 0.5.
-    pub fn put(self, c: &mut TcuConfig, v: f64) {
-        use Calibration::*;
-        match self {
-            ClutchKp => c.control.clutch_kp_per_s = v,
-            ClutchKi => c.control.clutch_ki_per_s2 = v,
-            EngineKp => c.control.engine_kp_per_s = v,
-            EngineKi => c.control.engine_ki_per_s2 = v,
-            LaunchLockupTime => c.launch.lockup_time_s = v,
-            OverTempWarn => c.safety.over_temp_warn_c = v,
-            CompTemperature => c.compensation.temperature = v >= 0.5,
-            CompSlip => c.compensation.slip = v >= 0.5,
-        }
-    }
-
-    /// Whether the value is a 0/1 switch.
-    pub fn is_switch(self) -> bool {
-        matches!(self, Calibration::CompTemperature | Calibration::CompSlip)
     }
 
     /// Its XCP address.
@@ -406,6 +334,7 @@ pub(crate) fn test_snapshot(t_s: f64) -> Snapshot {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tcu::TcuConfig;
 
     #[test]
     fn limits_are_the_calibration_ranges() {

@@ -36,6 +36,7 @@
 //! safe state is commanded when the sensors go silent. The cycle is TCU_ClutchCmd's cycle time in
 //! the DBC (`GenMsgCycleTime`).
 
+pub mod calibration;
 pub mod config;
 pub mod control;
 pub mod estimator;
@@ -264,12 +265,12 @@ impl Tcu {
     /// nothing changes.
     pub fn set_calibration(
         &mut self,
-        cal: crate::diag::values::Calibration,
+        cal: calibration::Calibration,
         value: f64,
     ) -> Result<(), TcuConfigError> {
         if cal.is_switch() && value != 0.0 && value != 1.0 {
             return Err(TcuConfigError::Inconsistent {
-                key: cal.meta().name.into(),
+                key: cal.key().into(),
                 reason: format!("{value} is not a switch value (0 or 1)"),
             });
         }
