@@ -703,7 +703,7 @@ fn diag_stream() -> impl Strategy<Value = Vec<(u64, u8, Vec<u8>)>> {
 /// packet of at most 8 bytes; an ECUReset restarts the core.
 fn diag_over(stream: &[(u64, u8, Vec<u8>)]) -> Result<(), TestCaseError> {
     use ddct::can::messages::ids;
-    use ddct::diag::dtc::FaultMemory;
+    use ddct::diag::dtc::memory::FaultMemory;
     use ddct::diag::stack::{DiagConfig, DiagStack};
     let mut tcu = Tcu::new(tcu_config().clone(), Duration::ZERO);
     let mut stack = DiagStack::new(DiagConfig::default(), FaultMemory::default());

@@ -12,7 +12,7 @@
 
 use super::tcu::{DiagDaemonConfig, DiagReport, FAULT_MEMORY_SAVE_EVERY};
 use crate::can::CanFrame;
-use crate::diag::dtc::FaultMemory;
+use crate::diag::dtc::memory::FaultMemory;
 use crate::diag::stack::DiagStack;
 use crate::diag::store;
 use crate::tcu::{Tcu, TcuConfig, TcuOutputs};

@@ -4,11 +4,10 @@
 //! `DTCSnapshotRecord`) and the extended data records 0x01 (occurrence counter) and 0x02
 //! (aging counter) (12.3.5.7, `DTCExtDataRecord`).
 //!
-//! A pure core: [`FaultMemory::update`] once per TCU step with the time as an argument,
-//! [`FaultMemory::start_operation_cycle`] at each start of the daemon (an operation cycle is
-//! one run, start to stop or ECUReset), [`FaultMemory::clear`] for
-//! ClearDiagnosticInformation (12.2). Serialized as JSON with a format version
-//! ([`FaultMemory::to_bytes`], [`FaultMemory::from_bytes`]); the file is `super::store`'s.
+//! A pure core, [`memory::FaultMemory`]: `update` once per TCU step with the time as an
+//! argument, `start_operation_cycle` at each start of the daemon (an operation cycle is one run,
+//! start to stop or ECUReset), `clear` for ClearDiagnosticInformation (12.2). Serialized as JSON
+//! with a format version (`to_bytes`, `from_bytes`); the file is `super::store`'s.
 //!
 //! Status bits (annex D.2) as this memory sets them:
 //! - testFailed (0): the fault is the TCU's active fault in the step; cleared when the test
@@ -252,8 +251,7 @@ impl Default for DtcRecord {
     }
 }
 
-mod memory;
-pub use memory::FaultMemory;
+pub mod memory;
 
 #[cfg(test)]
 mod tests;

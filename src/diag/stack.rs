@@ -12,7 +12,7 @@
 //!
 //! The values the protocols read and write are the TCU's, through [`TcuEcu`].
 
-use super::dtc::FaultMemory;
+use super::dtc::memory::FaultMemory;
 use super::ecu::TcuEcu;
 use super::isotp::{IsoTp, IsoTpConfig};
 use super::uds::{ResetKind, UdsServer};

@@ -13,7 +13,8 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use crate::diag::dtc::{DtcError, FaultMemory};
+use crate::diag::dtc::memory::FaultMemory;
+use crate::diag::dtc::DtcError;
 
 /// Why the fault memory's file could not be read or written.
 #[derive(Debug, thiserror::Error)]

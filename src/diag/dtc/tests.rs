@@ -1,3 +1,4 @@
+use super::memory::FaultMemory;
 use super::*;
 
 fn snap(t_s: f64) -> Snapshot {

@@ -5,7 +5,8 @@
 
 use super::did::{ascii16, f32_be, Did};
 use super::ecu::UdsEcu;
-use super::{Nrc, Request, UdsServer};
+use super::nrc::Nrc;
+use super::request::Request;
 use crate::diag::isotp::MAX_PAYLOAD;
 
 /// The value bytes of a DID.
@@ -48,37 +49,35 @@ pub(super) fn read_data(req: &Request, ecu: &impl UdsEcu) -> Result<Vec<u8>, Nrc
     Ok(response)
 }
 
-impl UdsServer {
-    /// 0x2E: `6E DIDhi DIDlo`.
-    pub(super) fn write_data(
-        &mut self,
-        req: &Request,
-        ecu: &mut impl UdsEcu,
-    ) -> Result<Vec<u8>, Nrc> {
-        let (Some(&hi), Some(&lo)) = (req.bytes.get(1), req.bytes.get(2)) else {
-            return Err(Nrc::IncorrectMessageLength);
-        };
-        if req.bytes.len() < 4 {
-            return Err(Nrc::IncorrectMessageLength);
-        }
-        let Some(Did::Calibration(cal)) = Did::from_u16(u16::from_be_bytes([hi, lo])) else {
-            return Err(Nrc::RequestOutOfRange);
-        };
-        if !self.security.is_unlocked() {
-            return Err(Nrc::SecurityAccessDenied);
-        }
-        let raw = req
-            .bytes
-            .get(3..)
-            .and_then(|v| <[u8; 4]>::try_from(v).ok())
-            .ok_or(Nrc::IncorrectMessageLength)?;
-        let v = f64::from(f32::from_be_bytes(raw));
-        let meta = cal.meta();
-        if !(v >= meta.min && v <= meta.max) {
-            return Err(Nrc::RequestOutOfRange);
-        }
-        ecu.set_calibration(cal, v)
-            .map_err(|_| Nrc::RequestOutOfRange)?;
-        Ok(vec![req.sid.response(), hi, lo])
+/// 0x2E: `6E DIDhi DIDlo` (`unlocked`: security level 1 is unlocked).
+pub(super) fn write_data(
+    req: &Request,
+    unlocked: bool,
+    ecu: &mut impl UdsEcu,
+) -> Result<Vec<u8>, Nrc> {
+    let (Some(&hi), Some(&lo)) = (req.bytes.get(1), req.bytes.get(2)) else {
+        return Err(Nrc::IncorrectMessageLength);
+    };
+    if req.bytes.len() < 4 {
+        return Err(Nrc::IncorrectMessageLength);
     }
+    let Some(Did::Calibration(cal)) = Did::from_u16(u16::from_be_bytes([hi, lo])) else {
+        return Err(Nrc::RequestOutOfRange);
+    };
+    if !unlocked {
+        return Err(Nrc::SecurityAccessDenied);
+    }
+    let raw = req
+        .bytes
+        .get(3..)
+        .and_then(|v| <[u8; 4]>::try_from(v).ok())
+        .ok_or(Nrc::IncorrectMessageLength)?;
+    let v = f64::from(f32::from_be_bytes(raw));
+    let meta = cal.meta();
+    if !(v >= meta.min && v <= meta.max) {
+        return Err(Nrc::RequestOutOfRange);
+    }
+    ecu.set_calibration(cal, v)
+        .map_err(|_| Nrc::RequestOutOfRange)?;
+    Ok(vec![req.sid.response(), hi, lo])
 }

@@ -4,8 +4,10 @@
 //! (12.2), over [`FaultMemory`].
 
 use super::did::f32_be;
-use super::{Nrc, Request};
-use crate::diag::dtc::{Dtc, DtcRecord, FaultMemory, STATUS_AVAILABILITY_MASK};
+use super::nrc::Nrc;
+use super::request::Request;
+use crate::diag::dtc::memory::FaultMemory;
+use crate::diag::dtc::{Dtc, DtcRecord, STATUS_AVAILABILITY_MASK};
 
 /// DTCFormatIdentifier ISO_14229-1_DTCFormat.
 const FORMAT_ISO_14229_1: u8 = 0x01;

@@ -21,6 +21,7 @@ pub mod did;
 mod dtc_services;
 pub mod ecu;
 pub mod nrc;
+mod request;
 mod routine;
 pub mod security;
 #[cfg(test)]
@@ -33,8 +34,9 @@ pub use ecu::{RoutineRefusal, RoutineState, UdsEcu};
 pub use nrc::{Nrc, Sid};
 pub use security::Security;
 
-use crate::diag::dtc::FaultMemory;
-use data::read_data;
+use crate::diag::dtc::memory::FaultMemory;
+use data::{read_data, write_data};
+use request::Request;
 
 /// S3: a non-default session without requests falls back to the default session after this.
 pub const S3: Duration = Duration::from_secs(5);
@@ -82,14 +84,6 @@ pub enum ResetKind {
     Hard,
     /// 0x03 softReset.
     Soft,
-}
-
-/// A request split into its SID, sub-function and suppress bit.
-struct Request<'a> {
-    sid: Sid,
-    bytes: &'a [u8],
-    /// The sub-function without the suppress bit (0 for services without one).
-    sub: u8,
 }
 
 /// The UDS server: session, security, the routine's sequence and a pending reset.
@@ -183,7 +177,7 @@ impl UdsServer {
             Sid::TesterPresent => tester_present(&req),
             Sid::SecurityAccess => self.security_access(now, &req, ecu),
             Sid::ReadDataByIdentifier => read_data(&req, ecu),
-            Sid::WriteDataByIdentifier => self.write_data(&req, ecu),
+            Sid::WriteDataByIdentifier => write_data(&req, self.security.is_unlocked(), ecu),
             Sid::RoutineControl => self.routine_control(&req, ecu),
             Sid::ReadDtcInformation => dtc_services::read_dtc_information(&req, memory),
             Sid::ClearDiagnosticInformation => dtc_services::clear(&req, memory),
