@@ -21,9 +21,9 @@
 
 use std::time::Duration;
 
+use super::ecu::XcpEcu;
 use super::memory;
 use super::packet::ErrorCode;
-use super::XcpEcu;
 use crate::diag::values::Snapshot;
 
 /// Most DAQ lists.

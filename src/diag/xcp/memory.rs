@@ -14,8 +14,8 @@
 //! bytes) is `ERR_OUT_OF_RANGE`: the slave keeps no shadow bytes between commands. Reading a
 //! range is all or nothing: one byte outside the map and the whole access is refused.
 
+use super::ecu::XcpEcu;
 use super::packet::ErrorCode;
-use super::XcpEcu;
 use crate::diag::values::{Calibration, Measurement, Snapshot, CALIBRATION_BASE};
 
 /// Start of the read-only text area (event channel names, GET_ID texts).
@@ -148,7 +148,7 @@ fn apply(values: Vec<(Calibration, f64)>, ecu: &mut impl XcpEcu) -> Result<(), E
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::FakeEcu;
+    use super::super::fake_ecu::FakeEcu;
     use super::*;
     use crate::diag::values::MEASUREMENT_BASE;
 

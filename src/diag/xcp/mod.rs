@@ -19,25 +19,16 @@
 //! selected) and, to stop, START_STOP_SYNCH(stop all).
 
 pub mod daq;
+mod ecu;
+#[cfg(test)]
+mod fake_ecu;
 pub mod memory;
 pub mod packet;
 pub mod slave;
 
+pub use ecu::XcpEcu;
 pub use packet::{Command, ErrorCode, Request};
 pub use slave::XcpSlave;
-
-use crate::diag::values::{Calibration, Snapshot};
-
-/// What the slave needs of the ECU (the TCU integration implements it).
-pub trait XcpEcu {
-    /// The calibration's current value.
-    fn calibration(&self, cal: Calibration) -> f64;
-    /// Sets a calibration (validated by the ECU; `Err` with the reason if refused).
-    fn set_calibration(&mut self, cal: Calibration, value: f64) -> Result<(), String>;
-    /// The last step's snapshot, for UPLOAD of measurements (`None` before the first step:
-    /// measurements read NaN).
-    fn snapshot(&self) -> Option<Snapshot>;
-}
 
 #[cfg(test)]
 pub(crate) mod tests;

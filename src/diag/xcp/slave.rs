@@ -30,9 +30,9 @@
 use std::time::Duration;
 
 use super::daq::{self, DaqTables};
+use super::ecu::XcpEcu;
 use super::memory;
 use super::packet::{self, ErrorCode, Request};
-use super::XcpEcu;
 use crate::diag::values::Snapshot;
 
 /// Bytes of a CTO (MAX_CTO).
