@@ -146,7 +146,7 @@ pub fn number_in(
 
 /// `--rt-priority`: SCHED_FIFO priorities are 1..=99; anything else is refused, not clamped.
 pub fn rt_priority(s: &str) -> Result<i32, String> {
-    let r = ddct::daemon::tcu::RT_PRIORITIES;
+    let r = ddct::daemon::os::RT_PRIORITIES;
     match s.parse::<i32>() {
         Ok(p) if r.contains(&p) => Ok(p),
         _ => Err(format!(
@@ -159,7 +159,7 @@ pub fn rt_priority(s: &str) -> Result<i32, String> {
 
 /// `--nice`: the CFS nice values are -20..=19 (lower is more CPU); anything else is refused.
 pub fn nice_value(s: &str) -> Result<i32, String> {
-    let r = ddct::daemon::tcu::NICE_VALUES;
+    let r = ddct::daemon::os::NICE_VALUES;
     match s.parse::<i32>() {
         Ok(n) if r.contains(&n) => Ok(n),
         _ => Err(format!("{s}: a nice value in {}..={}", r.start(), r.end())),

@@ -5,10 +5,10 @@ use super::{announce_ready, runtime, shutdown_signal};
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use ddct::can::{EndpointConfig, InProcessBus};
+use ddct::daemon::os::{set_nice, set_realtime_priority};
 use ddct::daemon::plant::{run as run_plant, Pacing, PlantDaemonConfig};
 use ddct::daemon::tcu::{
-    run as run_tcu, set_nice, set_realtime_priority, DiagDaemonConfig, TcuClock, TcuDaemonConfig,
-    TcuReport, INPUT_IDS,
+    run as run_tcu, DiagDaemonConfig, TcuClock, TcuDaemonConfig, TcuReport, INPUT_IDS,
 };
 use ddct::diag::isotp::IsoTpConfig;
 use ddct::diag::stack::{DiagConfig, REQUEST_IDS};

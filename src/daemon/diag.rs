@@ -10,16 +10,48 @@
 //! lockstep bench too: ISO-TP's STmin and timeouts and UDS's S3 are real-time rules of the
 //! tester's, not simulated time.
 
-use super::tcu::{DiagDaemonConfig, DiagReport, FAULT_MEMORY_SAVE_EVERY};
 use crate::can::CanFrame;
 use crate::diag::dtc::memory::FaultMemory;
-use crate::diag::stack::DiagStack;
+use crate::diag::isotp::Counters as IsoTpCounters;
+use crate::diag::stack::{DiagConfig, DiagStack};
 use crate::diag::store;
 use crate::tcu::{Tcu, TcuConfig, TcuOutputs};
+use serde::Serialize;
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::time::Duration;
 use tokio::time::Instant;
+
+/// The diagnostic side of the daemon.
+#[derive(Debug, Clone, Default)]
+pub struct DiagDaemonConfig {
+    pub diag: DiagConfig,
+    /// The fault memory file (loaded at the start, saved atomically when it changed, at most
+    /// every [`FAULT_MEMORY_SAVE_EVERY`], and at the end); `None`: kept in memory only.
+    pub fault_memory: Option<PathBuf>,
+}
+
+/// The fault memory is saved at most this often while it changes (and always at the end).
+pub const FAULT_MEMORY_SAVE_EVERY: Duration = Duration::from_secs(1);
+
+/// What the diagnostic side did.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiagReport {
+    /// Diagnostic frames received (UDS and XCP), dropped unserved (a flood: more than
+    /// `MAX_PENDING` waiting) and sent.
+    pub frames_received: u64,
+    pub frames_dropped: u64,
+    pub frames_sent: u64,
+    /// The ISO-TP transport's counts (dropped frames by cause, timeouts).
+    pub isotp: IsoTpCounters,
+    /// ECU resets performed.
+    pub resets: u64,
+    /// Fault memory saves, and saves that failed (the daemon goes on; the next change retries).
+    pub fault_memory_saves: u64,
+    pub fault_memory_save_errors: u64,
+    /// The fault memory file found corrupt at the start and set aside (its new name).
+    pub fault_memory_set_aside: Option<PathBuf>,
+}
 
 /// Diagnostic frames waiting to be served at most (a tester sends one request at a time, an XCP
 /// master one command; more is a flood).

@@ -5,6 +5,7 @@
 
 pub mod clock;
 mod diag;
+pub mod os;
 pub mod plant;
 pub mod tcu;
 

@@ -37,11 +37,12 @@
 
 use super::clock::{BusClock, TimeBase};
 use super::diag::DiagShell;
+pub use super::diag::{DiagDaemonConfig, DiagReport, FAULT_MEMORY_SAVE_EVERY};
+pub use super::os::set_realtime_priority; // TODO(issue 43): for src/cli/bench.rs, then drop
 use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDGET, FLOOD_PACE};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};
-use crate::diag::isotp::Counters as IsoTpCounters;
-use crate::diag::stack::{DiagConfig, DiagStack};
+use crate::diag::stack::DiagStack;
 use crate::tcu::inputs::InputCounters;
 use crate::tcu::{is_cycle_frame, is_sync_frame, Tcu, TcuConfig, TcuInputs, TimedFrame};
 use serde::Serialize;
@@ -104,18 +105,6 @@ pub struct TcuDaemonConfig {
     /// UDS, XCP and the fault memory on the bus (`None`: the TCU ignores diagnostic frames).
     pub diag: Option<DiagDaemonConfig>,
 }
-
-/// The diagnostic side of the daemon.
-#[derive(Debug, Clone, Default)]
-pub struct DiagDaemonConfig {
-    pub diag: DiagConfig,
-    /// The fault memory file (loaded at the start, saved atomically when it changed, at most
-    /// every [`FAULT_MEMORY_SAVE_EVERY`], and at the end); `None`: kept in memory only.
-    pub fault_memory: Option<PathBuf>,
-}
-
-/// The fault memory is saved at most this often while it changes (and always at the end).
-pub const FAULT_MEMORY_SAVE_EVERY: Duration = Duration::from_secs(1);
 
 /// Errors that stop the daemon.
 #[derive(Debug, thiserror::Error)]
@@ -184,25 +173,6 @@ pub struct TcuReport {
     pub log_frames: Option<u64>,
     /// The diagnostic side, when on.
     pub diag: Option<DiagReport>,
-}
-
-/// What the diagnostic side did.
-#[derive(Debug, Clone, Serialize)]
-pub struct DiagReport {
-    /// Diagnostic frames received (UDS and XCP), dropped unserved (a flood: more than
-    /// `MAX_PENDING` waiting) and sent.
-    pub frames_received: u64,
-    pub frames_dropped: u64,
-    pub frames_sent: u64,
-    /// The ISO-TP transport's counts (dropped frames by cause, timeouts).
-    pub isotp: IsoTpCounters,
-    /// ECU resets performed.
-    pub resets: u64,
-    /// Fault memory saves, and saves that failed (the daemon goes on; the next change retries).
-    pub fault_memory_saves: u64,
-    pub fault_memory_save_errors: u64,
-    /// The fault memory file found corrupt at the start and set aside (its new name).
-    pub fault_memory_set_aside: Option<PathBuf>,
 }
 
 impl TcuReport {
@@ -553,52 +523,6 @@ impl<B: Bus> Shell<B> {
     fn diag_deadline(&self) -> Option<Instant> {
         let at = self.diag.as_ref()?.core.poll_timeout()?;
         Some(self.start + self.time.mono_of(at))
-    }
-}
-
-/// Puts the calling thread under the real-time FIFO scheduler at `priority` (1..=99), as a
-/// bench ECU process would run; needs CAP_SYS_NICE (root). Under User-Mode Linux, where every
-/// process of the guest shares one virtual CPU, it keeps a busy neighbour from delaying the
-/// 10 ms loop (measured: 60 s of `ddct bench` went from a dozen spurious input timeouts to none).
-/// The loops block on the bus or a timer every cycle, so they leave the CPU to the kernel.
-pub fn set_realtime_priority(priority: i32) -> std::io::Result<()> {
-    in_range("real-time priority", priority, RT_PRIORITIES)?;
-    let param = libc::sched_param {
-        sched_priority: priority,
-    };
-    // SAFETY: plain syscall on the calling thread (pid 0) with a valid parameter struct.
-    os_result(unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) })
-}
-
-/// The SCHED_FIFO priorities (`--rt-priority`).
-pub const RT_PRIORITIES: std::ops::RangeInclusive<i32> = 1..=99;
-/// The nice values (`--nice`; lower is more CPU).
-pub const NICE_VALUES: std::ops::RangeInclusive<i32> = -20..=19;
-
-/// Sets the calling thread's nice value (the threads it starts afterwards inherit it).
-pub fn set_nice(nice: i32) -> std::io::Result<()> {
-    in_range("nice value", nice, NICE_VALUES)?;
-    // SAFETY: plain syscall on the calling thread (who 0) with a value in range.
-    os_result(unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, nice) })
-}
-
-fn in_range(what: &str, v: i32, r: std::ops::RangeInclusive<i32>) -> std::io::Result<()> {
-    if r.contains(&v) {
-        Ok(())
-    } else {
-        Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            format!("{what} {v} is outside {}..={}", r.start(), r.end()),
-        ))
-    }
-}
-
-/// A libc call's return code as a result (`errno` on failure).
-fn os_result(rc: libc::c_int) -> std::io::Result<()> {
-    if rc == 0 {
-        Ok(())
-    } else {
-        Err(std::io::Error::last_os_error())
     }
 }
 
