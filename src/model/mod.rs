@@ -11,6 +11,7 @@ pub mod clutch_batch;
 pub mod driveline;
 pub mod effects;
 pub mod engine;
+mod gauss_legendre;
 pub mod gear;
 pub mod integrator;
 pub mod params;

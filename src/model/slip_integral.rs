@@ -17,7 +17,7 @@
 //! One evaluation costs two cube roots and two table lookups, against eight `tanh` and eight
 //! cube roots for the 8-node rule.
 
-use super::clutch::{GL_W, GL_X};
+use super::gauss_legendre::{GL_W, GL_X};
 use std::sync::LazyLock;
 
 /// Upper end of the table: tanh(22)^{1/3} differs from 1 by less than 1e-19.
