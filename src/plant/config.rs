@@ -4,16 +4,20 @@
 //! (`[[faults]]`, see [`super::faults`]). Every table and key is optional (defaults below);
 //! unknown keys are rejected with an error naming them.
 
+use super::error::{parse_toml, read_text, PlantError};
 use super::faults::{parse_faults, Fault};
 use super::profile::{RigProfile, Scenario};
-use super::{parse_toml, read_text, PlantError};
-use crate::can::messages::ids;
+use crate::can::messages::{ids, DctSensors};
 use crate::model::effects::EffectSet;
 use crate::model::gear::Gear;
 use crate::model::Params;
 use crate::ranges::Ranged;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// The plant's cycle: DCT_Sensors' cycle time in the DBC (every plant message has it).
+pub const CYCLE: Duration = Duration::from_millis(DctSensors::CYCLE_MS as u64);
 
 /// The configuration compiled into the binary (`config/plant.toml`).
 pub const DEFAULT_TOML: &str = include_str!("../../config/plant.toml");
@@ -407,7 +411,7 @@ impl PlantConfig {
         )?;
         check_shafts(path, "rig", self.rig.gear_odd, self.rig.gear_even)?;
         let dt = self.params.integrator.dt_s;
-        let per_cycle = super::core::CYCLE.as_secs_f64() / dt;
+        let per_cycle = CYCLE.as_secs_f64() / dt;
         if (per_cycle - per_cycle.round()).abs() > 1e-9 {
             return Err(PlantError::key(
                 path,

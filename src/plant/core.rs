@@ -28,6 +28,7 @@
 //! quantised to TCU_ClutchCmd's resolution and held, as a controller commanding over the bus
 //! would.
 
+pub use super::config::CYCLE;
 use super::config::{Mode, PlantConfig};
 use super::faults::{Fault, FaultKind};
 use super::hooks::EffectHooks;
@@ -50,9 +51,6 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 mod quiet;
-
-/// The plant's cycle: DCT_Sensors' cycle time in the DBC (every plant message has it).
-pub const CYCLE: Duration = Duration::from_millis(DctSensors::CYCLE_MS as u64);
 
 /// A frame to send at `due` (time since the start).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -13,7 +13,7 @@
 //! `freeze_counter` and `corrupt_crc` need an E2E-protected message. Only messages the plant sends
 //! can be faulted.
 
-use super::PlantError;
+use super::error::PlantError;
 use crate::can::codec::MessageDef;
 use crate::can::messages::{message_by_name, message_def};
 use crate::ranges::Ranged;

@@ -8,7 +8,7 @@
 //! same time make a step. `scripts/rig_partial_engagements.py` evaluates the same rig profile
 //! files with the same rules, so an experiment runs identically over vcan and in process.
 
-use super::{parse_toml, read_text, PlantError};
+use super::error::{parse_toml, read_text, PlantError};
 use crate::can::messages::GearLever;
 use std::path::{Path, PathBuf};
 
