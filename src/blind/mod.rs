@@ -68,6 +68,13 @@ pub struct TrialResult {
     pub error: Option<String>,
 }
 
+impl TrialResult {
+    /// This trial as the summary reads it, through its JSON (the path merged trials take).
+    pub fn scored(&self) -> Result<Scored, serde_json::Error> {
+        Scored::from_json(&serde_json::to_value(self)?)
+    }
+}
+
 /// Whether the class `c` is named alone or in a set of at most two.
 fn named_within(named: &[Vec<ClassId>], c: ClassId) -> Option<bool> {
     if named.iter().any(|s| s.len() == 1 && s[0] == c) {

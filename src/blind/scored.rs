@@ -1,10 +1,9 @@
-//! A scored trial as the summary reads it: the part of a [`TrialResult`] that
+//! A scored trial as the summary reads it: the part of a [`super::TrialResult`] that
 //! [`super::summarize`] and [`super::render_text`] need, read back from a report's JSON. Every
 //! summary goes through it — a run's own trials as well as trials run apart and merged
 //! (`ddct gap blind --merge`, the chunks of `ddct-fleet blind` on a Dask cluster) — so a merged
 //! summary is the one a single run of the same trials gives.
 
-use super::TrialResult;
 use crate::truth::form::Family;
 use crate::truth::{Band, TruthKind, Variants};
 use serde::{Deserialize, Deserializer};
@@ -63,13 +62,6 @@ impl Scored {
     /// A trial as written in a report's `trials` array.
     pub fn from_json(v: &serde_json::Value) -> Result<Scored, serde_json::Error> {
         Scored::deserialize(v)
-    }
-}
-
-impl TrialResult {
-    /// This trial as the summary reads it, through its JSON (the path merged trials take).
-    pub fn scored(&self) -> Result<Scored, serde_json::Error> {
-        Scored::from_json(&serde_json::to_value(self)?)
     }
 }
 
