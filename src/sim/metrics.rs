@@ -14,101 +14,20 @@
 //! - **Estimator**: RMSE and largest error of the estimated clutch temperatures (TCU_Estimates)
 //!   against SIM_Truth over the run.
 
-use super::Row;
-use crate::can::messages::{FaultCode, TcuState};
-use crate::model::gear::Gear;
+use super::row::Row;
+use crate::can::messages::TcuState;
 use crate::tcu::TcuConfig;
-use serde::Serialize;
 use std::collections::VecDeque;
 
 mod events;
+mod figures;
 #[cfg(test)]
-mod reference;
+pub(super) mod reference;
 
-/// Slip bin edges (rad/s), from high to low, for the torque error over slip.
-pub const SLIP_BINS_RADPS: [f64; 8] = [100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0, 0.3];
-
-const RPM: f64 = std::f64::consts::PI / 30.0;
-
-/// One launch.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct LaunchMetrics {
-    pub t_start_s: f64,
-    pub pedal_pct: f64,
-    /// Calibration target n(p) (rpm).
-    pub target_rpm: f64,
-    pub lockup_s: Option<f64>,
-    pub stall: bool,
-    pub min_engine_rpm: f64,
-    pub max_engine_rpm: f64,
-    pub flare_rpm: f64,
-    pub accel_before_lockup_mps2: Option<f64>,
-    pub lockup_spike_mps2: Option<f64>,
-    pub peak_torque_error_300ms_nm: f64,
-    pub peak_accel_600ms_mps2: f64,
-    /// Mean T_ref − T_actual (N·m) and sample count per slip bin [edge_i, edge_{i+1}).
-    pub torque_error_by_slip: Vec<SlipBin>,
-    /// Friction energy estimate ∑T_actual·slip·dt over the engagement (kJ).
-    pub friction_energy_kj: f64,
-}
-
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct SlipBin {
-    pub slip_hi_radps: f64,
-    pub slip_lo_radps: f64,
-    pub mean_error_nm: Option<f64>,
-    pub mean_rel_error: Option<f64>,
-    pub n: usize,
-}
-
-/// One shift.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct ShiftMetrics {
-    pub t_start_s: f64,
-    pub up: bool,
-    pub from: Gear,
-    pub to: Gear,
-    pub duration_s: f64,
-    pub completed: bool,
-    pub min_accel_mps2: f64,
-    pub accel_before_mps2: f64,
-    pub max_engine_rpm: f64,
-}
-
-/// Estimator accuracy against SIM_Truth.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct EstimatorMetrics {
-    pub samples: usize,
-    pub rmse_c: [f64; 2],
-    pub max_abs_c: [f64; 2],
-    pub max_true_c: [f64; 2],
-}
-
-/// A change of TcuState or FaultCode.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct StatusEvent {
-    pub t_s: f64,
-    pub state: TcuState,
-    pub fault: FaultCode,
-}
-
-/// Everything of one run.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct Metrics {
-    pub launches: Vec<LaunchMetrics>,
-    pub shifts: Vec<ShiftMetrics>,
-    pub estimator: EstimatorMetrics,
-    pub status_events: Vec<StatusEvent>,
-    pub max_speed_kmh: f64,
-    pub min_engine_rpm_driving: f64,
-    /// Any non-finite value among the decoded signals (never expected).
-    pub nonfinite: bool,
-}
-
-fn launch_clutch(r: &Row) -> usize {
-    // Reverse launches on the even shaft's clutch, forward on the odd one's.
-    usize::from(r.gear_active.is_reverse())
-}
+use figures::launch_clutch;
+pub use figures::{
+    EstimatorMetrics, LaunchMetrics, Metrics, ShiftMetrics, SlipBin, StatusEvent, SLIP_BINS_RADPS,
+};
 
 /// Metrics of a run's rows (the rows streamed through [`Stream`]).
 pub fn compute(rows: &[Row], cfg: &TcuConfig) -> Metrics {
@@ -338,42 +257,9 @@ impl EstimatorSums {
 
 #[cfg(test)]
 mod tests {
+    use super::reference::assert_same;
     use super::*;
-    use crate::sim::{run_scenario, SimOptions, SimScenario};
-    use std::path::Path;
-
-    /// Bit for bit: `Debug` prints every `f64` in its shortest round-trip form (−0.0 and NaN
-    /// included), where `PartialEq` would take −0.0 for 0.0.
-    fn assert_same(a: &Metrics, b: &Metrics, what: &str) {
-        assert_eq!(format!("{a:#?}"), format!("{b:#?}"), "{what}");
-    }
-
-    /// Every scenario of config/scenarios: the stream gives what the slice computation gave.
-    #[test]
-    fn the_stream_matches_the_slice_computation_on_every_scenario() {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenarios");
-        let cfg = TcuConfig::default();
-        let opts = SimOptions {
-            drop_frames: true,
-            ..SimOptions::default()
-        };
-        let mut names = Vec::new();
-        for e in std::fs::read_dir(&dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.extension().is_some_and(|x| x == "toml") {
-                let sc = SimScenario::load(&p).unwrap();
-                let run = run_scenario(&sc, &cfg, &opts);
-                let want = reference::compute(&run.rows, &cfg);
-                assert_same(&compute(&run.rows, &cfg), &want, &sc.name);
-                // As the run computed them, with the scenario's calibration.
-                assert_same(&run.metrics, &want, &sc.name);
-                names.push(sc.name);
-            }
-        }
-        for must in ["launch_shift_20s", "drive_60s", "soak_600s"] {
-            assert!(names.iter().any(|n| n == must), "{must} not found");
-        }
-    }
+    use crate::model::gear::Gear;
 
     /// A row in `state` and `gear` at `t_s`, with launch-clutch slip `slip_rpm` and otherwise
     /// varying figures.

@@ -17,18 +17,19 @@ pub mod html;
 pub mod logplot;
 pub mod metrics;
 pub mod plots;
+pub mod row;
 pub mod scenario;
 pub mod verdict;
 
+pub use row::Row;
 pub use scenario::{ScenarioError, SimScenario, TcuOverrides};
 
 use crate::can::e2e::CRC_BYTE;
 use crate::can::messages::{
     ids, BenchTemps, BenchTorque, BenchVehicle, DctActuators, DctSensors, DrvPedal, EngStatus,
-    FaultCode, SimTruth, TcuClutchCmd, TcuEngineReq, TcuEstimates, TcuGearCmd, TcuState, TcuStatus,
+    SimTruth, TcuClutchCmd, TcuEngineReq, TcuEstimates, TcuGearCmd, TcuStatus,
 };
 use crate::can::{CanFrame, Received};
-use crate::model::gear::Gear;
 use crate::plant::Plant;
 use crate::tcu::{Tcu, TcuConfig, TcuInputs, TimedFrame};
 use metrics::Metrics;
@@ -76,47 +77,6 @@ pub enum InjectionKind {
     CorruptCrc,
     /// Delivered with the alive counter frozen at its value when the fault started (CRC valid).
     FreezeCounter,
-}
-
-/// One TCU cycle as seen on the bus (SI-ish units as named).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
-pub struct Row {
-    pub t_s: f64,
-    pub pedal_pct: f64,
-    pub brake: bool,
-    pub n_e_rpm: f64,
-    pub t_e_nm: f64,
-    pub n_c_rpm: [f64; 2],
-    pub n_out_rpm: f64,
-    pub housing_c: f64,
-    pub x_mm: [f64; 2],
-    pub gear_act: [Gear; 2],
-    pub x_ref_mm: [f64; 2],
-    pub eng_req_nm: Option<f64>,
-    pub gear_req: [Gear; 2],
-    pub state: TcuState,
-    pub fault: FaultCode,
-    pub gear_active: Gear,
-    pub theta_est_c: [f64; 2],
-    pub t_ref_nm: [f64; 2],
-    pub t_act_nm: [f64; 2],
-    pub theta_pp_c: [f64; 2],
-    pub theta_cd_c: f64,
-    pub theta_true_c: [f64; 2],
-    pub v_kmh: f64,
-    pub accel_mps2: f64,
-    pub grade_pct: f64,
-    /// TCU internals.
-    pub n_e_ref_rpm: f64,
-    pub n_c_ref_rpm: f64,
-    pub phase: &'static str,
-}
-
-impl Row {
-    /// Measured slip of clutch `i` from the bus (rpm).
-    pub fn slip_rpm(&self, i: usize) -> f64 {
-        self.n_e_rpm - self.n_c_rpm[i]
-    }
 }
 
 /// Latest decoded value of every message.
@@ -559,6 +519,7 @@ pub fn rows_csv(rows: &[Row]) -> String {
 
 #[cfg(test)]
 mod tests {
+    use super::metrics::reference::assert_same;
     use super::*;
     use std::path::Path;
 
@@ -623,5 +584,33 @@ mod tests {
         assert_eq!(format!("{:?}", dropped.metrics), format!("{slice:?}"));
         assert_eq!(format!("{:?}", kept.metrics), format!("{slice:?}"));
         assert_eq!(dropped.metrics.launches.len(), 1);
+    }
+
+    /// Every scenario of config/scenarios: the metrics' stream gives what the slice
+    /// computation gave.
+    #[test]
+    fn the_metrics_stream_matches_the_slice_computation_on_every_scenario() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenarios");
+        let cfg = TcuConfig::default();
+        let opts = SimOptions {
+            drop_frames: true,
+            ..SimOptions::default()
+        };
+        let mut names = Vec::new();
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "toml") {
+                let sc = SimScenario::load(&p).unwrap();
+                let run = run_scenario(&sc, &cfg, &opts);
+                let want = metrics::reference::compute(&run.rows, &cfg);
+                assert_same(&metrics::compute(&run.rows, &cfg), &want, &sc.name);
+                // As the run computed them, with the scenario's calibration.
+                assert_same(&run.metrics, &want, &sc.name);
+                names.push(sc.name);
+            }
+        }
+        for must in ["launch_shift_20s", "drive_60s", "soak_600s"] {
+            assert!(names.iter().any(|n| n == must), "{must} not found");
+        }
     }
 }

@@ -17,10 +17,10 @@
 //!   Creep/Neutral/Init, which ends the search) and likewise one shift; the others only wait out
 //!   their bounded tails.
 
-use super::{LaunchMetrics, ShiftMetrics, SlipBin, RPM, SLIP_BINS_RADPS};
+use super::figures::{LaunchMetrics, ShiftMetrics, SlipBin, RPM, SLIP_BINS_RADPS};
 use crate::can::messages::TcuState;
 use crate::model::gear::Gear;
-use crate::sim::Row;
+use crate::sim::row::Row;
 use std::collections::VecDeque;
 
 /// Rows after the end of the engagement still counted in a launch's lowest engine speed.

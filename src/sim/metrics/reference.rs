@@ -2,13 +2,19 @@
 //! the stream must match bit for bit. Kept verbatim so that a change of the stream that alters
 //! a figure fails the tests instead of silently redefining it.
 
-use super::super::Row;
-use super::{
+use super::figures::{
     launch_clutch, EstimatorMetrics, LaunchMetrics, Metrics, ShiftMetrics, SlipBin, StatusEvent,
     RPM, SLIP_BINS_RADPS,
 };
 use crate::can::messages::TcuState;
+use crate::sim::row::Row;
 use crate::tcu::TcuConfig;
+
+/// Bit for bit: `Debug` prints every `f64` in its shortest round-trip form (−0.0 and NaN
+/// included), where `PartialEq` would take −0.0 for 0.0.
+pub fn assert_same(a: &Metrics, b: &Metrics, what: &str) {
+    assert_eq!(format!("{a:#?}"), format!("{b:#?}"), "{what}");
+}
 
 /// Metrics of a run's rows.
 pub fn compute(rows: &[Row], cfg: &TcuConfig) -> Metrics {
