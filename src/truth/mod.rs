@@ -714,4 +714,43 @@ mod tests {
         };
         assert!(build(&bad, &p).is_err());
     }
+
+    #[test]
+    fn a_detuning_inside_the_box_is_not_identifiable_one_outside_is() {
+        // "Effects" that are pure baseline changes: the kiss point moved by 10 % (inside the
+        // ±20 % box: a nominal truth could have it) and by 40 % (outside). Expected: the first
+        // vanishes once refitted, the second keeps what the box cannot reach.
+        let plant = Params::default();
+        let run = |p: &Params| -> Vec<sim::SimOut> {
+            simulate_all(p, &[], Variants::default(), 1)
+                .into_iter()
+                .map(|(_, s)| s)
+                .collect()
+        };
+        let base = identifiable::Baseline::new(&plant, &BTreeMap::new(), &run, &run);
+        let moved = |k: f64| {
+            let mut p = plant;
+            identifiable::scale(&mut p, "clutch.x_isp0_mm", k);
+            base.sizes(&run(&p), &run)
+        };
+        let inside = moved(1.1);
+        assert!(inside.raw.size > 3.0, "{inside:?}");
+        assert!(
+            inside.identifiable.size < 0.1 * inside.raw.size,
+            "{inside:?}"
+        );
+        assert!(
+            (inside.refit["clutch.x_isp0_mm"] - 1.1).abs() < 0.01,
+            "{inside:?}"
+        );
+        let outside = moved(1.4);
+        assert!(
+            outside.identifiable.size > 0.2 * outside.raw.size,
+            "{outside:?}"
+        );
+        assert!(
+            (outside.refit["clutch.x_isp0_mm"] - 1.2).abs() < 1e-9,
+            "{outside:?}"
+        );
+    }
 }
