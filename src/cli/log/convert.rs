@@ -2,7 +2,7 @@
 //! output format taken from OUT's extension; the input (candump text or MDF 4) by content.
 //! The output is written beside OUT and renamed into place once complete.
 
-use super::{decode, Format};
+use super::decode::{decode, Format};
 use anyhow::{bail, Context};
 use ddct::can::candump::{LogRecord, LogWriter};
 use ddct::can::columnar_frames::FrameWriter;

@@ -4,7 +4,7 @@
 //! the order they came. When the writer falls behind, this thread writes a block's rows itself
 //! and hands the writer the text: both threads share the formatting, the heavier half.
 
-use super::Decoding;
+use super::decoding::Decoding;
 use ddct::can::candump::LogReader;
 use ddct::can::decode::LogDecoder;
 use ddct::can::decode_csv::{CsvRows, DecodedBlock, CSV_HEADER};
