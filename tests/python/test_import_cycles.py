@@ -61,7 +61,7 @@ def test_no_cycle_exits_0_and_a_cycle_exits_1_listing_it(tmp_path, capsys):
     (src / "b.rs").write_text("pub struct Foo;\nuse super::a::*;\n")
     assert ic.main(["--src", str(src)]) == 1
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == "import-cycles: 1 cycles among 3 files"
+    assert out[0] == "import-cycles: 1 cycle among 3 files"
     assert "  src/a.rs -> src/b.rs: Foo" in out
     assert "  src/b.rs -> src/a.rs: *" in out
 
@@ -111,7 +111,9 @@ def test_inline_paths_in_code(tmp_path):
     edges, cycles = tree(tmp_path, {
         "lib.rs": "pub mod can;\npub mod daemon;\n",
         "can/mod.rs": "pub mod messages;\n",
-        "can/messages.rs": "pub struct DctSensors;\nimpl DctSensors { pub const CYCLE_MS: u32 = 10; }\n",
+        "can/messages.rs": (
+            "pub struct DctSensors;\nimpl DctSensors { pub const CYCLE_MS: u32 = 10; }\n"
+        ),
         "daemon/mod.rs": "pub mod plant;\npub mod x;\n",
         "daemon/x.rs": "pub fn f() {}\n",
         "daemon/plant.rs": (
@@ -171,8 +173,22 @@ def test_test_modules_self_super_and_the_binary_crate(tmp_path):
 def test_exported_macros_live_where_they_are_defined(tmp_path):
     edges, _ = tree(tmp_path, {
         "lib.rs": "pub mod util;\npub mod b;\n",
-        "util.rs": "#[macro_export]\nmacro_rules! table { () => { $crate::util::f() }; }\npub fn f() {}\n",
+        "util.rs": (
+            "#[macro_export]\nmacro_rules! table { () => { $crate::util::f() }; }\n"
+            "pub fn f() {}\n"
+        ),
         "b.rs": "crate::table!();\n",
     })
     assert names(edges, "b.rs", "util.rs") == ["table!"]
 
+
+def test_src_has_no_import_cycle():
+    out = subprocess.run([sys.executable, str(SCRIPT)], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode in (0, 1), out.stdout + out.stderr
+    # TODO(issue 43): src/gap's own cycles go with its restructuring; until then cycles whose
+    # files are all in src/gap/ are allowed here. Then: assert out.returncode == 0, out.stdout
+    cycles = [line.split(": ", 1)[1].split(", ") for line in out.stdout.splitlines()
+              if line.startswith("cycle ")]
+    assert (out.returncode == 0) == (cycles == []), out.stdout
+    outside = [c for c in cycles if not all(f.startswith("src/gap/") for f in c)]
+    assert outside == [], out.stdout
