@@ -38,7 +38,6 @@
 use super::clock::{BusClock, TimeBase};
 use super::diag::DiagShell;
 pub use super::diag::{DiagDaemonConfig, DiagReport, FAULT_MEMORY_SAVE_EVERY};
-pub use super::os::set_realtime_priority; // TODO(issue 43): for src/cli/bench.rs, then drop
 use super::{wall_clock, Link, LinkError, LoopStats, Micros, Periodic, DRAIN_BUDGET, FLOOD_PACE};
 use crate::can::messages::{ids, FaultCode, TcuState};
 use crate::can::{Bus, BusError, CanFrame, Received};

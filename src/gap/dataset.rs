@@ -31,7 +31,7 @@
 //! engagement in the file; the single-record constructors ([`Dataset::load`],
 //! [`Dataset::from_csv`], …) refuse a record with gaps ([`DatasetError::Gaps`]).
 
-use super::events::{self, EventKind, SegmentOptions};
+use super::events::{self, EventKind, SegmentOptions, SegmentSeries};
 use crate::can::candump::{parse_canonical, parse_line, LineError, LogRecord};
 use crate::can::codec::{CodecError, SignalDef};
 use crate::can::e2e::{is_protected, E2eChecker, E2eConfig, E2eError};
@@ -641,6 +641,17 @@ impl Dataset {
     }
 
     /// Slip of clutch `i`, ω_f − ω_ci (rad/s).
+    /// The series event segmentation reads ([`events::segment`]).
+    pub fn segment_series(&self) -> SegmentSeries<'_> {
+        SegmentSeries {
+            dt: self.dt,
+            torque: [self.req(Col::T1), self.req(Col::T2)],
+            slip: [self.slip(0), self.slip(1)],
+            pp: [self.req(Col::Pp1), self.req(Col::Pp2)],
+            cd: self.req(Col::Cd),
+        }
+    }
+
     pub fn slip(&self, i: usize) -> Vec<f64> {
         let wf = self.req(Col::Wf);
         let wc = self.req(Col::wc(i));
@@ -830,7 +841,7 @@ impl Segments {
         // event) somewhere in the file.
         let o = SegmentOptions::default();
         let engaged = datasets.iter().any(|d| {
-            events::segment(d, &o)
+            events::segment(&d.segment_series(), &o)
                 .events
                 .iter()
                 .any(|e| matches!(e.kind, EventKind::Engagement | EventKind::Locked))

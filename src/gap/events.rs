@@ -9,8 +9,6 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use super::dataset::{Col, Dataset};
-
 /// Segmentation thresholds.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SegmentOptions {
@@ -167,13 +165,31 @@ fn runs(flags: &[bool], value: bool) -> Vec<(usize, usize)> {
     out
 }
 
+/// The series of a record that segmentation reads (`Dataset::segment_series`): the sample
+/// time, each clutch's measured torque and slip, the pressure-plate and central-disk
+/// temperatures.
+#[derive(Debug, Clone)]
+pub struct SegmentSeries<'a> {
+    pub dt: f64,
+    pub torque: [&'a [f64]; 2],
+    pub slip: [Vec<f64>; 2],
+    pub pp: [&'a [f64]; 2],
+    pub cd: &'a [f64],
+}
+
+impl SegmentSeries<'_> {
+    fn len(&self) -> usize {
+        self.cd.len()
+    }
+}
+
 /// Segments a record into events and blocks.
-pub fn segment(d: &Dataset, o: &SegmentOptions) -> Segmentation {
+pub fn segment(d: &SegmentSeries<'_>, o: &SegmentOptions) -> Segmentation {
     let n = d.len();
     let dt = d.dt;
     let closed = [
-        closed_flags(d.req(Col::T1), o, dt),
-        closed_flags(d.req(Col::T2), o, dt),
+        closed_flags(d.torque[0], o, dt),
+        closed_flags(d.torque[1], o, dt),
     ];
     let mut events = Vec::new();
     for i in 0..2 {
@@ -191,16 +207,21 @@ pub fn segment(d: &Dataset, o: &SegmentOptions) -> Segmentation {
 }
 
 /// The mean of the three measured temperatures at sample `k`.
-fn theta_mean(d: &Dataset, k: usize) -> f64 {
-    (d.req(Col::Pp1)[k] + d.req(Col::Pp2)[k] + d.req(Col::Cd)[k]) / 3.0
+fn theta_mean(d: &SegmentSeries<'_>, k: usize) -> f64 {
+    (d.pp[0][k] + d.pp[1][k] + d.cd[k]) / 3.0
 }
 
 /// Clutch `i`'s events: each closed interval long enough, split into slipping (engagement)
 /// and locked pieces, with its peak torque and its start temperature.
-fn clutch_events(d: &Dataset, i: usize, closed: &[bool], o: &SegmentOptions) -> Vec<Event> {
+fn clutch_events(
+    d: &SegmentSeries<'_>,
+    i: usize,
+    closed: &[bool],
+    o: &SegmentOptions,
+) -> Vec<Event> {
     let min_eng = (o.min_engagement_s / d.dt).round() as usize;
-    let slip = d.slip(i);
-    let tq = d.req(Col::torque(i));
+    let slip = &d.slip[i];
+    let tq = d.torque[i];
     let mut events = Vec::new();
     for (s, e) in runs(closed, true) {
         if e - s < min_eng.max(1) {
@@ -252,7 +273,7 @@ fn engagement_pieces(
 }
 
 /// The open stretches (both clutches open) long enough: cooling when long, else open.
-fn open_events(d: &Dataset, any_closed: &[bool], o: &SegmentOptions) -> Vec<Event> {
+fn open_events(d: &SegmentSeries<'_>, any_closed: &[bool], o: &SegmentOptions) -> Vec<Event> {
     let min_open = (o.min_open_s / d.dt).round() as usize;
     let cooling = (o.cooling_s / d.dt).round() as usize;
     let mut events = Vec::new();
@@ -321,27 +342,36 @@ fn blocks(any_closed: &[bool], o: &SegmentOptions, dt: f64) -> Vec<(usize, usize
 mod tests {
     use super::*;
 
-    fn record(torque1: Vec<f64>, slip: f64) -> Dataset {
+    /// A record of clutch 1's torque `torque1` at the slip `slip` (clutch 2 open, 30 °C).
+    struct Record {
+        torque: [Vec<f64>; 2],
+        slip: [Vec<f64>; 2],
+        theta: Vec<f64>,
+    }
+
+    impl Record {
+        fn len(&self) -> usize {
+            self.theta.len()
+        }
+
+        fn series(&self) -> SegmentSeries<'_> {
+            SegmentSeries {
+                dt: 0.01,
+                torque: [&self.torque[0], &self.torque[1]],
+                slip: self.slip.clone(),
+                pp: [&self.theta, &self.theta],
+                cd: &self.theta,
+            }
+        }
+    }
+
+    fn record(torque1: Vec<f64>, slip: f64) -> Record {
         let n = torque1.len();
-        let z = vec![0.0; n];
-        Dataset::from_columns(
-            "t",
-            0.01,
-            vec![
-                (Col::X1, vec![5.0; n]),
-                (Col::X2, z.clone()),
-                (Col::Wf, vec![slip; n]),
-                (Col::Wc1, z.clone()),
-                (Col::Wc2, vec![slip; n]),
-                (Col::T1, torque1),
-                (Col::T2, z.clone()),
-                (Col::Pp1, vec![30.0; n]),
-                (Col::Pp2, vec![30.0; n]),
-                (Col::Cd, vec![30.0; n]),
-                (Col::Th, vec![25.0; n]),
-            ],
-        )
-        .unwrap()
+        Record {
+            torque: [torque1, vec![0.0; n]],
+            slip: [vec![slip; n], vec![0.0; n]],
+            theta: vec![30.0; n],
+        }
     }
 
     #[test]
@@ -355,7 +385,7 @@ mod tests {
         }
         t.extend(vec![0.0; 10_000]);
         let d = record(t, 100.0);
-        let s = segment(&d, &SegmentOptions::default());
+        let s = segment(&d.series(), &SegmentOptions::default());
         let eng: Vec<_> = s.engagements(0).collect();
         assert_eq!(eng.len(), 3);
         assert_eq!((eng[0].start, eng[0].end), (450, 550));
@@ -388,10 +418,8 @@ mod tests {
         t.extend(vec![0.0; 100]);
         let mut d = record(t, 50.0);
         // Locked (zero slip) for the second half of the engagement.
-        let mut wc = vec![0.0; d.len()];
-        wc[350..450].iter_mut().for_each(|v| *v = 50.0);
-        d.set(Col::Wc1, wc);
-        let s = segment(&d, &SegmentOptions::default());
+        d.slip[0][350..450].iter_mut().for_each(|v| *v = 0.0);
+        let s = segment(&d.series(), &SegmentOptions::default());
         let c: Vec<_> = s.events.iter().filter(|e| e.clutch == Some(0)).collect();
         assert_eq!(c.len(), 2);
         assert_eq!(

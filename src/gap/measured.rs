@@ -140,7 +140,7 @@ impl Measured {
             w_out: d.get(Col::Wout).map(Shared::from),
             gears,
             valid: d.valid.as_slice().into(),
-            seg: segment(d, seg),
+            seg: segment(&d.segment_series(), seg),
             torque_idx: torque_idx.map(Arc::from),
             start: Thermal5State::default(),
             slides,

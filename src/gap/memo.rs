@@ -8,7 +8,10 @@ use std::sync::{Arc, Mutex};
 
 /// Entries of type `V` by key `K`.
 #[derive(Debug)]
-pub struct Memo<K, V>(Arc<Mutex<Vec<(K, Arc<V>)>>>);
+pub struct Memo<K, V>(Arc<Mutex<Entries<K, V>>>);
+
+/// What a [`Memo`] keeps: each key with its entry.
+type Entries<K, V> = Vec<(K, Arc<V>)>;
 
 impl<K, V> Default for Memo<K, V> {
     fn default() -> Self {
