@@ -92,6 +92,17 @@ def run(args, timeout=DDCT_TIMEOUT_S, check=True, **kw) -> subprocess.CompletedP
     return proc
 
 
+def run_together(commands: dict, timeout=DDCT_TIMEOUT_S) -> dict:
+    """{key: args} run at the same time, {key: CompletedProcess} (check=False). For runs that wait
+    on real time with little CPU (a bench on the in-process bus: 20 s for about 1 s of CPU), so
+    that their waits overlap instead of adding up."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=max(1, len(commands))) as pool:
+        futures = {k: pool.submit(run, args, timeout, False) for k, args in commands.items()}
+        return {k: f.result() for k, f in futures.items()}
+
+
 def json_lines(text: str) -> list:
     out = []
     for n, line in enumerate(text.splitlines(), 1):

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
+import pytest
+
 import ddct_testlib as lib
 
 SCENARIO = lib.REPO / "config" / "scenarios" / "launch_shift_20s.toml"
@@ -27,11 +29,19 @@ def with_engine_stop(tmp_path):
     return path
 
 
-def test_log_plot_overlays_the_simulation(ddct, tmp_path):
-    out = tmp_path / "bench"
-    scenario = with_engine_stop(tmp_path)
-    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", scenario, "--out", out],
-                check=False, timeout=300)
+@pytest.fixture(scope="module")
+def benches(ddct, tmp_path_factory) -> dict:
+    """The two tests' bench runs (in-process bus, real time, little CPU), started together:
+    {"stop": (scenario, folder, run) of the bench scenario with the engine stop, "launch_50": ...}."""
+    d = tmp_path_factory.mktemp("log_plot")
+    scenarios = {"stop": with_engine_stop(d), "launch_50": lib.REPO / "config" / "scenarios" / "launch_50.toml"}
+    runs = lib.run_together({k: [ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", s, "--out", d / k]
+                             for k, s in scenarios.items()}, timeout=300)
+    return {k: (scenarios[k], d / k, runs[k]) for k in scenarios}
+
+
+def test_log_plot_overlays_the_simulation(ddct, benches, tmp_path):
+    scenario, out, r = benches["stop"]
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     svg = tmp_path / "overlay.svg"
     signals = ["EngSpeed", "DCT_Sensors.InShaft1Speed", "TCU_Status.TcuState", "GearActive"]
@@ -52,10 +62,8 @@ def test_log_plot_overlays_the_simulation(ddct, tmp_path):
     assert "Signals in rpm" in t
 
 
-def test_log_plot_defaults_and_refusals(ddct, tmp_path):
-    out = tmp_path / "bench"
-    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", lib.REPO / "config" / "scenarios" /
-                 "launch_50.toml", "--out", out], check=False, timeout=300)
+def test_log_plot_defaults_and_refusals(ddct, benches, tmp_path):
+    _, out, r = benches["launch_50"]
     assert r.returncode in (0, 1), r.stderr[-2000:]
     r = lib.run([ddct, "log", "plot", out / "bench.log"], check=False)
     assert r.returncode == 0, r.stderr

@@ -29,10 +29,11 @@ from ddct_testlib import ddct_can
 
 
 @pytest.fixture(scope="module")
-def bench_log(ddct, tmp_path_factory) -> Path:
-    """A bench run on the in-process bus: plant, TCU and driver, recorded as candump -l."""
-    out = tmp_path_factory.mktemp("mf4_bench")
-    lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--out", out])
+def bench_log(bench_launch_shift) -> Path:
+    """A bench run on the in-process bus: plant, TCU and driver, recorded as candump -l (the
+    session's run of the bench's scenario, conftest.py)."""
+    out, r = bench_launch_shift
+    assert r.returncode == 0, r.stderr[-2000:]
     log = out / "bench.log"
     assert log.stat().st_size > 100_000
     return log

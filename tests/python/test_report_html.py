@@ -27,10 +27,8 @@ def browse(url: str, *flags: str) -> subprocess.CompletedProcess:
                            "--v=0", *flags, url], capture_output=True, text=True, timeout=120)
 
 
-def test_bench_report_opens_in_a_browser(ddct, tmp_path):
-    out = tmp_path / "bench"
-    r = lib.run([ddct, "bench", "--iface", "sim", "--echo", "0", "--scenario", SCENARIO, "--out", out],
-                check=False, timeout=300)
+def test_bench_report_opens_in_a_browser(bench_launch_shift, tmp_path):
+    out, r = bench_launch_shift  # ddct bench --iface sim --echo 0 --scenario SCENARIO --out out
     assert r.returncode == 0, r.stderr[-2000:]
     report = out / "report.html"
     assert f"bench: report in {report}" in r.stderr

@@ -58,14 +58,20 @@ def test_sim_fails_exactly_the_violated_limits(ddct, tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+@pytest.fixture(scope="module")
+def bench_runs(ddct, tmp_path_factory) -> dict:
+    """Both scenarios' bench runs (in-process bus, real time, little CPU), started together:
+    {scenario: (the run, its JUnit file)}."""
+    d = tmp_path_factory.mktemp("verdict_bench")
+    args = {s: [ddct, "bench", "--iface", "sim", "--echo", "2", "--scenario", s, "--out", d / s.stem,
+                "--junit", d / f"{s.stem}.xml"] for s in (DEFAULT, VIOLATED)}
+    runs = lib.run_together(args, timeout=300)
+    return {s: (runs[s], d / f"{s.stem}.xml") for s in args}
+
+
 @pytest.mark.parametrize("scenario, code", [(DEFAULT, 0), (VIOLATED, 1)], ids=["default", "violated"])
-def test_bench_exit_status_and_junit_follow_the_limits(ddct, tmp_path, scenario, code):
-    junit = tmp_path / "bench.xml"
-    r = lib.run(
-        [ddct, "bench", "--iface", "sim", "--echo", "2", "--scenario", scenario, "--out", tmp_path / "out", "--junit", junit],
-        check=False,
-        timeout=300,
-    )
+def test_bench_exit_status_and_junit_follow_the_limits(bench_runs, scenario, code):
+    r, junit = bench_runs[scenario]
     assert r.returncode == code, r.stdout[-3000:] + r.stderr[-3000:]
     assert "summary.json" in r.stderr
     table = rows(r.stdout)
