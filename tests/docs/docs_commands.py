@@ -17,6 +17,14 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 MANIFEST = Path(__file__).resolve().parent / "commands.toml"
 PARTS = ("host", "vcan", "long")
+# Lanes of a test session: "main" runs the commands one after the other in the manifest's order;
+# "cpu" commands (CPU work without a bus and without a deadline: nothing in them is timed or
+# fails when it runs slowly; they read only what earlier cpu commands or the repository give
+# them) run in a second lane beside the main one, at nice 19, in the manifest's order among
+# themselves (tests/docs/test_docs_commands.py, "Lanes"). No User-Mode Linux in the cpu lane: a
+# second guest beside the main lane's (a lockstep rig run) made the diagnostic session's
+# kiss-point routine abort.
+LANES = ("main", "cpu")
 COMMAND_WORDS = re.compile(r"^(ddct(?=\s|$)|scripts/|cargo|\.venv/|candump|cansend|python3?|target/release/ddct|export|sudo|cd)\b")
 # An argument that makes an inline span a command to run rather than the name of one: a number,
 # a path, a list or an assignment.
@@ -149,6 +157,7 @@ class Entry:
     setup: list[str] = field(default_factory=list)
     beside: str | None = None
     timeout_s: float = 600.0
+    lane: str = "main"
     # A test file (or .ci/run, scripts/test) that runs this command itself, and the text by
     # which it does (default: the command).
     covered_by: str | None = None
@@ -166,5 +175,11 @@ def manifest() -> list[Entry]:
         e = Entry(**raw)
         if e.part not in PARTS:
             raise ValueError(f"{MANIFEST.name}: command #{i} ({e.cmd!r}): part {e.part!r} not one of {PARTS}")
+        if e.lane not in LANES:
+            raise ValueError(f"{MANIFEST.name}: command #{i} ({e.cmd!r}): lane {e.lane!r} not one of {LANES}")
+        if e.lane == "cpu" and (e.part == "vcan" or e.beside or e.stop_after_s is not None or "vcan" in e.cmd):
+            raise ValueError(f"{MANIFEST.name}: command #{i} ({e.cmd!r}): a cpu-lane command needs no bus, "
+                             "no traffic beside it and no stop")
         entries.append(e)
     return entries
+

@@ -6,9 +6,18 @@ The manifest tests/docs/commands.toml says per command its part and what its out
         scripts/vcan-run are host commands too)
   vcan  need vcan0 without saying `scripts/vcan-run` (a machine with vcan): run inside
         scripts/vcan-run by the `vcan:pytest:tests/docs` part
-  long  minutes of CPU: scripts/test's `docs-long` part
+  long  minutes of CPU: run by scripts/test's `docs` part too (most of them in the cpu lane)
 A command shown in the docs and missing from the manifest fails, and so does a manifest entry no
-page shows any more; a deselected part is not a skip: each part runs in its own scripts/test part.
+page shows any more; a deselected part is not a skip: host and long run in scripts/test's `docs`
+part, vcan in its `vcan:pytest:tests/docs:vcan` part.
+
+Lanes. Most commands wait on real time (daemons, User-Mode Linux), a few keep both cores busy for
+minutes (the diagnoses, the blind trials, the fleet). Entries with `lane = "cpu"` therefore run
+in a second lane, a thread started with the session that runs them one after the other in the
+manifest's order, under `nice -n 19` so that the main lane's daemons keep the CPU when they want
+it. Their tests come last in the session and wait for the lane's result; everything else runs
+in the main lane in the manifest's order, its long commands after the others (conftest.py). A
+cpu-lane command may read only what an earlier cpu-lane command or the repository gives it.
 """
 
 from __future__ import annotations
@@ -17,6 +26,7 @@ import os
 import re
 import signal
 import subprocess
+import threading
 import time
 
 import pytest
@@ -26,6 +36,7 @@ import docs_commands as dc
 ENTRIES = dc.manifest()
 SHOWN = dc.shown_commands()
 COUNTS: dict[str, int] = {}
+MAIN_SECONDS: dict[str, float] = {}  # the main lane's commands and their seconds
 
 
 def entry_id(e: dc.Entry) -> str:
@@ -69,9 +80,12 @@ def test_no_command_hides_outside_a_sh_block():
 STOPPED = (0, 128 + signal.SIGINT, -signal.SIGINT)
 
 
-def run_entry(e: dc.Entry) -> tuple[int, str]:
+def run_entry(e: dc.Entry, nice: int = 0, started=None) -> tuple[int, str]:
+    """Runs the entry's setup, traffic and command; (exit status, output). `nice`: the niceness
+    of everything it starts; `started(popen)`: called with the command's process."""
+    shell = ["nice", "-n", str(nice), "bash", "-c"] if nice else ["bash", "-c"]
     for s in e.setup:
-        r = subprocess.run(["bash", "-c", s], cwd=dc.REPO, env=env(), text=True, stdin=subprocess.DEVNULL,
+        r = subprocess.run([*shell, s], cwd=dc.REPO, env=env(), text=True, stdin=subprocess.DEVNULL,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=e.timeout_s)
         assert r.returncode == 0, f"setup `{s}` exited {r.returncode}:\n{r.stdout[-3000:]}"
     beside = None
@@ -80,8 +94,10 @@ def run_entry(e: dc.Entry) -> tuple[int, str]:
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
         time.sleep(0.5)
     try:
-        p = subprocess.Popen(["bash", "-c", e.cmd], cwd=dc.REPO, env=env(), text=True, stdin=subprocess.DEVNULL,
+        p = subprocess.Popen([*shell, e.cmd], cwd=dc.REPO, env=env(), text=True, stdin=subprocess.DEVNULL,
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+        if started:
+            started(p)
         try:
             if e.stop_after_s is not None:
                 try:
@@ -106,6 +122,84 @@ def run_entry(e: dc.Entry) -> tuple[int, str]:
             beside.wait(30)
 
 
+class CpuLane:
+    """The second lane: the session's selected cpu-lane entries, run one after the other in a
+    thread (nice 19); each test waits for its entry's result."""
+
+    NICE = 19
+
+    def __init__(self, entries: list[dc.Entry]):
+        self.entries = entries
+        self.results: dict[str, tuple] = {}
+        self.done = {e.cmd: threading.Event() for e in entries}
+        self.seconds: dict[str, float] = {}
+        self.proc = None
+        self.stopping = False
+        self.t0 = time.monotonic()
+        self.thread = threading.Thread(target=self._run, name="docs-cpu-lane", daemon=True)
+        self.thread.start()
+
+    def _started(self, p):
+        self.proc = p
+
+    def _run(self):
+        try:
+            for e in self.entries:
+                if self.stopping:
+                    self.results[e.cmd] = ("stopped", "the session ended before the cpu lane ran this command")
+                else:
+                    t0 = time.monotonic()
+                    try:
+                        self.results[e.cmd] = ("ran", run_entry(e, nice=self.NICE, started=self._started))
+                    except BaseException as x:  # noqa: BLE001 (pytest.fail's Failed, an assertion, anything)
+                        self.results[e.cmd] = ("raised", x)
+                    self.seconds[e.cmd] = time.monotonic() - t0
+                    self.proc = None
+                self.done[e.cmd].set()
+        finally:
+            self.wall = time.monotonic() - self.t0
+            for cmd, done in self.done.items():  # the lane itself failed: no test waits for ever
+                if not done.is_set():
+                    self.results.setdefault(cmd, ("stopped", "the cpu lane ended before it ran this command"))
+                    done.set()
+
+    def result(self, e: dc.Entry) -> tuple[int, str]:
+        self.done[e.cmd].wait()
+        how, what = self.results[e.cmd]
+        if how == "raised":
+            raise what
+        if how == "stopped":
+            pytest.fail(what)
+        return what
+
+    def stop(self):
+        self.stopping = True
+        p = self.proc
+        if p is not None and p.poll() is None:
+            try:
+                os.killpg(p.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        self.thread.join(60)
+
+
+LANE: CpuLane | None = None
+
+
+@pytest.fixture(scope="session", autouse=True)
+def cpu_lane(request):
+    """Starts the cpu lane with the session's first test, over the cpu-lane entries the session
+    selected (conftest.py puts their tests last)."""
+    global LANE
+    entries = [item.callspec.params["entry"] for item in request.session.items
+               if getattr(item, "callspec", None) and "entry" in item.callspec.params
+               and item.callspec.params["entry"].lane == "cpu"]
+    LANE = CpuLane(entries) if entries else None
+    yield LANE
+    if LANE is not None:
+        LANE.stop()
+
+
 def test_covered_commands_are_run_by_the_test_that_claims_them():
     """A command another test runs (the main job, the whole suite) must be written in that test
     as shown, so the docs and the test cannot drift apart."""
@@ -124,7 +218,12 @@ def test_covered_commands_are_run_by_the_test_that_claims_them():
     [pytest.param(e, id=entry_id(e), marks=getattr(pytest.mark, e.part)) for e in ENTRIES if not e.covered_by],
 )
 def test_command(entry: dc.Entry):
-    rc, out = run_entry(entry)
+    if entry.lane == "cpu":
+        rc, out = LANE.result(entry)
+    else:
+        t0 = time.monotonic()
+        rc, out = run_entry(entry)
+        MAIN_SECONDS[entry.cmd] = time.monotonic() - t0
     assert "panicked at" not in out, out[-4000:]
     assert rc == entry.exit, f"`{entry.cmd}` exited {rc}, expected {entry.exit}:\n{out[-4000:]}"
     for pat in entry.expect:
