@@ -43,6 +43,8 @@ def pytest_terminal_summary(terminalreporter):
     if t.MAIN_SECONDS:
         terminalreporter.write_line(f"main lane: {len(t.MAIN_SECONDS)} commands, {sum(t.MAIN_SECONDS.values()):.0f} s "
                                     "of commands")
+    for f in t.FIGURES:
+        terminalreporter.write_line(f"figure in its band: {f}")
     if t.COUNTS:
         ran = ", ".join(f"{p} {n}" for p, n in sorted(t.COUNTS.items()))
         total = {p: sum(e.part == p for e in t.ENTRIES) for p in dc.PARTS}

@@ -149,6 +149,10 @@ class Entry:
     expect: list[str] = field(default_factory=list)
     # Regexes it must not match.
     refuse: list[str] = field(default_factory=list)
+    # Figures that must lie in a band: [regex, low, high]; the regex (re.M) captures one number,
+    # the figure, or two, whose ratio (first / second) is the figure. For timings, which follow
+    # the host's load: a ratio to a peer measured in the same run, in a generous band.
+    bands: list[list] = field(default_factory=list)
     exit: int = 0
     # A daemon or a pipe that runs until stopped: SIGINT after this many seconds, then exit 0
     # (or `exit`) expected.
@@ -180,6 +184,20 @@ def manifest() -> list[Entry]:
         if e.lane == "cpu" and (e.part == "vcan" or e.beside or e.stop_after_s is not None or "vcan" in e.cmd):
             raise ValueError(f"{MANIFEST.name}: command #{i} ({e.cmd!r}): a cpu-lane command needs no bus, "
                              "no traffic beside it and no stop")
+        for b in e.bands:
+            if not (len(b) == 3 and isinstance(b[0], str) and re.compile(b[0]).groups in (1, 2)
+                    and all(isinstance(x, (int, float)) for x in b[1:]) and b[1] <= b[2]):
+                raise ValueError(f"{MANIFEST.name}: command #{i} ({e.cmd!r}): a band is [regex with 1 or 2 "
+                                 f"groups, low, high], not {b!r}")
         entries.append(e)
     return entries
 
+
+def band_figure(pattern: str, out: str) -> float | None:
+    """The figure a band's regex captures in `out` (one number, or the first over the second);
+    None where it does not match."""
+    m = re.search(pattern, out, re.M)
+    if m is None:
+        return None
+    g = [float(x) for x in m.groups()]
+    return g[0] / g[1] if len(g) == 2 else g[0]

@@ -37,6 +37,7 @@ ENTRIES = dc.manifest()
 SHOWN = dc.shown_commands()
 COUNTS: dict[str, int] = {}
 MAIN_SECONDS: dict[str, float] = {}  # the main lane's commands and their seconds
+FIGURES: list[str] = []  # the banded figures measured (printed at the end of the session)
 
 
 def entry_id(e: dc.Entry) -> str:
@@ -230,4 +231,9 @@ def test_command(entry: dc.Entry):
         assert re.search(pat, out, re.M), f"`{entry.cmd}`: no match for {pat!r} in its output:\n{out[-4000:]}"
     for pat in entry.refuse:
         assert not re.search(pat, out, re.M), f"`{entry.cmd}`: {pat!r} in its output:\n{out[-4000:]}"
+    for pat, lo, hi in entry.bands:
+        v = dc.band_figure(pat, out)
+        assert v is not None, f"`{entry.cmd}`: no match for the band's {pat!r} in its output:\n{out[-4000:]}"
+        assert lo <= v <= hi, f"`{entry.cmd}`: {v:.4g} from {pat!r} is outside {lo}..{hi}:\n{out[-4000:]}"
+        FIGURES.append(f"{v:.4g} in {lo}..{hi} ({pat[:50]}…)")
     COUNTS[entry.part] = COUNTS.get(entry.part, 0) + 1
