@@ -770,7 +770,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
     let ex = experiments(&truth, 5, &p);
     let opts = DiagnoseOptions::default();
     let with = diagnose(&ex.train, &ex.validate, &p, &opts).unwrap();
-    assert_eq!(with.verdict.effect, "actuator_dead_time");
+    assert_eq!(with.verdict.effect.to_string(), "actuator_dead_time");
     // The engine is seen in vehicle records only: the launches (train_launches) make it checkable,
     // the two rig records alone do not although they carry ENG_Status.EngTorqueAct.
     let engine = |ds: &[ddct::gap::dataset::Dataset]| {
@@ -812,7 +812,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
         assert!(c.detail.starts_with("not checkable"), "{}", c.detail);
     }
     assert!(checkable("torque_characteristic").checkable);
-    assert_eq!(d.verdict.effect, "none", "{:?}", d.verdict);
+    assert_eq!(d.verdict.effect.to_string(), "none", "{:?}", d.verdict);
     // The classes that need the requests or vehicle records are listed as not checkable, with
     // the reason, and never fitted.
     use ddct::gap::class::ClassId;

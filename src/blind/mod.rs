@@ -86,15 +86,6 @@ fn named_within(named: &[Vec<ClassId>], c: ClassId) -> Option<bool> {
     None
 }
 
-fn kind_label(f: &Finding) -> String {
-    match f {
-        Finding::Class(c) | Finding::Sensor(c) => c.class.as_str().to_string(),
-        Finding::Recalibration(_) => "recalibration".into(),
-        Finding::OutsideLibrary(_) => "outside_library".into(),
-        Finding::Nothing => "none".into(),
-    }
-}
-
 /// The verdict of one trial from the named classes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Verdict {
@@ -154,7 +145,7 @@ pub fn score(
         .iter()
         .find(|f| f.class().is_some())
         .or(findings.first())
-        .map(kind_label)
+        .map(|f| f.effect().to_string())
         .unwrap_or_else(|| "none".into());
     let mut r = TrialResult {
         index,

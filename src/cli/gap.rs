@@ -11,7 +11,7 @@ use ddct::gap::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use ddct::gap::experiment::{self, PlantTruth};
 use ddct::gap::findings_table;
 use ddct::gap::identify::{identify, Identification, IdentifyOptions};
-use ddct::gap::keys;
+use ddct::gap::keys::ParamKey;
 use ddct::gap::report;
 use ddct::model::effects::EffectId;
 use ddct::model::Params;
@@ -411,7 +411,7 @@ fn identified_file(a: &IdentifyArgs, id: &Identification) -> String {
 /// the relative error and whether the interval holds the reference when there is one; then how
 /// many identifiable parameters' final intervals hold it.
 fn print_estimates(id: &Identification, reference: Option<&Params>) {
-    let reference_of = |key: &str| reference.and_then(|r| keys::get(r, key));
+    let reference_of = |key: ParamKey| reference.map(|r| key.get(r));
     print!(
         "{:<28} {:>12} {:>12} {:>27}",
         "parameter", "initial", "identified", "95 % interval"
@@ -427,7 +427,7 @@ fn print_estimates(id: &Identification, reference: Option<&Params>) {
             "{:<28} {:>12.4e} {:>12.4e} [{:>11.4e}, {:>11.4e}]",
             e.key, e.initial, e.value, e.ci95.0, e.ci95.1
         );
-        if let Some(r) = reference_of(&e.key) {
+        if let Some(r) = reference_of(e.key) {
             let hit = e.ci95.0 <= r && r <= e.ci95.1;
             let err = if r != 0.0 {
                 format!("{:+.1}%", 100.0 * (e.value - r) / r.abs())
@@ -435,7 +435,7 @@ fn print_estimates(id: &Identification, reference: Option<&Params>) {
                 format!("{:+.1e}", e.value)
             };
             if e.identifiable {
-                final_hit.insert(e.key.as_str(), hit);
+                final_hit.insert(e.key, hit);
             }
             print!(" {r:>12.4e} {err:>7} {:>6}", if hit { "yes" } else { "no" });
         }
@@ -611,10 +611,21 @@ fn tcu_template(a: &DiagnoseArgs) -> anyhow::Result<Option<String>> {
 /// closes.
 fn print_diagnosis(d: &Diagnosis) {
     let v = &d.verdict;
-    println!("verdict: effect {} (subsystem {})", v.effect, v.subsystem);
+    println!(
+        "verdict: effect {} (subsystem {})",
+        v.effect,
+        v.subsystem_name()
+    );
     println!("  {}", v.explanation);
     if !v.ambiguous_with.is_empty() {
-        println!("  ambiguous with: {}", v.ambiguous_with.join(", "));
+        println!(
+            "  ambiguous with: {}",
+            v.ambiguous_with
+                .iter()
+                .map(|c| c.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
     }
     if !v.outside_library_depends_on.is_empty() {
         println!(

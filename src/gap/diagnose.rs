@@ -24,13 +24,13 @@
 use super::blackbox::{self, BlackBoxResult, Design};
 use super::candidates::{self, Channel, Model, Samples};
 use super::class::{ClassId, Kind, Variable};
-use super::classfit::{self, Knots, Needs};
+use super::classes::{self, group_channels, Knots, Needs};
 use super::context::{self, File, Scores};
 use super::dataset::{Col, Dataset};
 use super::events::SegmentOptions;
-use super::finding::{ClassFinding, Finding, OutsideFinding, RecalibrationFinding};
+use super::finding::{ClassFinding, Effect, Finding, OutsideFinding, RecalibrationFinding};
 use super::form_error;
-use super::keys;
+use super::keys::ParamKey;
 use super::lsq;
 use super::measured;
 use super::measured::Measured;
@@ -110,7 +110,7 @@ pub enum DiagnoseError {
 /// A subsystem and whether the records can check it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Checkable {
-    pub subsystem: String,
+    pub subsystem: Subsystem,
     pub checkable: bool,
     /// Outputs used, or why not checkable.
     pub detail: String,
@@ -120,7 +120,7 @@ pub struct Checkable {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Ranked {
     pub effect: String,
-    pub subsystem: String,
+    pub subsystem: Subsystem,
     /// Fitted effect parameters with 95 % intervals.
     pub parameters: BTreeMap<String, f64>,
     pub parameters_ci95: BTreeMap<String, (f64, f64)>,
@@ -144,13 +144,14 @@ pub struct Ranked {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Verdict {
     /// Subsystem of the diagnosed effect (`none` when nothing remains).
-    pub subsystem: String,
+    #[serde(serialize_with = "subsystem_or_none")]
+    pub subsystem: Option<Subsystem>,
     /// Subsystems in order of evidence (the verdict's first).
-    pub subsystems: Vec<String>,
-    /// An effect identifier, `none` or `outside_library`.
-    pub effect: String,
+    pub subsystems: Vec<Subsystem>,
+    /// The first finding's effect.
+    pub effect: Effect,
     pub ranking: Vec<Ranked>,
-    pub ambiguous_with: Vec<String>,
+    pub ambiguous_with: Vec<ClassId>,
     pub outside_library_depends_on: Vec<String>,
     pub explanation: String,
     /// The typed findings (issue 17): classes, sensors, out-of-range recalibrations, residuals
@@ -164,11 +165,26 @@ pub struct Verdict {
     pub rounds: Vec<(Option<ClassId>, Vec<ClassId>)>,
 }
 
+impl Verdict {
+    /// The verdict's subsystem as reports name it: its identifier, `none` without one.
+    pub fn subsystem_name(&self) -> &'static str {
+        self.subsystem.map_or("none", Subsystem::as_str)
+    }
+}
+
+/// A verdict's subsystem in JSON ([`Verdict::subsystem_name`]).
+fn subsystem_or_none<S: serde::Serializer>(
+    s: &Option<Subsystem>,
+    ser: S,
+) -> Result<S::Ok, S::Error> {
+    ser.serialize_str(s.map_or("none", Subsystem::as_str))
+}
+
 /// Before/after of one output on the validation files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct OutputGap {
     pub output: String,
-    pub subsystem: String,
+    pub subsystem: Subsystem,
     pub n: usize,
     /// Sensor-noise floor σ (same unit as the output).
     pub noise: f64,
@@ -256,7 +272,7 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
             .all(|d| d.has(Col::Wout) && d.has(Col::GearOdd) && d.has(Col::GearEven));
     vec![
         Checkable {
-            subsystem: "torque_characteristic".into(),
+            subsystem: Subsystem::TorqueCharacteristic,
             checkable: true,
             detail:
                 "T_c1_Nm, T_c2_Nm against (13) at measured x_to, slip and the disk temperature \
@@ -264,7 +280,7 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
                     .into(),
         },
         Checkable {
-            subsystem: "thermal".into(),
+            subsystem: Subsystem::Thermal,
             checkable: true,
             detail:
                 "th_pp1_C, th_pp2_C, th_cd_C replayed by (16) from the measured friction power \
@@ -272,7 +288,7 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
                     .into(),
         },
         Checkable {
-            subsystem: "actuator".into(),
+            subsystem: Subsystem::Actuator,
             checkable: any(Col::X1Req) || any(Col::X2Req),
             detail: match (any(Col::X1Req), any(Col::X2Req)) {
                 (true, true) => {
@@ -291,7 +307,7 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
             },
         },
         Checkable {
-            subsystem: "engine".into(),
+            subsystem: Subsystem::Engine,
             checkable: engine,
             detail: if engine {
                 "T_e_Nm against J_eq·dω_f/dt + T_c1 + T_c2 (18a) where the engine drives".into()
@@ -302,7 +318,7 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
             },
         },
         Checkable {
-            subsystem: "driveline".into(),
+            subsystem: Subsystem::Driveline,
             checkable: driveline,
             detail: if driveline {
                 "output balance k_odd·T_c1 + k_even·T_c2 − T_load − J·dω_out/dt reported (no \
@@ -319,7 +335,7 @@ pub fn checkability(ds: &[Dataset]) -> Vec<Checkable> {
 
 /// Which subsystems the available signals can tell apart.
 pub fn separability(checkable: &[Checkable]) -> Vec<String> {
-    let has = |s: &str| checkable.iter().any(|c| c.subsystem == s && c.checkable);
+    let has = |s: Subsystem| checkable.iter().any(|c| c.subsystem == s && c.checkable);
     let mut v = vec![
         "torque_characteristic vs thermal: separable — the plate and central-disk temperatures \
          are measured, so a thermal error shows in th_pp/th_cd; the clutch-disk temperature is \
@@ -327,7 +343,7 @@ pub fn separability(checkable: &[Checkable]) -> Vec<String> {
          told apart from torque-characteristic effects only by its dynamics"
             .to_string(),
     ];
-    if has("actuator") {
+    if has(Subsystem::Actuator) {
         v.push(
             "actuator vs torque_characteristic: separable — x_to is measured and its request is \
              logged; a dead time shows in x_to vs request, a backlash (play between the measured \
@@ -341,7 +357,7 @@ pub fn separability(checkable: &[Checkable]) -> Vec<String> {
                 .into(),
         );
     }
-    if has("engine") {
+    if has(Subsystem::Engine) {
         v.push(
             "engine vs driveline/clutch: separable where the engine drives (vehicle records): \
              the reported engine torque is checked against the measured clutch torques and \
@@ -351,7 +367,7 @@ pub fn separability(checkable: &[Checkable]) -> Vec<String> {
     } else {
         v.push("engine: not checkable without T_e_Nm in vehicle records".into());
     }
-    if !has("driveline") {
+    if !has(Subsystem::Driveline) {
         v.push(
             "driveline: not checkable without vehicle records with w_out_radps and gears".into(),
         );
@@ -407,7 +423,7 @@ fn recalibrate(
         Subsystem::TorqueCharacteristic,
         Subsystem::Actuator,
     ] {
-        let ch: Vec<Channel> = classfit::group_channels(sub)
+        let ch: Vec<Channel> = group_channels(sub)
             .into_iter()
             .filter(|c| chans.contains(c))
             .collect();
@@ -416,7 +432,7 @@ fn recalibrate(
         }
         let job = Job {
             classes: vec![],
-            form: classfit::Form::Flexible,
+            form: classes::Form::Flexible,
             recal: select::recal_keys(sub),
             chans: ch,
             wide,
@@ -514,7 +530,7 @@ fn excesses(s: &Scores, chans: &[Channel], o: &DiagnoseOptions) -> Vec<Excess> {
     ]
     .into_iter()
     .filter_map(|sub| {
-        let ch: Vec<Channel> = classfit::group_channels(sub)
+        let ch: Vec<Channel> = group_channels(sub)
             .into_iter()
             .filter(|c| chans.contains(c))
             .collect();
@@ -566,18 +582,18 @@ fn recalibration_findings(
         Subsystem::TorqueCharacteristic,
         Subsystem::Actuator,
     ] {
-        let keys_: Vec<&'static str> = select::recal_keys(sub);
-        let at_bound: Vec<&'static str> = keys_
+        let keys_ = select::recal_keys(sub);
+        let at_bound: Vec<ParamKey> = keys_
             .iter()
             .copied()
             .filter(|k| {
-                let v = keys::get(&model.p, k).unwrap_or(0.0);
-                let (lo, hi) = select::plausible(k, s.nominal);
+                let v = k.get(&model.p);
+                let (lo, hi) = select::plausible(*k, s.nominal);
                 let tol = 1e-3 * (hi - lo).abs();
                 (v - lo).abs() <= tol || (v - hi).abs() <= tol
             })
             .collect();
-        let ch: Vec<Channel> = classfit::group_channels(sub)
+        let ch: Vec<Channel> = group_channels(sub)
             .into_iter()
             .filter(|c| s.chans.contains(c))
             .collect();
@@ -586,7 +602,7 @@ fn recalibration_findings(
         }
         let job = Job {
             classes: vec![],
-            form: classfit::Form::Flexible,
+            form: classes::Form::Flexible,
             recal: keys_,
             chans: ch.clone(),
             wide: true,
@@ -596,7 +612,7 @@ fn recalibration_findings(
         let m2 = select::fit_model(&model, s, &job);
         let mut aff = ch.clone();
         if sub == Subsystem::Thermal {
-            aff.extend(classfit::group_channels(Subsystem::TorqueCharacteristic));
+            aff.extend(group_channels(Subsystem::TorqueCharacteristic));
             aff.retain(|c| s.chans.contains(c));
         }
         let v2 = val.with(&Scores::of(&m2, s.validate, &aff, s.nunits_v), &aff);
@@ -608,14 +624,14 @@ fn recalibration_findings(
         let (z, n) = val.total(s.chans);
         if ci.0 > 0.0 && gain >= o.min_gain * (z - n).max(1e-9) {
             for k in at_bound {
-                let nom = keys::get(s.nominal, k).unwrap_or(0.0);
-                let v = keys::get(&m2.p, k).unwrap_or(nom);
+                let nom = k.get(s.nominal);
+                let v = k.get(&m2.p);
                 let (lo, hi) = select::plausible(k, s.nominal);
                 if v >= lo && v <= hi {
                     continue;
                 }
                 out.push(RecalibrationFinding {
-                    key: k.to_string(),
+                    key: k,
                     nominal: nom,
                     value: v,
                     move_pct: 100.0 * (v - nom) / nom.abs().max(1e-300),
@@ -745,16 +761,16 @@ fn design(p: &Params, files: &[File], preds: &[candidates::Predictions], fit: bo
 /// A class finding from a kept candidate.
 fn class_finding(
     c: &select::Candidate,
-    knots: &classfit::Knots,
+    knots: &Knots,
     ambiguous: &[ClassId],
     excess0: f64,
     left: f64,
 ) -> Finding {
-    let (mag, unit) = classfit::magnitude(c.class, &c.model);
+    let (mag, unit) = c.class.fit().magnitude(&c.model);
     // The delta method where every parameter the magnitude moves with is identifiable; else
     // the largest relative half-width of the parameters, at most ten times the magnitude.
-    let noise_ci95 =
-        classfit::magnitude_ci95(c.class, knots, &c.model, &c.fit).unwrap_or_else(|| {
+    let noise_ci95 = classes::magnitude_ci95(c.class.fit(), knots, &c.model, &c.fit)
+        .unwrap_or_else(|| {
             let ci = c
                 .fit
                 .ci95
@@ -770,7 +786,7 @@ fn class_finding(
     let model_form_rel = form_error::relative(left, c.gain);
     let magnitude_ci95 = form_error::widen(mag, noise_ci95, model_form_rel);
     let range_warning = c.class.member().and_then(|id| {
-        let (v, _) = match classfit::member_from_shape(c.class, &c.model) {
+        let (v, _) = match c.class.fit().member_from_shape(&c.model) {
             Some((_, v)) => (v[0], ()),
             None => (c.model.set.get(id)?[0], ()),
         };
@@ -811,9 +827,9 @@ fn class_finding(
         noise_ci95,
         model_form_rel,
         unit,
-        magnitude_basis: classfit::basis(c.class, &c.model),
+        magnitude_basis: c.class.fit().basis(&c.model),
         range_warning,
-        shape: classfit::shape_points(c.class, &c.model),
+        shape: c.class.fit().shape_points(&c.model),
         parameters,
     };
     match c.class.kind() {
@@ -829,7 +845,7 @@ fn ranking(r: Option<&Round>, chans: &[Channel]) -> Vec<Ranked> {
         .iter()
         .map(|c| Ranked {
             effect: c.class.as_str().to_string(),
-            subsystem: c.class.subsystem().as_str().to_string(),
+            subsystem: c.class.subsystem(),
             parameters: c
                 .fit
                 .names
@@ -846,7 +862,7 @@ fn ranking(r: Option<&Round>, chans: &[Channel]) -> Vec<Ranked> {
                 .collect(),
             recalibrated: select::RECAL
                 .iter()
-                .filter_map(|(k, _)| Some((k.to_string(), keys::get(&c.model.p, k)?)))
+                .map(|k| (k.to_string(), k.get(&c.model.p)))
                 .collect(),
             validation_rmse: chans
                 .iter()
@@ -879,7 +895,7 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
     let mut m = *model;
     for f in findings {
         let Some(c) = f.class() else { continue };
-        if !classfit::is_flexible(c.class) {
+        if !c.class.fit().is_flexible() {
             continue;
         }
         let Some(member) = std::iter::once(c.class)
@@ -889,15 +905,15 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
             continue;
         };
         let mut base = m;
-        classfit::remove(c.class, &mut base, model);
-        let group = classfit::group(member);
-        let chans: Vec<Channel> = classfit::group_channels(group)
+        c.class.fit().remove(&mut base, model);
+        let group = member.fit().group();
+        let chans: Vec<Channel> = group_channels(group)
             .into_iter()
             .filter(|ch| s.chans.contains(ch))
             .collect();
         let job = Job {
             classes: vec![member],
-            form: classfit::Form::Member,
+            form: classes::Form::Member,
             recal: select::recal_keys(group),
             chans,
             wide: false,
@@ -976,8 +992,8 @@ fn verdict(
     let mut partial = Vec::new();
     findings.retain(|f| {
         let Some(c) = f.class() else { return true };
-        let left = outside.iter().find(|x| x.subsystem == classfit::group(c.class));
-        match (left, ex_rec.get(&classfit::group(c.class))) {
+        let left = outside.iter().find(|x| x.subsystem == c.class.fit().group());
+        match (left, ex_rec.get(&c.class.fit().group())) {
             (Some(x), Some(&e0)) if x.excess > 0.5 * e0 => {
                 partial.push(format!(
                     "{} closes {:.0} % of the gap but {} stays {:.0} % above its noise floor (of {:.0} % before): a partial fit, not the cause",
@@ -994,7 +1010,7 @@ fn verdict(
     let explained: Vec<Subsystem> = findings
         .iter()
         .filter_map(Finding::class)
-        .map(|c| classfit::group(c.class))
+        .map(|c| c.class.fit().group())
         .collect();
     let outside: Vec<OutsideFinding> = outside
         .into_iter()
@@ -1071,7 +1087,7 @@ pub fn diagnose(
         &va, &chans, &sc_nom_v, &sc_rec_v, &sc_after, &sigma, o, &mut rng,
     );
     let first = first_finding(&verdict.findings);
-    let main = main_gap(&first, &verdict.effect, &where_, &eq);
+    let main = main_gap(&first, &where_, &eq);
     let replay_error = replay_gaps(&nominal_model, &w.after, &va);
     let how_far = how_far(main.as_ref(), &eq, replay_error);
     let traces = traces(&nominal_model, &w.after, &va, main.as_ref());
@@ -1286,10 +1302,7 @@ fn located(
         fdr_q,
     );
     for r in where_.residual_subsystems.iter_mut() {
-        if let Some(e) = ex_rec_all
-            .iter()
-            .find(|e| e.subsystem.as_str() == r.subsystem)
-        {
+        if let Some(e) = ex_rec_all.iter().find(|e| e.subsystem == r.subsystem) {
             r.significant = e.flagged;
         }
     }
@@ -1309,23 +1322,16 @@ fn verdict_of(
     not_checkable: Vec<NotCheckable>,
 ) -> Verdict {
     let first = first_finding(&findings);
-    let subsystem = first
-        .subsystem()
-        .map_or("none".to_string(), |s| s.as_str().to_string());
+    let subsystem = first.subsystem();
     let ambiguous_with = findings
         .first()
         .and_then(Finding::class)
-        .map(|c| {
-            c.ambiguous_with
-                .iter()
-                .map(|a| a.as_str().to_string())
-                .collect()
-        })
+        .map(|c| c.ambiguous_with.clone())
         .unwrap_or_default();
     Verdict {
         subsystem,
         subsystems: flagged_subsystems(&findings, where_),
-        effect: effect_name(&first),
+        effect: first.effect(),
         ranking: ranking(rounds.first(), chans),
         ambiguous_with,
         outside_library_depends_on: outside
@@ -1358,7 +1364,7 @@ fn checked_channels(tr: &[File], va: &[File]) -> Vec<Channel> {
 fn recalibration_table(nominal: &Params, recal: &Params) -> Vec<(String, f64, f64)> {
     select::RECAL
         .iter()
-        .filter_map(|(k, _)| Some((k.to_string(), keys::get(nominal, k)?, keys::get(recal, k)?)))
+        .map(|k| (k.to_string(), k.get(nominal), k.get(recal)))
         .collect()
 }
 
@@ -1370,7 +1376,7 @@ fn checkable_classes(
     let mut classes = Vec::new();
     let mut not_checkable = Vec::new();
     for c in ClassId::ALL {
-        match classfit::not_checkable(*c, kn, has) {
+        match c.fit().not_checkable(kn, has) {
             None => classes.push(*c),
             Some(why) => not_checkable.push(NotCheckable { class: *c, why }),
         }
@@ -1378,25 +1384,12 @@ fn checkable_classes(
     (classes, not_checkable)
 }
 
-/// The verdict's effect: the first finding's class, or what kind of finding it is.
-fn effect_name(first: &Finding) -> String {
-    match first {
-        Finding::Class(c) | Finding::Sensor(c) => c.class.as_str().to_string(),
-        Finding::Recalibration(_) => "recalibration".to_string(),
-        Finding::OutsideLibrary(_) => "outside_library".to_string(),
-        Finding::Nothing => "none".to_string(),
-    }
-}
-
 /// The subsystems of the findings, then those the "where" table finds significant.
-fn flagged_subsystems(findings: &[Finding], where_: &Where) -> Vec<String> {
-    let mut subsystems: Vec<String> = findings
-        .iter()
-        .filter_map(|f| f.subsystem().map(|s| s.as_str().to_string()))
-        .collect();
+fn flagged_subsystems(findings: &[Finding], where_: &Where) -> Vec<Subsystem> {
+    let mut subsystems: Vec<Subsystem> = findings.iter().filter_map(Finding::subsystem).collect();
     for s in &where_.residual_subsystems {
         if s.significant && !subsystems.contains(&s.subsystem) {
-            subsystems.push(s.subsystem.clone());
+            subsystems.push(s.subsystem);
         }
     }
     subsystems.dedup();
@@ -1406,23 +1399,16 @@ fn flagged_subsystems(findings: &[Finding], where_: &Where) -> Vec<String> {
 /// The output gap "how far" reports: the largest gap above the noise in the first finding's
 /// subsystem (the torque characteristic for the actuator's backlash and transfer, seen through
 /// the torque), else the first.
-fn main_gap(first: &Finding, effect: &str, where_: &Where, eq: &[OutputGap]) -> Option<OutputGap> {
-    let main_sub = first
-        .subsystem()
-        .map(|s| s.as_str().to_string())
-        .unwrap_or_else(|| {
+fn main_gap(first: &Finding, where_: &Where, eq: &[OutputGap]) -> Option<OutputGap> {
+    // A class's fitted group: the actuator's backlash and transfer are seen through the torque.
+    let main_sub = match first {
+        Finding::Class(c) | Finding::Sensor(c) => c.class.fit().group(),
+        _ => first.subsystem().unwrap_or_else(|| {
             where_
                 .residual_subsystems
                 .first()
-                .map(|s| s.subsystem.clone())
-                .unwrap_or_else(|| "torque_characteristic".into())
-        });
-    let main_sub = if effect == ClassId::ActuatorBacklash.as_str()
-        || effect == ClassId::ActuatorTransfer.as_str()
-    {
-        Subsystem::TorqueCharacteristic.as_str().to_string()
-    } else {
-        main_sub
+                .map_or(Subsystem::TorqueCharacteristic, |s| s.subsystem)
+        }),
     };
     eq.iter()
         .filter(|g| g.subsystem == main_sub)
@@ -1461,7 +1447,7 @@ fn unexplained(before: &Scores, after: &Scores, chans: &[Channel]) -> f64 {
         Subsystem::Actuator,
         Subsystem::Engine,
     ] {
-        let ch: Vec<Channel> = classfit::group_channels(sub)
+        let ch: Vec<Channel> = group_channels(sub)
             .into_iter()
             .filter(|c| chans.contains(c))
             .collect();
@@ -1579,7 +1565,7 @@ fn output_gaps(
         let gap_a = (za - 1.0).max(0.0).sqrt();
         eq.push(OutputGap {
             output: c.name().to_string(),
-            subsystem: c.subsystem().as_str().to_string(),
+            subsystem: c.subsystem(),
             n,
             noise: sigma[i],
             rmse_nominal: rn,

@@ -101,14 +101,6 @@ impl Segmentation {
             .filter(move |e| e.kind == EventKind::Engagement && e.clutch == Some(clutch))
     }
 
-    /// The longest cooling (or, failing that, open) phase.
-    pub fn longest_open(&self) -> Option<&Event> {
-        self.events
-            .iter()
-            .filter(|e| matches!(e.kind, EventKind::Open | EventKind::Cooling))
-            .max_by_key(|e| e.len())
-    }
-
     /// Index of the block holding sample `k`.
     pub fn block_of(&self, k: usize) -> usize {
         self.blocks

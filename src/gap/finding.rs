@@ -32,7 +32,7 @@ pub struct ClassFinding {
     pub model_form_rel: f64,
     pub unit: &'static str,
     /// What the magnitude is measured over (the variable's range, or a parameter).
-    pub magnitude_basis: crate::gap::classfit::Basis,
+    pub magnitude_basis: crate::gap::classes::Basis,
     /// When the magnitude lies outside the documented range of the class's library member:
     /// by how much (text), else `None`.
     pub range_warning: Option<String>,
@@ -45,7 +45,7 @@ pub struct ClassFinding {
 /// A recalibrated parameter that had to move outside its plausible range.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct RecalibrationFinding {
-    pub key: String,
+    pub key: crate::gap::keys::ParamKey,
     pub nominal: f64,
     pub value: f64,
     /// Move from nominal (%).
@@ -82,7 +82,51 @@ pub enum Finding {
     Nothing,
 }
 
+/// What a finding names as an effect: its class, or the kind of finding. Its `Display` (and
+/// JSON) is the one label of reports, tables and blind trials: the class's identifier,
+/// `recalibration`, `outside_library` or `none`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Effect {
+    Class(ClassId),
+    Recalibration,
+    OutsideLibrary,
+    None,
+}
+
+impl Effect {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Effect::Class(c) => c.as_str(),
+            Effect::Recalibration => "recalibration",
+            Effect::OutsideLibrary => "outside_library",
+            Effect::None => "none",
+        }
+    }
+}
+
+impl std::fmt::Display for Effect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
+impl serde::Serialize for Effect {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
 impl Finding {
+    /// What the finding names.
+    pub fn effect(&self) -> Effect {
+        match self {
+            Finding::Class(c) | Finding::Sensor(c) => Effect::Class(c.class),
+            Finding::Recalibration(_) => Effect::Recalibration,
+            Finding::OutsideLibrary(_) => Effect::OutsideLibrary,
+            Finding::Nothing => Effect::None,
+        }
+    }
+
     /// The class finding, for physics and sensor classes.
     pub fn class(&self) -> Option<&ClassFinding> {
         match self {
@@ -105,19 +149,9 @@ impl Finding {
         match self {
             Finding::Class(c) | Finding::Sensor(c) => Some(c.subsystem),
             Finding::OutsideLibrary(o) => Some(o.subsystem),
-            Finding::Recalibration(r) => subsystem_of_key(&r.key),
+            Finding::Recalibration(r) => Some(r.key.subsystem()),
             Finding::Nothing => None,
         }
-    }
-}
-
-/// The subsystem a `table.key` parameter belongs to.
-fn subsystem_of_key(key: &str) -> Option<Subsystem> {
-    match key.split_once('.')?.0 {
-        "clutch" => Some(Subsystem::TorqueCharacteristic),
-        "thermal5" => Some(Subsystem::Thermal),
-        "actuator" => Some(Subsystem::Actuator),
-        _ => None,
     }
 }
 

@@ -118,7 +118,7 @@ pub fn rows(d: &Diagnosis) -> Vec<FindingRow> {
                 },
                 Finding::Recalibration(r) => FindingRow {
                     kind: kind(f).into(),
-                    variable: Some(r.key.clone()),
+                    variable: Some(r.key.to_string()),
                     magnitude: Some(r.move_pct),
                     magnitude_unit: Some("%".into()),
                     detail,

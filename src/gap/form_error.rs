@@ -1,6 +1,6 @@
 //! The model-form part of a fitted magnitude's interval.
 //!
-//! The delta method ([`super::classfit::magnitude_ci95`]) holds the noise of the records: the
+//! The delta method ([`super::classes::magnitude_ci95`]) holds the noise of the records: the
 //! spread the magnitude would show over repeated records of the same rig. It does not hold the
 //! error of the form itself — a piecewise-linear shape on seven knots for a power law, a
 //! straight gain and offset for a bent sensor characteristic, the disk temperature of (16)

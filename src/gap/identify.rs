@@ -24,7 +24,7 @@
 
 use super::dataset::Dataset;
 use super::events::{EventKind, SegmentOptions};
-use super::keys;
+use super::keys::ParamKey;
 use super::lsq::{self, LmOptions, ParamSpec};
 use super::measured::Measured;
 use super::replay;
@@ -41,10 +41,10 @@ pub struct IdentifyOptions {
     pub cooling_window_s: f64,
     /// Thermal parameters of step 3: those that act on the measured plate and central-disk
     /// temperatures.
-    pub thermal_keys: Vec<&'static str>,
+    pub thermal_keys: Vec<ParamKey>,
     /// Thermal parameters that act only on the (unmeasured) clutch-disk temperature: the torque
     /// is what determines them, in step 5.
-    pub disk_keys: Vec<&'static str>,
+    pub disk_keys: Vec<ParamKey>,
     /// Repetitions of steps 3–4.
     pub outer_iterations: usize,
     /// Run step 5 (joint refinement of thermal and torque terms).
@@ -60,16 +60,12 @@ impl Default for IdentifyOptions {
             thermal_decimate: 10,
             cooling_window_s: 5.0,
             thermal_keys: vec![
-                "thermal5.alpha1_per_s",
-                "thermal5.alpha3_k_per_j",
-                "thermal5.alpha5_per_s",
-                "thermal5.alpha9_k_per_j",
+                ParamKey::Alpha1,
+                ParamKey::Alpha3,
+                ParamKey::Alpha5,
+                ParamKey::Alpha9,
             ],
-            disk_keys: vec![
-                "thermal5.alpha4_per_s",
-                "thermal5.alpha6_per_s",
-                "thermal5.alpha7_k_per_j",
-            ],
+            disk_keys: vec![ParamKey::Alpha4, ParamKey::Alpha6, ParamKey::Alpha7],
             outer_iterations: 2,
             joint: true,
             split_half: true,
@@ -92,7 +88,7 @@ pub enum IdentifyError {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Estimate {
     /// `table.key` in the parameter file.
-    pub key: String,
+    pub key: ParamKey,
     pub unit: String,
     pub initial: f64,
     pub value: f64,
@@ -242,10 +238,10 @@ pub fn output_fits(p: &Params, h: &dyn Hooks, ms: &[Measured]) -> Vec<OutputFit>
 }
 
 /// Builds a parameter set from a base and values for `keys`; `None` when inconsistent.
-fn with_values(base: &Params, keys: &[&str], v: &[f64]) -> Option<Params> {
+fn with_values(base: &Params, keys: &[ParamKey], v: &[f64]) -> Option<Params> {
     let mut p = *base;
     for (k, x) in keys.iter().zip(v) {
-        keys::set(&mut p, k, *x);
+        k.set(&mut p, *x);
     }
     p.clutch.validate().ok()?;
     Some(p)
@@ -254,30 +250,32 @@ fn with_values(base: &Params, keys: &[&str], v: &[f64]) -> Option<Params> {
 /// Solver specifications: start at `base`, bounds from the parameter file's ranges; the thermal
 /// rates and gains (positive, known to an order of magnitude) are solved in log space within a
 /// factor 30 of the user's `initial` value.
-fn specs_for(base: &Params, initial: &Params, keys: &[&str]) -> Vec<ParamSpec> {
+fn specs_for(base: &Params, initial: &Params, keys: &[ParamKey]) -> Vec<ParamSpec> {
     keys.iter()
         .map(|k| {
-            let v = keys::get(base, k).unwrap_or(0.0);
-            let (lo, hi) = keys::range(k).unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-            if k.starts_with("thermal5.") {
-                let v0 = keys::get(initial, k).unwrap_or(v).abs().max(1e-9);
+            let v = k.get(base);
+            let (lo, hi) = k.range();
+            if k.is_thermal() {
+                let v0 = k.get(initial).abs().max(1e-9);
                 let (lo, hi) = (lo.max(v0 / 30.0), hi.min(v0 * 30.0));
-                ParamSpec::new(*k, v, lo, hi, keys::scale(k)).log()
+                ParamSpec::new(k.as_str(), v, lo, hi, k.scale()).log()
             } else {
-                ParamSpec::new(*k, v, lo, hi, keys::scale(k))
+                ParamSpec::new(k.as_str(), v, lo, hi, k.scale())
             }
         })
         .collect()
 }
 
+/// The estimates of an identification fit, whose parameters are keys ([`specs_for`]).
 fn estimates_from(fit: &lsq::Fit, initial: &Params, step: &str) -> Vec<Estimate> {
     fit.names
         .iter()
         .enumerate()
+        .filter_map(|(j, name)| Some((j, ParamKey::parse(name)?)))
         .map(|(j, k)| Estimate {
-            key: k.clone(),
-            unit: keys::unit(k).to_string(),
-            initial: keys::get(initial, k).unwrap_or(f64::NAN),
+            key: k,
+            unit: k.unit().to_string(),
+            initial: k.get(initial),
             value: fit.p[j],
             std_err: fit.std_err[j],
             ci95: fit.ci95[j],
@@ -319,9 +317,9 @@ fn first_engagement(
         .map(|&k| m.x[i][k])
         .fold(f64::NEG_INFINITY, f64::max);
     let reaches_max = x_peak > p.clutch.x_to_max_mm - 0.05;
-    let mut keys_v: Vec<&str> = vec!["clutch.x_isp0_mm"];
+    let mut keys_v: Vec<ParamKey> = vec![ParamKey::XIsp0];
     if reaches_max {
-        keys_v.push("clutch.x_to_max_mm");
+        keys_v.push(ParamKey::XToMax);
     }
     let mut specs = specs_for(p, p, &keys_v);
     specs[0].hi = specs[0].hi.min(p.clutch.x_to_max_mm - 0.2);
@@ -429,7 +427,7 @@ fn thermal_fit(
     p: &Params,
     initial: &Params,
     ms: &[Measured],
-    keys_v: &[&'static str],
+    keys_v: &[ParamKey],
     dec: usize,
 ) -> lsq::Fit {
     let idx = thermal_samples(ms, dec);
@@ -461,7 +459,7 @@ fn thermal_fit(
 }
 
 /// Step 4: λ's by NLS on the torque over the whole acquisition.
-fn torque_fit(p: &Params, initial: &Params, ms: &[Measured], keys_v: &[&'static str]) -> lsq::Fit {
+fn torque_fit(p: &Params, initial: &Params, ms: &[Measured], keys_v: &[ParamKey]) -> lsq::Fit {
     let disks: Vec<[Vec<f64>; 2]> = ms
         .iter()
         .map(|m| replay::disk_estimate(p, &Nominal, m))
@@ -496,27 +494,6 @@ fn torque_fit(p: &Params, initial: &Params, ms: &[Measured], keys_v: &[&'static 
     lsq::levenberg_marquardt_clustered(&mut f, n, &specs, LmOptions::default(), Some(&clusters))
 }
 
-/// Joint residuals (unweighted): temperatures at every `dec`-th valid sample, then torques.
-#[doc(hidden)]
-pub fn joint_residuals(q: &Params, ms: &[Measured], dec: usize) -> Vec<f64> {
-    let mut r = Vec::new();
-    for m in ms {
-        let tr = replay::thermal_replay(q, &Nominal, m);
-        for k in valid_samples(m, dec) {
-            r.push(m.pp[0][k] - tr[k].pp1);
-            r.push(m.pp[1][k] - tr[k].pp2);
-            r.push(m.cd[k] - tr[k].cd);
-        }
-        let disk = replay::disk_estimate(q, &Nominal, m);
-        for i in 0..2 {
-            for &k in m.torque_idx[i].iter() {
-                r.push(m.torque[i][k] - replay::torque_eq(q, &Nominal, m, &disk, i, k));
-            }
-        }
-    }
-    r
-}
-
 /// Step 5: joint refinement of the thermal and torque parameters on temperatures and torque
 /// together, each channel weighted by the inverse of its residual RMS after steps 3–4. The disk
 /// temperature is not measured: the torque is what pins the disk terms (α4–α7) down, and the
@@ -526,7 +503,7 @@ fn joint_fit(
     p: &Params,
     initial: &Params,
     ms: &[Measured],
-    keys_v: &[&'static str],
+    keys_v: &[ParamKey],
     dec: usize,
     sigma_temp: f64,
     sigma_torque: f64,
@@ -629,7 +606,7 @@ pub fn identify(
     // 5. Joint refinement.
     let fit5 = match (&fit3, &fit4) {
         (Some(f3), Some(f4)) if opts.joint => {
-            let keys5: Vec<&'static str> = thermal_keys
+            let keys5: Vec<ParamKey> = thermal_keys
                 .iter()
                 .chain(&opts.disk_keys)
                 .chain(&torque_keys)
@@ -676,21 +653,18 @@ fn cooling_step(
     ms: &[Measured],
     opts: &IdentifyOptions,
     notes: &mut Vec<String>,
-) -> (Vec<Estimate>, Vec<&'static str>) {
+) -> (Vec<Estimate>, Vec<ParamKey>) {
     let (fp, fc, phases) = cooling_fit(ms, opts);
-    let mut thermal_keys: Vec<&'static str> = opts.thermal_keys.clone();
+    let mut thermal_keys: Vec<ParamKey> = opts.thermal_keys.clone();
     let mut step2 = Vec::new();
-    for (key, fit) in [
-        ("thermal5.alpha2_per_s", &fp),
-        ("thermal5.alpha8_per_s", &fc),
-    ] {
+    for (key, fit) in [(ParamKey::Alpha2, &fp), (ParamKey::Alpha8, &fc)] {
         match fit {
             Some(f) if phases > 0 && f.beta[0] > 0.0 && f.std_err[0].is_finite() => {
-                keys::set(p, key, f.beta[0]);
+                key.set(p, f.beta[0]);
                 step2.push(Estimate {
-                    key: key.to_string(),
-                    unit: keys::unit(key).to_string(),
-                    initial: keys::get(initial, key).unwrap_or(f64::NAN),
+                    key,
+                    unit: key.unit().to_string(),
+                    initial: key.get(initial),
                     value: f.beta[0],
                     std_err: f.std_err[0],
                     ci95: f.ci95[0],
@@ -716,14 +690,10 @@ fn cooling_step(
 
 /// Step 4's keys: the kiss point's polynomial in temperature, and x_to,max when the first
 /// engagement reaches it.
-fn torque_keys(reaches_max: bool) -> Vec<&'static str> {
-    let mut torque_keys: Vec<&'static str> = vec![
-        "clutch.x_isp0_mm",
-        "clutch.x_isp1_mm_per_c",
-        "clutch.x_isp2_mm_per_c2",
-    ];
+fn torque_keys(reaches_max: bool) -> Vec<ParamKey> {
+    let mut torque_keys: Vec<ParamKey> = vec![ParamKey::XIsp0, ParamKey::XIsp1, ParamKey::XIsp2];
     if reaches_max {
-        torque_keys.push("clutch.x_to_max_mm");
+        torque_keys.push(ParamKey::XToMax);
     }
     torque_keys
 }
@@ -734,16 +704,16 @@ fn thermal_and_torque_fits(
     p: &mut Params,
     initial: &Params,
     ms: &[Measured],
-    thermal_keys: &[&'static str],
-    torque_keys: &[&'static str],
+    thermal_keys: &[ParamKey],
+    torque_keys: &[ParamKey],
     opts: &IdentifyOptions,
 ) -> (Option<lsq::Fit>, Option<lsq::Fit>) {
     let mut fit3 = None;
     let mut fit4 = None;
     for _ in 0..opts.outer_iterations.max(1) {
         let f3 = thermal_fit(p, initial, ms, thermal_keys, opts.thermal_decimate);
-        for (k, v) in f3.names.iter().zip(&f3.p) {
-            keys::set(p, k, *v);
+        if let Some(q) = with_values(p, thermal_keys, &f3.p) {
+            *p = q;
         }
         let f4 = torque_fit(p, initial, ms, torque_keys);
         if let Some(q) = with_values(p, torque_keys, &f4.p) {
@@ -762,7 +732,7 @@ fn joint_refinement(
     p: &mut Params,
     initial: &Params,
     ms: &[Measured],
-    keys5: &[&'static str],
+    keys5: &[ParamKey],
     sigmas: (f64, f64),
     opts: &IdentifyOptions,
     notes: &mut Vec<String>,

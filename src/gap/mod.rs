@@ -14,7 +14,7 @@
 pub mod blackbox;
 pub mod candidates;
 pub mod class;
-pub mod classfit;
+pub mod classes;
 pub mod context;
 pub mod dataset;
 pub mod diagnose;

@@ -183,11 +183,15 @@ fn first_finding_summary(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(
         s,
         "- subsystem: `{}` (in order of evidence: {})",
-        v.subsystem,
+        v.subsystem_name(),
         if v.subsystems.is_empty() {
             "none".into()
         } else {
-            v.subsystems.join(", ")
+            v.subsystems
+                .iter()
+                .map(|s| s.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
         }
     );
     let _ = writeln!(s, "- {}", v.explanation);
@@ -195,7 +199,11 @@ fn first_finding_summary(s: &mut String, d: &Diagnosis) {
         let _ = writeln!(
             s,
             "- ambiguous with: {} (not significantly worse on the validation records)",
-            v.ambiguous_with.join(", ")
+            v.ambiguous_with
+                .iter()
+                .map(|c| c.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     if !v.outside_library_depends_on.is_empty() {

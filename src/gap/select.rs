@@ -17,9 +17,9 @@
 
 use super::candidates::{Channel, Model, ReplayMemo};
 use super::class::ClassId;
-use super::classfit::{self, Knots};
+use super::classes::{self, group_channels, Knots};
 use super::context::{self, File, Scores};
-use super::keys;
+use super::keys::ParamKey;
 use super::lsq::{self, Fit, LmOptions, ParamSpec};
 use super::stats::{self, Rng};
 
@@ -27,38 +27,42 @@ use crate::model::effects::Subsystem;
 use crate::model::params::Params;
 
 /// The parameters plain recalibration moves, by subsystem.
-pub const RECAL: &[(&str, Subsystem)] = &[
-    ("clutch.x_isp0_mm", Subsystem::TorqueCharacteristic),
-    ("clutch.x_isp1_mm_per_c", Subsystem::TorqueCharacteristic),
-    ("clutch.x_isp2_mm_per_c2", Subsystem::TorqueCharacteristic),
-    ("clutch.c4", Subsystem::TorqueCharacteristic),
-    ("clutch.mu_s", Subsystem::TorqueCharacteristic),
-    ("thermal5.alpha2_per_s", Subsystem::Thermal),
-    ("thermal5.alpha3_k_per_j", Subsystem::Thermal),
-    ("thermal5.alpha8_per_s", Subsystem::Thermal),
-    ("thermal5.alpha9_k_per_j", Subsystem::Thermal),
-    ("actuator.tau_s", Subsystem::Actuator),
+pub const RECAL: &[ParamKey] = &[
+    ParamKey::XIsp0,
+    ParamKey::XIsp1,
+    ParamKey::XIsp2,
+    ParamKey::C4,
+    ParamKey::MuS,
+    ParamKey::Alpha2,
+    ParamKey::Alpha3,
+    ParamKey::Alpha8,
+    ParamKey::Alpha9,
+    ParamKey::TauS,
 ];
 
 /// Plausible recalibration: within this fraction of the nominal value.
 pub const PLAUSIBLE_REL: f64 = 0.3;
 
 /// The recalibration keys of a subsystem.
-pub fn recal_keys(s: Subsystem) -> Vec<&'static str> {
-    RECAL.iter().filter(|r| r.1 == s).map(|r| r.0).collect()
+pub fn recal_keys(s: Subsystem) -> Vec<ParamKey> {
+    RECAL
+        .iter()
+        .copied()
+        .filter(|k| k.subsystem() == s)
+        .collect()
 }
 
 /// Plausible range of a recalibrated parameter.
-pub fn plausible(key: &str, nominal: &Params) -> (f64, f64) {
-    let v = keys::get(nominal, key).unwrap_or(0.0);
+pub fn plausible(key: ParamKey, nominal: &Params) -> (f64, f64) {
+    let v = key.get(nominal);
     let (a, b) = (v * (1.0 - PLAUSIBLE_REL), v * (1.0 + PLAUSIBLE_REL));
     (a.min(b), a.max(b))
 }
 
-fn recal_spec(key: &'static str, base: &Model, nominal: &Params, wide: bool) -> ParamSpec {
-    let nom = keys::get(nominal, key).unwrap_or(0.0);
-    let v = keys::get(&base.p, key).unwrap_or(nom);
-    let (plo, phi) = keys::range(key).unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+fn recal_spec(key: ParamKey, base: &Model, nominal: &Params, wide: bool) -> ParamSpec {
+    let nom = key.get(nominal);
+    let v = key.get(&base.p);
+    let (plo, phi) = key.range();
     let (lo, hi) = if wide {
         let (a, b) = (nom / 10.0, nom * 10.0);
         (a.min(b), a.max(b))
@@ -66,7 +70,7 @@ fn recal_spec(key: &'static str, base: &Model, nominal: &Params, wide: bool) -> 
         plausible(key, nominal)
     };
     let (lo, hi) = (lo.max(plo), hi.min(phi));
-    let spec = ParamSpec::new(key, v.clamp(lo, hi), lo, hi, keys::scale(key));
+    let spec = ParamSpec::new(key.as_str(), v.clamp(lo, hi), lo, hi, key.scale());
     if lo > 0.0 {
         spec.log()
     } else {
@@ -80,8 +84,8 @@ pub struct Job {
     /// Classes fitted together (their terms must not be in the base model).
     pub classes: Vec<ClassId>,
     /// The class's representation.
-    pub form: classfit::Form,
-    pub recal: Vec<&'static str>,
+    pub form: classes::Form,
+    pub recal: Vec<ParamKey>,
     pub chans: Vec<Channel>,
     /// Recalibration bounds widened to a tenth … ten times nominal.
     pub wide: bool,
@@ -106,10 +110,11 @@ impl Problem<'_> {
     fn build(&self, v: &[f64]) -> Option<Model> {
         let mut m = *self.base;
         for (c, a, b) in self.slices {
-            classfit::apply_in(*c, self.knots, &mut m, &v[*a..*b], self.job.form);
+            c.fit()
+                .apply_in(self.knots, &mut m, &v[*a..*b], self.job.form);
         }
         for (k, x) in self.job.recal.iter().zip(&v[self.nc..]) {
-            keys::set(&mut m.p, k, *x);
+            k.set(&mut m.p, *x);
         }
         m.p.clutch.validate().ok()?;
         Some(m)
@@ -219,7 +224,7 @@ pub fn fit(
     // A shape that zigzags (turns more than once) is fitting noise or trading against the
     // recalibration: refitted as a monotone curve in the direction of its total change, from no
     // effect, jointly with the same recalibration.
-    if job.form == classfit::Form::Flexible {
+    if job.form == classes::Form::Flexible {
         if let Some(sp) = monotone_specs(&specs, &slices, &fit.p) {
             fit = lsq::solve(&mut f, n, &sp, opts, None);
         }
@@ -227,7 +232,7 @@ pub fn fit(
         // other starting points (the rest of the parameters from where they started); the
         // lowest sum of squares is kept.
         for (c, a, b) in &slices {
-            for start in classfit::other_starts(*c) {
+            for start in c.fit().other_starts() {
                 let mut sp = specs.clone();
                 for (s, x) in sp[*a..*b].iter_mut().zip(&start) {
                     s.init = x.clamp(s.lo, s.hi);
@@ -276,7 +281,7 @@ fn nominal_start(
     let mut sp = specs.to_vec();
     let mut moved = false;
     for (s, k) in sp[nc..].iter_mut().zip(&job.recal) {
-        let nom = keys::get(nominal, k).unwrap_or(s.init).clamp(s.lo, s.hi);
+        let nom = k.get(nominal).clamp(s.lo, s.hi);
         moved |= nom != s.init;
         s.init = nom;
     }
@@ -293,7 +298,7 @@ fn job_specs(
     let mut specs: Vec<ParamSpec> = Vec::new();
     let mut slices = Vec::new();
     for c in &job.classes {
-        let p = classfit::params_in(*c, base, job.form);
+        let p = c.fit().params_in(base, job.form);
         slices.push((*c, specs.len(), specs.len() + p.len()));
         specs.extend(p);
     }
@@ -301,7 +306,7 @@ fn job_specs(
     specs.extend(
         job.recal
             .iter()
-            .map(|k| recal_spec(k, base, nominal, job.wide)),
+            .map(|k| recal_spec(*k, base, nominal, job.wide)),
     );
     (specs, slices, nc)
 }
@@ -317,11 +322,11 @@ fn monotone_specs(
     let mut sp = specs.to_vec();
     let mut refit = false;
     for (c, a, _) in slices {
-        let Some(r) = classfit::increments(*c) else {
+        let Some(r) = c.fit().increments() else {
             continue;
         };
         let r = a + r.start..a + r.end;
-        if let Some(sign) = classfit::zigzag_sign(&p[r.clone()]) {
+        if let Some(sign) = classes::zigzag_sign(&p[r.clone()]) {
             refit = true;
             for s in &mut sp[r] {
                 if sign > 0.0 {
@@ -339,9 +344,9 @@ fn monotone_specs(
 /// The channels whose predictions a class changes (a thermal class changes the disk
 /// temperature and so the torque).
 pub fn affected(class: ClassId) -> Vec<Channel> {
-    let mut v = classfit::channels(class);
-    if classfit::group(class) == Subsystem::Thermal {
-        v.extend(classfit::group_channels(Subsystem::TorqueCharacteristic));
+    let mut v = class.fit().channels();
+    if class.fit().group() == Subsystem::Thermal {
+        v.extend(group_channels(Subsystem::TorqueCharacteristic));
     }
     v
 }
@@ -416,21 +421,22 @@ fn train_residuals(
 /// the channels it is fitted on, whether the base model's cached disk temperature serves.
 /// `None` when a class has none of its channels in the records.
 fn job_for(s: &Setup, classes: &[ClassId]) -> Option<Job> {
-    let mut recal: Vec<&'static str> = Vec::new();
+    let mut recal: Vec<ParamKey> = Vec::new();
     let mut chans: Vec<Channel> = Vec::new();
     let mut cached_disk = true;
     let present = |g: Subsystem| {
-        classfit::group_channels(g)
+        group_channels(g)
             .into_iter()
             .filter(|c| s.chans.contains(c))
     };
     for &class in classes {
-        let group = classfit::group(class);
-        recal.extend(recal_keys(group));
-        if class == ClassId::SensorTorque {
-            recal.extend(recal_keys(Subsystem::Thermal));
+        let fit = class.fit();
+        recal.extend(recal_keys(fit.group()));
+        for &g in fit.recalibrates_also() {
+            recal.extend(recal_keys(g));
         }
-        let own: Vec<Channel> = classfit::channels(class)
+        let own: Vec<Channel> = fit
+            .channels()
             .into_iter()
             .filter(|c| s.chans.contains(c))
             .collect();
@@ -438,36 +444,25 @@ fn job_for(s: &Setup, classes: &[ClassId]) -> Option<Job> {
             return None;
         }
         chans.extend(own);
-        // A thermocouple reading error also moves the disk temperature estimated from the
-        // readings, and so the torque: fitted on the torque channels too, jointly with the
-        // torque recalibration (fitted on the thermocouples alone it trades a wrong offset
-        // against the thermal parameters and leaves the torque worse than before).
-        if class == ClassId::SensorTemperature {
-            recal.extend(recal_keys(Subsystem::TorqueCharacteristic));
-            chans.extend(present(Subsystem::TorqueCharacteristic));
+        for &g in fit.also_fitted_on() {
+            chans.extend(present(g));
         }
-        cached_disk &= reads_cached_disk(class);
+        cached_disk &= fit.reads_cached_disk();
     }
-    // The actuator lag class is the lag's recalibration itself.
-    if classes.contains(&ClassId::ActuatorLag) {
-        recal.retain(|k| !recal_keys(Subsystem::Actuator).contains(k));
+    for c in classes.iter().map(|c| c.fit()) {
+        if c.replaces_recalibration() {
+            recal.retain(|k| !recal_keys(c.group()).contains(k));
+        }
     }
     Some(Job {
         classes: classes.to_vec(),
-        form: classfit::Form::Flexible,
+        form: classes::Form::Flexible,
         recal: first_of_each(recal),
         chans: first_of_each(chans),
         wide: false,
         cached_disk,
         max_iter: 25,
     })
-}
-
-/// Whether a class's fit can read the base model's cached disk-temperature estimate: a class of
-/// the torque characteristic leaves the disk replay as it is, except a torque reading error,
-/// which changes the friction power the disk temperature is estimated from.
-fn reads_cached_disk(class: ClassId) -> bool {
-    classfit::group(class) == Subsystem::TorqueCharacteristic && class != ClassId::SensorTorque
 }
 
 /// `v` without repeats, in the order of first appearance.
@@ -488,17 +483,17 @@ fn fit_classes(s: &Setup, base: &Model, classes: &[ClassId]) -> Option<(Model, F
     let job = job_for(s, classes)?;
     let (mut model, fit) = fit(base, s.nominal, &job, s.train, s.knots, s.threads);
     let fit = fit?;
-    let tq: Vec<Channel> = classfit::group_channels(Subsystem::TorqueCharacteristic)
+    let tq: Vec<Channel> = group_channels(Subsystem::TorqueCharacteristic)
         .into_iter()
         .filter(|c| s.chans.contains(c))
         .collect();
     let thermal = classes
         .iter()
-        .any(|c| classfit::group(*c) == Subsystem::Thermal);
+        .any(|c| c.fit().group() == Subsystem::Thermal);
     if thermal && !tq.is_empty() {
         let job = Job {
             classes: vec![],
-            form: classfit::Form::Flexible,
+            form: classes::Form::Flexible,
             recal: recal_keys(Subsystem::TorqueCharacteristic),
             chans: tq,
             wide: false,
@@ -556,7 +551,7 @@ fn candidate(
 ) -> Option<Candidate> {
     let (model, fit, cached_disk) = fit_classes(s, base, &[class])?;
     let aff = affected_in(s, &[class]);
-    let k = classfit::params(class, base).len();
+    let k = class.fit().params(base).len();
     let delta_bic = delta_bic(s, &model, base_train, &aff, cached_disk, k);
     let v = Scores::of(&model, s.validate, &aff, s.nunits_v);
     let val = base_val.with(&v, &aff);
@@ -576,7 +571,10 @@ fn candidate(
     // on validation, yet its fitted size is a finding, not an implementation difference: the
     // tolerance rule does not apply when the fitted reading error over the channel's range is
     // above three practical tolerances.
-    let absorbed = reading_error(class, &model).filter(|(e, tol, _)| *e > 3.0 * tol);
+    let absorbed = class
+        .fit()
+        .reading_error(&model)
+        .filter(|(e, tol, _)| *e > 3.0 * tol);
     let half_tol = if absorbed.is_some() { 0.0 } else { 0.5 * tol };
     let need = (s.min_gain * excess).max(half_tol).max(0.02 * n_aff);
     let mut why = Vec::new();
@@ -591,7 +589,7 @@ fn candidate(
     // temperature-dependent torque effect) is not credited. Its readings must carry at least a
     // third of the gain (a point estimate: the few validation blocks of the thermocouples make
     // their own interval wide).
-    if class == ClassId::SensorTemperature && gain > 0.0 {
+    if class.fit().own_readings_carry_the_gain() && gain > 0.0 {
         why.extend(torque_gain(s, class, base_val, &val, gain));
     }
     if gain < need {
@@ -621,7 +619,9 @@ fn torque_gain(
     val: &Scores,
     gain: f64,
 ) -> Option<String> {
-    let own: Vec<Channel> = classfit::channels(class)
+    let own: Vec<Channel> = class
+        .fit()
+        .channels()
         .into_iter()
         .filter(|c| s.chans.contains(c))
         .collect();
@@ -670,35 +670,6 @@ fn candidate_note(
     } else {
         why.join("; ")
     }
-}
-
-/// The largest reading error of a fitted sensor class over its channel's working range
-/// (thermocouples 20…250 °C, clutch torque 0…150 N·m), with that channel's
-/// practical tolerance and unit; `None` for other classes.
-fn reading_error(class: ClassId, m: &Model) -> Option<(f64, f64, &'static str)> {
-    let (g, range, reference, chan, unit) = match class {
-        ClassId::SensorTemperature => {
-            let r = m.terms.temp_sensor?;
-            return Some((
-                r.largest_error(20.0, 250.0),
-                context::tolerance(Channel::Temp(0)),
-                "K",
-            ));
-        }
-        ClassId::SensorTorque => (
-            m.terms.torque_sensor?,
-            [0.0, 150.0],
-            0.0,
-            Channel::Torque(0),
-            "N·m",
-        ),
-        _ => return None,
-    };
-    let err = range
-        .iter()
-        .map(|&v| (g.apply(v, reference) - v).abs())
-        .fold(0.0, f64::max);
-    Some((err, context::tolerance(chan), unit))
 }
 
 /// Fits a job and returns only the model.
@@ -760,7 +731,7 @@ pub fn select(
         let left: Vec<ClassId> = classes
             .iter()
             .copied()
-            .filter(|c| !sel.chosen.iter().any(|k| classfit::conflicts(*k, *c)))
+            .filter(|c| !sel.chosen.iter().any(|k| classes::conflicts(*k, *c)))
             .collect();
         if left.is_empty() {
             break;
@@ -877,14 +848,14 @@ fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed:
     for i in 0..sel.chosen.len() {
         let c = sel.chosen[i];
         let mut without = sel.model;
-        classfit::remove(c, &mut without, base);
+        c.fit().remove(&mut without, base);
         let left: Vec<ClassId> = contenders(&sel.rounds[i], c)
             .into_iter()
             .filter(|k| classes.contains(k))
             .filter(|k| {
                 !sel.chosen
                     .iter()
-                    .any(|o| *o != c && classfit::conflicts(*o, *k))
+                    .any(|o| *o != c && classes::conflicts(*o, *k))
             })
             .collect();
         if left.len() < 2 {
@@ -955,22 +926,22 @@ fn refit_without(
     let others: Vec<ClassId> = chosen.iter().copied().filter(|k| *k != c).collect();
     let mut b = *current;
     for k in chosen {
-        classfit::remove(*k, &mut b, base);
+        k.fit().remove(&mut b, base);
     }
-    let mut groups: Vec<Subsystem> = chosen.iter().map(|k| classfit::group(*k)).collect();
+    let mut groups: Vec<Subsystem> = chosen.iter().map(|k| k.fit().group()).collect();
     groups.sort();
     groups.dedup();
-    let recal: Vec<&'static str> = groups.iter().flat_map(|g| recal_keys(*g)).collect();
+    let recal: Vec<ParamKey> = groups.iter().flat_map(|g| recal_keys(*g)).collect();
     let mut chans: Vec<Channel> = chosen
         .iter()
-        .flat_map(|k| classfit::channels(*k))
+        .flat_map(|k| k.fit().channels())
         .filter(|ch| s.chans.contains(ch))
         .collect();
     chans.sort();
     chans.dedup();
     let job = Job {
         classes: others,
-        form: classfit::Form::Flexible,
+        form: classes::Form::Flexible,
         recal,
         chans,
         wide: false,
@@ -996,26 +967,11 @@ fn on_cores<R: Send>(
     items: &[ClassId],
     f: impl Fn(usize, &ClassId) -> Option<R> + Sync,
 ) -> Vec<(usize, R)> {
-    crate::par::map_costliest_first(threads, items, |c| fit_cost(*c), f)
+    crate::par::map_costliest_first(threads, items, |c| c.fit().fit_cost(), f)
         .into_iter()
         .enumerate()
         .filter_map(|(i, r)| r.map(|r| (i, r)))
         .collect()
-}
-
-/// Rank of a class's fit time, for the queue order only: a fit that does not read the cached
-/// disk estimate ([`reads_cached_disk`] false: a thermal or torque-sensor class replays the disk
-/// at every evaluation, 1–4 s on the 30-minute log; an actuator class fits positions only)
-/// before one that reads it (0.1–0.5 s), and first of all a thermocouple's
-/// reading error, which also inverts the readings and replays the temperatures (6–10 s). Queued
-/// in declaration order, the thermocouple's fit started last and ran alone for 5–9 s of every
-/// round.
-fn fit_cost(c: ClassId) -> u8 {
-    match c {
-        ClassId::SensorTemperature => 2,
-        _ if !reads_cached_disk(c) => 1,
-        _ => 0,
-    }
 }
 
 /// What a selected class is worth beside the others: the validation gain lost when it is taken
@@ -1121,7 +1077,7 @@ mod tests {
     fn torque_job(classes: Vec<ClassId>) -> Job {
         Job {
             classes,
-            form: classfit::Form::Flexible,
+            form: classes::Form::Flexible,
             recal: recal_keys(Subsystem::TorqueCharacteristic),
             chans: vec![],
             wide: false,
@@ -1137,19 +1093,19 @@ mod tests {
         let nominal = Params::default();
         let job = torque_job(vec![ClassId::FrictionTemperature]);
         let mut base = Model::nominal(nominal);
-        keys::set(&mut base.p, "clutch.c4", 0.36);
+        ParamKey::C4.set(&mut base.p, 0.36);
         let (specs, _, nc) = job_specs(&base, &nominal, &job);
         assert!(nc > 0 && specs.len() > nc);
         assert_eq!(nominal_start(&specs, nc, &job, &nominal), None);
         // λ2 pushed to its bound, as a friction fade pushes it.
-        let (lo, hi) = plausible("clutch.x_isp2_mm_per_c2", &nominal);
+        let (lo, hi) = plausible(ParamKey::XIsp2, &nominal);
         let bound = if lo.abs() < hi.abs() { lo } else { hi };
-        keys::set(&mut base.p, "clutch.x_isp2_mm_per_c2", bound);
+        ParamKey::XIsp2.set(&mut base.p, bound);
         let (specs, _, nc) = job_specs(&base, &nominal, &job);
         let sp = nominal_start(&specs, nc, &job, &nominal).expect("a second start");
         assert_eq!(sp[..nc], specs[..nc]);
         for (s, k) in sp[nc..].iter().zip(&job.recal) {
-            assert_eq!(s.init, keys::get(&nominal, k).unwrap(), "{k}");
+            assert_eq!(s.init, k.get(&nominal), "{k}");
             let old = specs.iter().find(|o| o.name == s.name).unwrap();
             assert_eq!((s.lo, s.hi), (old.lo, old.hi), "{k}: bounds unchanged");
         }

@@ -2,13 +2,13 @@
 //! a piecewise-linear curve s(z) over [`KNOTS`] knots placed in the driving variable's range in
 //! the training records (quantiles mixed with an even spacing, see [`Shape::knots`]), anchored
 //! at s(z₀) = 0 at the first knot, each increment bounded by physics (the class's bounds in
-//! `classfit`), and extrapolated linearly beyond the end knots (so a validation record hotter
+//! `classes`), and extrapolated linearly beyond the end knots (so a validation record hotter
 //! than the training ones still sees the trend).
 //!
 //! The increments may change sign once (a peak, or a first segment that jumps where the
 //! variable's low end is invisible: a clamp load of zero transmits no torque, so the curve's
 //! anchor there is free and its first segment acts as a level); a curve that turns more than
-//! once is refitted monotone (`select::fit`, `classfit::zigzag_sign`). The truths are monotone,
+//! once is refitted monotone (`select::fit`, `classes::zigzag_sign`). The truths are monotone,
 //! but the term carries the effect as the recalibrated (possibly detuned) model sees it: bounded
 //! to one sign everywhere (each direction fitted from no effect, the better kept), a friction
 //! falling with clamp load on a detuned baseline (`scripts/gap-cases`,

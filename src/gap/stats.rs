@@ -131,28 +131,6 @@ pub fn mean(values: &[f64]) -> f64 {
     values.iter().sum::<f64>() / values.len() as f64
 }
 
-/// Event bootstrap of a ratio statistic: `num[e]`, `den[e]` are per-event sums; returns the 2.5 %
-/// and 97.5 % quantiles of Σnum*/Σden* over `reps` resamples of whole events.
-pub fn bootstrap_ratio(num: &[f64], den: &[f64], reps: usize, rng: &mut Rng) -> (f64, f64) {
-    let m = num.len();
-    if m == 0 {
-        return (f64::NAN, f64::NAN);
-    }
-    let mut stats = Vec::with_capacity(reps);
-    for _ in 0..reps {
-        let (mut a, mut b) = (0.0, 0.0);
-        for _ in 0..m {
-            let e = rng.below(m);
-            a += num[e];
-            b += den[e];
-        }
-        if b > 0.0 {
-            stats.push(a / b);
-        }
-    }
-    (quantile(&stats, 0.025), quantile(&stats, 0.975))
-}
-
 /// Event bootstrap of a function of resampled event indices (generic form).
 pub fn bootstrap<F: FnMut(&[usize]) -> f64>(
     m: usize,

@@ -10,6 +10,7 @@ use super::candidates::{self, Channel, Model, Predictions, Samples};
 use super::lsq;
 use super::measured::Measured;
 use super::stats;
+use crate::model::effects::Subsystem;
 
 /// Bin edges of the bias maps.
 pub const THETA_EDGES: [f64; 7] = [
@@ -27,7 +28,7 @@ pub const X_EDGES: [f64; 6] = [f64::NEG_INFINITY, 4.5, 5.0, 5.5, 6.0, f64::INFIN
 /// Residual evidence of one subsystem.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ResidualSubsystem {
-    pub subsystem: String,
+    pub subsystem: Subsystem,
     /// Mean squared standardized residual minus 1, in % (0 = sensor noise).
     pub excess_pct: f64,
     /// z statistic of the excess (autocorrelation-corrected).
@@ -247,12 +248,17 @@ impl Records<'_> {
 /// of their residuals above 1, its z against noise only, and each output's RMS and noise.
 fn residual_subsystems(records: &Records, chans: &[Channel]) -> Vec<ResidualSubsystem> {
     let mut subs: Vec<ResidualSubsystem> = Vec::new();
-    let subsystem_names = ["torque_characteristic", "thermal", "actuator", "engine"];
-    for name in subsystem_names {
+    let subsystems = [
+        Subsystem::TorqueCharacteristic,
+        Subsystem::Thermal,
+        Subsystem::Actuator,
+        Subsystem::Engine,
+    ];
+    for sub in subsystems {
         let cs: Vec<Channel> = chans
             .iter()
             .copied()
-            .filter(|c| c.subsystem().as_str() == name)
+            .filter(|c| c.subsystem() == sub)
             .collect();
         if cs.is_empty() {
             continue;
@@ -283,7 +289,7 @@ fn residual_subsystems(records: &Records, chans: &[Channel]) -> Vec<ResidualSubs
         // Under noise only, the mean of n_eff independent χ²₁ has sd √(2/n_eff).
         let z = excess / (2.0 / neff.max(1.0)).sqrt();
         subs.push(ResidualSubsystem {
-            subsystem: name.to_string(),
+            subsystem: sub,
             excess_pct: 100.0 * excess,
             z,
             significant: z > 4.0 && excess > 0.05,
