@@ -16,7 +16,7 @@ use ddct::can::candump::{format_record, parse_line};
 use ddct::can::decode::LogDecoder;
 use ddct::can::messages::message_def;
 use ddct::can::{CanFrame, Received};
-use ddct::gap::dataset::Dataset;
+use ddct::gap::data::dataset::Dataset;
 use ddct::plant::{Plant, PlantConfig};
 use ddct::sim::{self, SimOptions, SimScenario};
 use ddct::tcu::config::TcuConfig;

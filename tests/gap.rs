@@ -2,8 +2,8 @@
 //! synthetic rig data with known parameters, diagnosis on the plant's experiments (the blind test
 //! against the independent truth generator is in `tests/truth.rs`).
 
-use ddct::gap::identify::{identify, IdentifyOptions};
-use ddct::gap::synth::{rig_dataset, RigExperiment, SensorNoise};
+use ddct::gap::experiment::synth::{rig_dataset, RigExperiment, SensorNoise};
+use ddct::gap::method::identify::{identify, IdentifyOptions};
 use ddct::model::params::Params;
 use ddct::model::powertrain::Nominal;
 
@@ -71,7 +71,7 @@ fn identify_recovers_known_parameters() {
     );
     let mut inside = 0;
     for e in &finals {
-        let t = ddct::gap::keys::get(&truth, &e.key).unwrap();
+        let t = e.key.get(&truth);
         let init_err = (e.initial - t).abs();
         let err = (e.value - t).abs();
         let ok = e.ci95.0 <= t && t <= e.ci95.1;
@@ -122,8 +122,8 @@ fn identify_recovers_known_parameters() {
 mod loaders {
     use ddct::can::candump::{format_record, LogRecord};
     use ddct::can::messages::{ids, BenchTemps};
-    use ddct::gap::dataset::{Col, Dataset, DatasetError};
-    use ddct::gap::synth::{rig_frames, RigExperiment, SensorNoise};
+    use ddct::gap::data::dataset::{Col, Dataset, DatasetError};
+    use ddct::gap::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
     use ddct::model::params::Params;
     use ddct::model::powertrain::Nominal;
 
@@ -304,7 +304,7 @@ mod loaders {
 
     #[test]
     fn impossible_csv_values_name_file_line_and_column() {
-        use ddct::gap::dataset::Segments;
+        use ddct::gap::data::dataset::Segments;
         let tmp = Tmp::new("bad_values");
         let good = rig_csv();
         let header: Vec<&str> = good.lines().next().unwrap().split(',').collect();
@@ -407,7 +407,7 @@ mod loaders {
 
     #[test]
     fn a_30_s_hole_gives_two_segments_holding_the_samples_present() {
-        use ddct::gap::dataset::Segments;
+        use ddct::gap::data::dataset::Segments;
         let tmp = Tmp::new("hole");
         let good = rig_csv();
         let mut rows = 0;
@@ -444,7 +444,7 @@ mod loaders {
 
     #[test]
     fn a_one_second_record_is_rejected() {
-        use ddct::gap::dataset::Segments;
+        use ddct::gap::data::dataset::Segments;
         let tmp = Tmp::new("short");
         let good = rig_csv();
         let text: String = good.lines().take(102).map(|l| format!("{l}\n")).collect();
@@ -461,7 +461,7 @@ mod loaders {
     #[test]
     fn impossible_candump_signals_and_bus_silences() {
         use ddct::can::e2e::{counter_of, protect};
-        use ddct::gap::dataset::Segments;
+        use ddct::gap::data::dataset::Segments;
         let recs = frames();
         let nth = |id: u16, n: usize| {
             recs.iter()
@@ -644,7 +644,7 @@ fn cli_experiment_and_diagnose() {
     assert!((50.0..=100.0).contains(&share), "share {share}");
     assert_eq!(
         f0["shape"].as_array().unwrap().len(),
-        ddct::gap::shape::KNOTS
+        ddct::gap::model::shape::KNOTS
     );
     let top = &v["ranking"][0];
     for key in [
@@ -755,15 +755,13 @@ fn diagnosed_calibration_closes_the_loop() {
 /// checkable. With the requests the same records name the dead time.
 #[test]
 fn missing_optional_columns_are_not_checkable_not_guessed() {
-    use ddct::gap::dataset::Col;
-    use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::gap::experiment::{experiments, PlantTruth as Truth};
+    use ddct::gap::data::dataset::Col;
+    use ddct::gap::experiment::experiment::{experiments, PlantTruth as Truth};
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::model::effects::EffectId;
     let id = EffectId::ActuatorDeadTime;
     let truth = Truth {
-        effect: id.as_str().into(),
-        kind: "library".into(),
-        subsystem: id.subsystem().as_str().into(),
+        effect: Some(id),
         params: id.typical()[..id.params().len()].to_vec(),
     };
     let p = Params::default();
@@ -773,10 +771,10 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
     assert_eq!(with.verdict.effect.to_string(), "actuator_dead_time");
     // The engine is seen in vehicle records only: the launches (train_launches) make it checkable,
     // the two rig records alone do not although they carry ENG_Status.EngTorqueAct.
-    let engine = |ds: &[ddct::gap::dataset::Dataset]| {
-        ddct::gap::diagnose::checkability(ds)
+    let engine = |ds: &[ddct::gap::data::dataset::Dataset]| {
+        ddct::gap::method::diagnose::checkability(ds)
             .into_iter()
-            .find(|c| c.subsystem == "engine")
+            .find(|c| c.subsystem == ddct::model::effects::Subsystem::Engine)
             .unwrap()
     };
     assert_eq!(ex.train.len(), 3);
@@ -787,7 +785,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
         "{rig_only:?}"
     );
 
-    let strip = |ds: &[ddct::gap::dataset::Dataset]| {
+    let strip = |ds: &[ddct::gap::data::dataset::Dataset]| {
         ds.iter()
             .cloned()
             .map(|mut d| {
@@ -802,7 +800,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
     let checkable = |s: &str| {
         d.checkable
             .iter()
-            .find(|c| c.subsystem == s)
+            .find(|c| c.subsystem.as_str() == s)
             .unwrap_or_else(|| panic!("no entry for {s}"))
             .clone()
     };
@@ -815,7 +813,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
     assert_eq!(d.verdict.effect.to_string(), "none", "{:?}", d.verdict);
     // The classes that need the requests or vehicle records are listed as not checkable, with
     // the reason, and never fitted.
-    use ddct::gap::class::ClassId;
+    use ddct::gap::model::class::ClassId;
     for c in [
         ClassId::ActuatorDeadTime,
         ClassId::ActuatorLag,
@@ -839,9 +837,9 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
 /// recalibrated parameter inside its plausible range, and every flagged subsystem has a finding.
 #[test]
 fn none_never_stands_beside_a_flagged_subsystem() {
-    use ddct::gap::dataset::Dataset;
-    use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::gap::finding::{is_nothing, Finding};
+    use ddct::gap::data::dataset::Dataset;
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::gap::method::finding::{is_nothing, Finding};
     use ddct::truth::inject::{OutsideKind, Target};
     use ddct::truth::{build, records, CaseSpec, Variants};
     let p = Params::default();
@@ -850,7 +848,9 @@ fn none_never_stands_beside_a_flagged_subsystem() {
         (vec![Target::Outside(OutsideKind::Judder)], 0.0, 22),
         (vec![Target::Outside(OutsideKind::FrictionDrift)], 0.0, 23),
         (
-            vec![Target::Class(ddct::gap::class::ClassId::SpringTemperature)],
+            vec![Target::Class(
+                ddct::gap::model::class::ClassId::SpringTemperature,
+            )],
             0.0,
             24,
         ),
@@ -891,7 +891,7 @@ fn none_never_stands_beside_a_flagged_subsystem() {
             nothing += 1;
             assert!(flagged.is_empty(), "{}: none beside {flagged:?}", t.label());
             for (k, _, v) in &d.recalibration {
-                let (lo, hi) = ddct::gap::select::plausible(k, &p);
+                let (lo, hi) = ddct::gap::method::select::plausible(*k, &p);
                 assert!(*v >= lo && *v <= hi, "{}: none with {k} = {v}", t.label());
             }
         }

@@ -30,14 +30,14 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
             "model::actuator",
             "model::powertrain",
             "model::integrator",
-            "gap::candidates",
-            "gap::replay",
-            "gap::measured",
-            "gap::fast_replay",
-            "gap::synth",
-            "gap::diagnose",
-            "gap::stats",
-            "gap::experiment",
+            "gap::eval::predict",
+            "gap::eval::replay",
+            "gap::record::measured",
+            "gap::eval::fast_replay",
+            "gap::experiment::synth",
+            "gap::method::diagnose",
+            "gap::fit::stats",
+            "gap::experiment::experiment",
             "crate::plant",
         ],
         "uses the project's model or diagnosis",
@@ -46,14 +46,14 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
 }
 
 /// A nominal record of the generator is matched by the project's nominal model to within the
-/// noise: `ddct::gap::diagnose` on a nominal truth (no detuning), validation torque RMSE of the
+/// noise: `ddct::gap::method::diagnose` on a nominal truth (no detuning), validation torque RMSE of the
 /// nominal model within 1.3× the noise the generator put into the torque residual — the torque
 /// sensor's σ and quantisation plus the position and speed noise propagated through (13) at
 /// each sample (∂T/∂x·σ_x, ∂T/∂ω·σ_ω, from the generator's own torque function).
 #[test]
 fn a_nominal_record_is_matched_by_the_nominal_model_within_noise() {
-    use ddct::gap::dataset::Dataset;
-    use ddct::gap::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::gap::data::dataset::Dataset;
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::truth::experiments;
     use ddct::truth::physics::Physics;
     use ddct::truth::sim::{self, Noise};
@@ -198,11 +198,11 @@ fn cli_truth_writes_a_case() {
         "validate_mixed.csv",
         "validate_hot.csv",
     ] {
-        let d = ddct::gap::dataset::Dataset::load(dir.join(name)).unwrap();
+        let d = ddct::gap::data::dataset::Dataset::load(dir.join(name)).unwrap();
         assert!(d.len() > 10_000, "{name}");
-        assert!(d.get(ddct::gap::dataset::Col::X1Req).is_some());
+        assert!(d.get(ddct::gap::data::dataset::Col::X1Req).is_some());
         assert!(
-            d.get(ddct::gap::dataset::Col::X2Req).is_none(),
+            d.get(ddct::gap::data::dataset::Col::X2Req).is_none(),
             "only x_to1_req_mm"
         );
     }

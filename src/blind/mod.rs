@@ -22,10 +22,10 @@ mod scored;
 
 pub use scored::{Scored, ScoredTruth};
 
-use crate::gap::class::ClassId;
-use crate::gap::dataset::Dataset;
-use crate::gap::diagnose::{diagnose, DiagnoseOptions};
-use crate::gap::finding::{named_classes, Finding};
+use crate::gap::data::dataset::Dataset;
+use crate::gap::method::diagnose::{diagnose, DiagnoseOptions};
+use crate::gap::method::finding::{named_classes, Finding};
+use crate::gap::model::class::ClassId;
 use crate::model::params::Params;
 use crate::plot::{Figure, LegendPos, Panel, Series, Style};
 use crate::truth::{self, Band, Truth, TruthKind};

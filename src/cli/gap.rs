@@ -5,14 +5,14 @@ use anyhow::{bail, Context};
 use clap::{Args, Subcommand};
 use ddct::blind::{self, TrialResult};
 use ddct::can::logfile;
-use ddct::gap::class::ClassId;
-use ddct::gap::dataset::{Dataset, Segments};
-use ddct::gap::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use ddct::gap::experiment::{self, PlantTruth};
-use ddct::gap::findings_table;
-use ddct::gap::identify::{identify, Identification, IdentifyOptions};
-use ddct::gap::keys::ParamKey;
-use ddct::gap::report;
+use ddct::gap::data::dataset::{Dataset, Segments};
+use ddct::gap::experiment::experiment::{self, PlantTruth};
+use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use ddct::gap::method::identify::{identify, Identification, IdentifyOptions};
+use ddct::gap::model::class::ClassId;
+use ddct::gap::model::keys::ParamKey;
+use ddct::gap::report::findings_table;
+use ddct::gap::report::report;
 use ddct::model::effects::EffectId;
 use ddct::model::Params;
 use ddct::truth::form::Family;
@@ -163,7 +163,7 @@ impl From<TruthKindArg> for TruthKind {
     }
 }
 
-/// A class of the diagnosis (`gap::class::ClassId`).
+/// A class of the diagnosis (`gap::model::class::ClassId`).
 fn parse_class(s: &str) -> Result<ClassId, String> {
     ClassId::parse(s).ok_or_else(|| {
         format!(
@@ -271,7 +271,7 @@ fn write_records_mf4(
     let mut at = start;
     for (name, csv) in records {
         let d = Dataset::from_csv(name, csv)?;
-        let frames = ddct::gap::record_frames::frames(&d, at, "can0")?;
+        let frames = ddct::gap::data::record_frames::frames(&d, at, "can0")?;
         if let Some(last) = frames.last() {
             at = last.timestamp + RECORD_GAP;
         }
@@ -928,12 +928,7 @@ fn print_truth(t: &Truth) {
 
 fn parse_truth(s: &str) -> anyhow::Result<PlantTruth> {
     if s == "none" {
-        return Ok(PlantTruth {
-            effect: "none".into(),
-            kind: "none".into(),
-            subsystem: "none".into(),
-            params: vec![],
-        });
+        return Ok(PlantTruth::none());
     }
     let (name, vals) = match s.split_once('=') {
         Some((n, v)) => (n, Some(v)),
@@ -969,13 +964,7 @@ fn parse_truth(s: &str) -> anyhow::Result<PlantTruth> {
     }
     ddct::model::effects::EffectSet::single(id, &params)?;
     Ok(PlantTruth {
-        effect: id.as_str().into(),
-        kind: if id.in_library() {
-            "library".into()
-        } else {
-            "outside_library".into()
-        },
-        subsystem: id.subsystem().as_str().into(),
+        effect: Some(id),
         params,
     })
 }

@@ -1,46 +1,25 @@
-//! Sim-to-real gap diagnosis (DESIGN.md §6, issue 7): bench datasets ([`dataset`]), event
-//! segmentation ([`events`]), a record as the diagnosis reads it ([`measured`]: its series, and
-//! the model-free series derived from them kept by value in [`memo`]s: [`slip_shapes`],
-//! [`windows`], [`power_sites`]; [`series`] the operations on them), the model replayed on
-//! measured data per subsystem ([`replay`]; the disk temperature estimate in [`disk`], the
-//! thermal replay from per-record windows in [`fast_replay`], the hooks in [`set_hooks`]), the paper's identification procedure ([`identify`]), the effect library as fit
-//! candidates ([`candidates`]), where the gap lies ([`where_`]), the black-box discrepancy
-//! ([`blackbox`]), the diagnosis itself ([`diagnose`]), in-process bench experiments on the plant
-//! core ([`experiment`]), least squares ([`lsq`]) and statistics ([`stats`]), synthetic rig data
-//! with known parameters ([`synth`]).
+//! Sim-to-real gap diagnosis (DESIGN.md §6, issues 7, 17 and 43). The folders are the method's
+//! stages, each importing only the ones above it in this list:
+//!
+//! - [`data`]: bench records as read (schema, CSV, candump/MF4, resampling and cutting);
+//! - [`fit`]: least squares and statistics, knowing nothing of clutches;
+//! - [`model`]: what is fitted — a candidate model, its class terms and shapes, the effect
+//!   classes (one `EffectClass` impl per family in [`model::classes`]), the typed parameters;
+//! - [`record`]: a record as the diagnosis reads it, with its model-free series and events;
+//! - [`eval`]: the model replayed on a record (the thermal replay of (16), the disk estimate);
+//! - [`method`]: the paper's identification, then the diagnosis — noise floors, where the gap
+//!   lies, recalibration, class selection, black box, typed findings and verdict;
+//! - [`report`]: rendering a diagnosis (Markdown, JSON, figures, table rows);
+//! - [`experiment`]: bench experiments that produce records (the plant core in process, the
+//!   synthetic rig).
 //!
 //! Pure: nothing here reads a clock, touches a socket or uses tokio.
 
-pub mod blackbox;
-pub mod candidates;
-pub mod class;
-pub mod classes;
-pub mod context;
-pub mod dataset;
-pub mod diagnose;
-pub mod disk;
-pub mod events;
+pub mod data;
+pub mod eval;
 pub mod experiment;
-pub mod fast_replay;
-pub mod finding;
-pub mod findings_table;
-pub mod form_error;
-pub mod identify;
-pub mod keys;
-pub mod lsq;
-pub mod measured;
-pub mod memo;
-pub mod power_sites;
-pub mod record_frames;
-pub mod replay;
+pub mod fit;
+pub mod method;
+pub mod model;
+pub mod record;
 pub mod report;
-pub mod select;
-pub mod series;
-pub mod set_hooks;
-pub mod shape;
-pub mod slip_shapes;
-pub mod stats;
-pub mod synth;
-pub mod terms;
-pub mod where_;
-pub mod windows;

@@ -10,7 +10,7 @@
 //! e(v) = read(v) − v gives the channel's unit.
 
 use super::inject::{self, Effect, Target};
-use crate::gap::class::ClassId;
+use crate::gap::model::class::ClassId;
 
 /// Points per curve.
 const POINTS: usize = 161;
@@ -19,7 +19,7 @@ const POINTS: usize = 161;
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Curve {
     pub class: ClassId,
-    /// The physical variable, named as the diagnosis's [`crate::gap::class::Variable`] is.
+    /// The physical variable, named as the diagnosis's [`crate::gap::model::class::Variable`] is.
     pub variable: &'static str,
     /// Unit of the variable.
     pub variable_unit: &'static str,

@@ -20,7 +20,7 @@
 
 use super::form::{Family, Form};
 use super::rng::Xoshiro;
-use crate::gap::class::ClassId;
+use crate::gap::model::class::ClassId;
 use std::fmt;
 
 /// Effects outside every class of the diagnosis.

@@ -25,7 +25,7 @@ pub mod physics;
 pub mod rng;
 pub mod sim;
 
-use crate::gap::class::ClassId;
+use crate::gap::model::class::ClassId;
 use crate::model::params::Params;
 use experiments::RecordDef;
 use form::Family;

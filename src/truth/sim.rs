@@ -7,7 +7,7 @@ use super::experiments::{RecordDef, SAMPLE_S};
 use super::inject::{self, Effect, OutsideKind, ReadingError, Target};
 use super::physics::Physics;
 use super::rng::{derive, Xoshiro};
-use crate::gap::class::ClassId;
+use crate::gap::model::class::ClassId;
 
 /// Integration step (s).
 pub const STEP_S: f64 = 0.001;
