@@ -24,7 +24,7 @@ import pyarrow.parquet as pq
 
 from . import storage
 
-# The columns `ddct gap diagnose --findings` writes (src/gap/findings_table.rs); a task whose
+# The columns `ddct gap diagnose --findings` writes (src/gap/report/findings_table.rs); a task whose
 # ddct process died before writing uses it for its error row (tests check the two agree).
 FINDINGS_SCHEMA = pa.schema(
     [
