@@ -16,6 +16,7 @@ pub mod io_error;
 pub mod model;
 pub mod num_text;
 pub mod par;
+pub mod parquet_file;
 pub mod plant;
 pub mod plot;
 pub mod ranges;

@@ -514,7 +514,9 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
         Ok(d) => findings_table::rows(d),
         Err(e) => vec![findings_table::error_row(&format!("{e:#}"))],
     };
-    let n = findings_table::append(path, &info, &rows)?;
+    let batch = findings_table::batch(&info, &rows)
+        .with_context(|| format!("{}: the findings' record batch", path.display()))?;
+    let n = ddct::parquet_file::append(path, "findings", batch)?;
     eprintln!(
         "{}: {} row(s) appended, {n} in the table",
         path.display(),

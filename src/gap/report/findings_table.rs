@@ -4,38 +4,18 @@
 //! magnitude with the 95 % interval, its share of the gap and how far the validation gap
 //! closed, the whole finding as JSON, the ddct version and a hash of the nominal parameters. A
 //! diagnosis that failed is one row of kind `error` with the message: a result is never
-//! silently missing. A run appends to the file (it is rewritten beside itself with the new rows
-//! and renamed into place, so a reader never sees half a file).
+//! silently missing. This module makes the rows and their record batch; the shell appends the
+//! batch to the file (`crate::parquet_file::append`).
 
-use crate::can::columnar::{self, ColumnarError};
+use crate::can::columnar::ColumnarError;
 use crate::gap::method::diagnose::Diagnosis;
 use crate::gap::method::finding::Finding;
 use crate::model::params::Params;
 use arrow_array::builder::{Float64Builder, StringBuilder, TimestampMicrosecondBuilder};
 use arrow_array::{ArrayRef, RecordBatch};
 use arrow_schema::{DataType, Field, Schema, SchemaRef, TimeUnit};
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
-use thiserror::Error;
-
-/// Errors of the findings table.
-#[derive(Debug, Error)]
-pub enum FindingsError {
-    #[error("{}: {source}", file.display())]
-    Io {
-        file: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{}: {source}", file.display())]
-    Columnar {
-        file: PathBuf,
-        source: ColumnarError,
-    },
-    #[error("{}: not a findings table (its columns are {found}); write to a new file", file.display())]
-    Schema { file: PathBuf, found: String },
-}
 
 /// What a row says about the run besides the finding.
 #[derive(Debug, Clone, PartialEq)]
@@ -196,7 +176,7 @@ pub fn schema() -> SchemaRef {
 }
 
 /// The rows as a record batch of [`schema`].
-fn batch(info: &RunInfo, rows: &[FindingRow]) -> Result<RecordBatch, ColumnarError> {
+pub fn batch(info: &RunInfo, rows: &[FindingRow]) -> Result<RecordBatch, ColumnarError> {
     let strings = |f: &dyn Fn(&FindingRow) -> Option<String>| {
         let mut b = StringBuilder::new();
         for r in rows {
@@ -243,76 +223,12 @@ fn batch(info: &RunInfo, rows: &[FindingRow]) -> Result<RecordBatch, ColumnarErr
     Ok(RecordBatch::try_new(schema(), columns)?)
 }
 
-/// Appends `rows` to the table at `path` (created if missing); the rows the file holds now.
-pub fn append(path: &Path, info: &RunInfo, rows: &[FindingRow]) -> Result<u64, FindingsError> {
-    let io = |source| FindingsError::Io {
-        file: path.into(),
-        source,
-    };
-    let col = |e: ColumnarError| FindingsError::Columnar {
-        file: path.into(),
-        source: e,
-    };
-    let mut batches = Vec::new();
-    if path.exists() {
-        let f = std::fs::File::open(path).map_err(io)?;
-        let reader = ParquetRecordBatchReaderBuilder::try_new(f)
-            .map_err(|e| col(e.into()))?
-            .build()
-            .map_err(|e| col(e.into()))?;
-        for b in reader {
-            let b = b.map_err(|e| col(e.into()))?;
-            if b.schema() != schema() {
-                let found: Vec<String> = b
-                    .schema()
-                    .fields()
-                    .iter()
-                    .map(|f| f.name().clone())
-                    .collect();
-                return Err(FindingsError::Schema {
-                    file: path.into(),
-                    found: found.join(", "),
-                });
-            }
-            batches.push(b);
-        }
-    }
-    batches.push(batch(info, rows).map_err(col)?);
-    let part = path.with_file_name(format!(
-        ".{}.part",
-        path.file_name()
-            .and_then(|n| n.to_str())
-            .unwrap_or("findings")
-    ));
-    let written = (|| {
-        let f = std::fs::File::create(&part).map_err(|e| ColumnarError::Parquet(e.into()))?;
-        let mut w = columnar::snappy_writer(f, schema())?;
-        for b in &batches {
-            w.write(b)?;
-        }
-        columnar::close(w)
-    })();
-    let n = match written {
-        Ok(n) => n,
-        Err(e) => {
-            let _ = std::fs::remove_file(&part);
-            return Err(col(e));
-        }
-    };
-    std::fs::rename(&part, path).map_err(io)?;
-    Ok(n)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use arrow_array::Array as _;
 
     #[test]
-    fn rows_append_across_runs_and_an_error_row_keeps_its_message() {
-        let path =
-            std::env::temp_dir().join(format!("ddct_findings_{}.parquet", std::process::id()));
-        let _ = std::fs::remove_file(&path);
+    fn a_batch_holds_its_rows_and_an_error_row_keeps_its_message() {
         let info = RunInfo {
             unit: Some("rig-07".into()),
             log: "a.mf4".into(),
@@ -326,52 +242,17 @@ mod tests {
             gap_closed_pct: Some(3.0),
             ..FindingRow::default()
         };
-        assert_eq!(append(&path, &info, &[ok.clone(), ok]).unwrap(), 2);
-        let failed = RunInfo {
-            operating_hours: None,
-            start: None,
-            ..info.clone()
-        };
-        assert_eq!(
-            append(&path, &failed, &[error_row("x.mf4: truncated")]).unwrap(),
-            3
-        );
-        let f = std::fs::File::open(&path).unwrap();
-        let batches: Vec<RecordBatch> = ParquetRecordBatchReaderBuilder::try_new(f)
+        let b = batch(&info, &[ok, error_row("x.mf4: truncated")]).unwrap();
+        assert_eq!(b.schema(), schema());
+        assert_eq!(b.num_rows(), 2);
+        let kinds = b
+            .column_by_name("kind")
             .unwrap()
-            .build()
+            .as_any()
+            .downcast_ref::<arrow_array::StringArray>()
             .unwrap()
-            .map(Result::unwrap)
-            .collect();
-        let _ = std::fs::remove_file(&path);
-        let kinds: Vec<String> = batches
-            .iter()
-            .flat_map(|b| {
-                let c = b.column_by_name("kind").unwrap();
-                let s = c
-                    .as_any()
-                    .downcast_ref::<arrow_array::StringArray>()
-                    .unwrap();
-                (0..s.len())
-                    .map(|i| s.value(i).to_string())
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        assert_eq!(kinds, ["nothing", "nothing", "error"]);
-        let hours: Vec<Option<f64>> = batches
-            .iter()
-            .flat_map(|b| {
-                let c = b.column_by_name("operating_hours").unwrap();
-                let h = c
-                    .as_any()
-                    .downcast_ref::<arrow_array::Float64Array>()
-                    .unwrap();
-                (0..h.len())
-                    .map(|i| (!h.is_null(i)).then(|| h.value(i)))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        assert_eq!(hours, [Some(12.5), Some(12.5), None]);
+            .clone();
+        assert_eq!((kinds.value(0), kinds.value(1)), ("nothing", "error"));
         assert_eq!(params_hash(&Params::default()).len(), 16);
     }
 }
