@@ -756,7 +756,7 @@ fn diagnosed_calibration_closes_the_loop() {
 #[test]
 fn missing_optional_columns_are_not_checkable_not_guessed() {
     use ddct::gap::data::dataset::Col;
-    use ddct::gap::experiment::experiment::{experiments, PlantTruth as Truth};
+    use ddct::gap::experiment::plant::{experiments, PlantTruth as Truth};
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::model::effects::EffectId;
     let id = EffectId::ActuatorDeadTime;

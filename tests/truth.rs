@@ -37,7 +37,7 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
             "gap::experiment::synth",
             "gap::method::diagnose",
             "gap::fit::stats",
-            "gap::experiment::experiment",
+            "gap::experiment::plant",
             "crate::plant",
         ],
         "uses the project's model or diagnosis",

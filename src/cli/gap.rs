@@ -6,13 +6,13 @@ use clap::{Args, Subcommand};
 use ddct::blind::{self, TrialResult};
 use ddct::can::logfile;
 use ddct::gap::data::dataset::{Dataset, Segments};
-use ddct::gap::experiment::experiment::{self, PlantTruth};
+use ddct::gap::experiment::plant::{self, PlantTruth};
 use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use ddct::gap::method::identify::{identify, Identification, IdentifyOptions};
 use ddct::gap::model::class::ClassId;
 use ddct::gap::model::keys::ParamKey;
 use ddct::gap::report::findings_table;
-use ddct::gap::report::report;
+use ddct::gap::report::render;
 use ddct::model::effects::EffectId;
 use ddct::model::Params;
 use ddct::truth::form::Family;
@@ -574,23 +574,23 @@ fn write_diagnosis(
         let path = a.out.join(name);
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
     };
-    let json = report::json(d);
+    let json = render::json(d);
     write("report.json", &json)?;
-    let mut md = report::markdown(d);
+    let mut md = render::markdown(d);
     md.push_str(&format!(
         "\nDiagnosed in {t_all:.1} s (loading {t_load:.1} s) by `ddct gap diagnose`.\n"
     ));
     write("report.md", &md)?;
-    for (name, svg) in report::plots(d) {
+    for (name, svg) in render::plots(d) {
         write(&name, &svg)?;
     }
-    if let Some((params, effects)) = report::calibration(d) {
+    if let Some((params, effects)) = render::calibration(d) {
         write("params.toml", &params)?;
         write("effects.toml", &effects)?;
         if let Some(text) = tcu_template(a)? {
             write(
                 "tcu.toml",
-                &report::tcu_calibration(&text, "params.toml", "effects.toml"),
+                &render::tcu_calibration(&text, "params.toml", "effects.toml"),
             )?;
         }
     }
@@ -620,14 +620,7 @@ fn print_diagnosis(d: &Diagnosis) {
     );
     println!("  {}", v.explanation);
     if !v.ambiguous_with.is_empty() {
-        println!(
-            "  ambiguous with: {}",
-            v.ambiguous_with
-                .iter()
-                .map(|c| c.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
+        println!("  ambiguous with: {}", v.ambiguous_list());
     }
     if !v.outside_library_depends_on.is_empty() {
         println!(
@@ -975,7 +968,7 @@ fn run_experiment(a: ExperimentArgs) -> anyhow::Result<ExitCode> {
     let truth = parse_truth(&a.truth)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let pb = super::spinner("simulating the rig records");
-    let recs = experiment::experiment_records(&truth, a.seed, &Params::default());
+    let recs = plant::experiment_records(&truth, a.seed, &Params::default());
     pb.finish_and_clear();
     for (name, records) in recs {
         let path = a.out.join(format!("{name}.log"));

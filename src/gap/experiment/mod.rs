@@ -1,4 +1,4 @@
-//! Bench experiments that produce records: on the plant core in process ([`experiment`]) and the synthetic rig with known parameters ([`synth`]).
+//! Bench experiments that produce records: on the plant core in process ([`plant`]) and the synthetic rig with known parameters ([`synth`]).
 
-pub mod experiment;
+pub mod plant;
 pub mod synth;

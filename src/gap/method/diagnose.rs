@@ -173,6 +173,12 @@ impl Verdict {
     pub fn subsystem_name(&self) -> &'static str {
         self.subsystem.map_or("none", Subsystem::as_str)
     }
+
+    /// The first class's ambiguity set as reports list it: its identifiers, comma separated.
+    pub fn ambiguous_list(&self) -> String {
+        let names: Vec<&str> = self.ambiguous_with.iter().map(|c| c.as_str()).collect();
+        names.join(", ")
+    }
 }
 
 /// A verdict's subsystem in JSON ([`Verdict::subsystem_name`]).

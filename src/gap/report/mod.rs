@@ -1,4 +1,4 @@
-//! Rendering a diagnosis: Markdown, JSON and figures ([`report`]), the findings as table rows ([`findings_table`]).
+//! Rendering a diagnosis: Markdown, JSON and figures ([`render`]), the findings as table rows ([`findings_table`]).
 
 pub mod findings_table;
-pub mod report;
+pub mod render;

@@ -199,11 +199,7 @@ fn first_finding_summary(s: &mut String, d: &Diagnosis) {
         let _ = writeln!(
             s,
             "- ambiguous with: {} (not significantly worse on the validation records)",
-            v.ambiguous_with
-                .iter()
-                .map(|c| c.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
+            v.ambiguous_list()
         );
     }
     if !v.outside_library_depends_on.is_empty() {
