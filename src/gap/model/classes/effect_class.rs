@@ -2,7 +2,7 @@
 //! class must say, its provided ones the rules most classes share.
 
 use super::basis::Basis;
-use super::common::{group_channels, member_params, no_torque};
+use super::common::{group_channels, member_params, no_torque, torque_shape_checkable};
 use super::knots::{Form, Has, Knots, Needs};
 use crate::gap::fit::lsq::ParamSpec;
 use crate::gap::model::candidate::{Channel, Model};
@@ -61,9 +61,16 @@ pub trait EffectClass: Sync {
         self.shape_variable().is_some()
     }
 
-    /// Why the class cannot be fitted on these records, or `None` when it can.
-    fn not_checkable(&self, _knots: &Knots, has: Has) -> Option<String> {
-        (self.group() == Subsystem::TorqueCharacteristic && !has(Needs::Torque)).then(no_torque)
+    /// Why the class cannot be fitted on these records, or `None` when it can: a class of the
+    /// torque characteristic needs the torque, and a shape class of it its variable varying.
+    fn not_checkable(&self, knots: &Knots, has: Has) -> Option<String> {
+        if self.group() != Subsystem::TorqueCharacteristic {
+            return None;
+        }
+        match self.shape_variable() {
+            Some(var) => torque_shape_checkable(var, knots, has),
+            None => (!has(Needs::Torque)).then(no_torque),
+        }
     }
 
     /// Starting points besides the parameters' `init`, for least squares with several basins.

@@ -3,11 +3,9 @@
 //! θ read from the fitted curve's slope.
 
 use super::basis::{Basis, RELATIVE};
-use super::common::{
-    points_of, shape_change, shape_on, shape_params, slope, torque_shape_checkable,
-};
+use super::common::{points_of, shape_change, shape_on, shape_params, slope};
 use super::effect_class::EffectClass;
-use super::knots::{Has, Knots};
+use super::knots::Knots;
 use crate::gap::fit::lsq::ParamSpec;
 use crate::gap::model::candidate::Model;
 use crate::gap::model::class::{ClassId, Variable};
@@ -32,9 +30,6 @@ impl EffectClass for TemperatureFactor {
     }
     fn shape_variable(&self) -> Option<Variable> {
         Some(Variable::Temperature)
-    }
-    fn not_checkable(&self, knots: &Knots, has: Has) -> Option<String> {
-        torque_shape_checkable(Variable::Temperature, knots, has)
     }
     fn params(&self, _base: &Model) -> Vec<ParamSpec> {
         shape_params(self.id.as_str(), 0.4, 0.02)

@@ -6,7 +6,6 @@
 use super::basis::{Basis, RELATIVE};
 use super::common::{
     member_magnitude, no_torque, points_of, shape_change, shape_on, shape_params, slope,
-    torque_shape_checkable,
 };
 use super::effect_class::EffectClass;
 use super::factor::TemperatureFactor;
@@ -42,9 +41,6 @@ impl EffectClass for Multiplier {
     }
     fn shape_variable(&self) -> Option<Variable> {
         Some(self.1)
-    }
-    fn not_checkable(&self, knots: &Knots, has: Has) -> Option<String> {
-        torque_shape_checkable(self.1, knots, has)
     }
     fn params(&self, _base: &Model) -> Vec<ParamSpec> {
         shape_params(self.0.as_str(), 0.4, 0.02)

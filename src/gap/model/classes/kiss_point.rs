@@ -3,11 +3,9 @@
 //! in the energy.
 
 use super::basis::Basis;
-use super::common::{
-    points_of, shape_change, shape_on, shape_params, slope, torque_shape_checkable,
-};
+use super::common::{points_of, shape_change, shape_on, shape_params, slope};
 use super::effect_class::EffectClass;
-use super::knots::{Has, Knots};
+use super::knots::Knots;
 use crate::gap::fit::lsq::ParamSpec;
 use crate::gap::model::candidate::Model;
 use crate::gap::model::class::{ClassId, Variable};
@@ -25,9 +23,6 @@ impl EffectClass for KissPoint {
     }
     fn shape_variable(&self) -> Option<Variable> {
         Some(self.1)
-    }
-    fn not_checkable(&self, knots: &Knots, has: Has) -> Option<String> {
-        torque_shape_checkable(self.1, knots, has)
     }
     fn writes(&self) -> Option<&'static str> {
         Some("kiss_point")
