@@ -2,8 +2,10 @@
 //! plant that simulates it, and a sim-to-real gap diagnosis.
 //!
 //! Layout: `can` (bus contract, buses, logs), `model` (pure physics), `plant` and `tcu` (pure
-//! cores stepped with `now` as an argument), `gap` (diagnosis), `truth` (an independent truth generator) and `blind` (the
-//! diagnosis's blind test against it).
+//! cores stepped with `now` as an argument), `records` (bench records: schema, readers,
+//! events), `experiment` (bench experiments on the plant that produce records), `gap`
+//! (diagnosis), `truth` (an independent truth generator) and `blind` (the diagnosis's blind test
+//! against it).
 
 pub mod bench;
 pub mod blind;
@@ -11,6 +13,7 @@ pub mod can;
 pub mod daemon;
 pub mod diag;
 pub mod error_chain;
+pub mod experiment;
 pub mod gap;
 pub mod io_error;
 pub mod model;
@@ -20,6 +23,7 @@ pub mod parquet_file;
 pub mod plant;
 pub mod plot;
 pub mod ranges;
+pub mod records;
 pub mod sim;
 pub mod tcu;
 pub mod toml_key;

@@ -2,7 +2,7 @@
 //! synthetic rig data with known parameters, diagnosis on the plant's experiments (the blind test
 //! against the independent truth generator is in `tests/truth.rs`).
 
-use ddct::gap::experiment::synth::{rig_dataset, RigExperiment, SensorNoise};
+use ddct::experiment::synth::{rig_dataset, RigExperiment, SensorNoise};
 use ddct::gap::method::identify::{identify, IdentifyOptions};
 use ddct::model::params::Params;
 use ddct::model::powertrain::Nominal;
@@ -122,10 +122,10 @@ fn identify_recovers_known_parameters() {
 mod loaders {
     use ddct::can::candump::{format_record, LogRecord};
     use ddct::can::messages::{ids, BenchTemps};
-    use ddct::gap::data::dataset::{Col, Dataset, DatasetError};
-    use ddct::gap::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
+    use ddct::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
     use ddct::model::params::Params;
     use ddct::model::powertrain::Nominal;
+    use ddct::records::dataset::{Col, Dataset, DatasetError};
 
     fn frames() -> Vec<LogRecord> {
         rig_frames(
@@ -304,7 +304,7 @@ mod loaders {
 
     #[test]
     fn impossible_csv_values_name_file_line_and_column() {
-        use ddct::gap::data::dataset::Segments;
+        use ddct::records::dataset::Segments;
         let tmp = Tmp::new("bad_values");
         let good = rig_csv();
         let header: Vec<&str> = good.lines().next().unwrap().split(',').collect();
@@ -407,7 +407,7 @@ mod loaders {
 
     #[test]
     fn a_30_s_hole_gives_two_segments_holding_the_samples_present() {
-        use ddct::gap::data::dataset::Segments;
+        use ddct::records::dataset::Segments;
         let tmp = Tmp::new("hole");
         let good = rig_csv();
         let mut rows = 0;
@@ -444,7 +444,7 @@ mod loaders {
 
     #[test]
     fn a_one_second_record_is_rejected() {
-        use ddct::gap::data::dataset::Segments;
+        use ddct::records::dataset::Segments;
         let tmp = Tmp::new("short");
         let good = rig_csv();
         let text: String = good.lines().take(102).map(|l| format!("{l}\n")).collect();
@@ -461,7 +461,7 @@ mod loaders {
     #[test]
     fn impossible_candump_signals_and_bus_silences() {
         use ddct::can::e2e::{counter_of, protect};
-        use ddct::gap::data::dataset::Segments;
+        use ddct::records::dataset::Segments;
         let recs = frames();
         let nth = |id: u16, n: usize| {
             recs.iter()
@@ -755,10 +755,10 @@ fn diagnosed_calibration_closes_the_loop() {
 /// checkable. With the requests the same records name the dead time.
 #[test]
 fn missing_optional_columns_are_not_checkable_not_guessed() {
-    use ddct::gap::data::dataset::Col;
-    use ddct::gap::experiment::plant::{experiments, PlantTruth as Truth};
+    use ddct::experiment::plant::{experiments, PlantTruth as Truth};
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::model::effects::EffectId;
+    use ddct::records::dataset::Col;
     let id = EffectId::ActuatorDeadTime;
     let truth = Truth {
         effect: Some(id),
@@ -771,7 +771,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
     assert_eq!(with.verdict.effect.to_string(), "actuator_dead_time");
     // The engine is seen in vehicle records only: the launches (train_launches) make it checkable,
     // the two rig records alone do not although they carry ENG_Status.EngTorqueAct.
-    let engine = |ds: &[ddct::gap::data::dataset::Dataset]| {
+    let engine = |ds: &[ddct::records::dataset::Dataset]| {
         ddct::gap::method::diagnose::checkability(ds)
             .into_iter()
             .find(|c| c.subsystem == ddct::model::effects::Subsystem::Engine)
@@ -785,7 +785,7 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
         "{rig_only:?}"
     );
 
-    let strip = |ds: &[ddct::gap::data::dataset::Dataset]| {
+    let strip = |ds: &[ddct::records::dataset::Dataset]| {
         ds.iter()
             .cloned()
             .map(|mut d| {
@@ -837,9 +837,9 @@ fn missing_optional_columns_are_not_checkable_not_guessed() {
 /// recalibrated parameter inside its plausible range, and every flagged subsystem has a finding.
 #[test]
 fn none_never_stands_beside_a_flagged_subsystem() {
-    use ddct::gap::data::dataset::Dataset;
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::gap::method::finding::{is_nothing, Finding};
+    use ddct::records::dataset::Dataset;
     use ddct::truth::inject::{OutsideKind, Target};
     use ddct::truth::{build, records, CaseSpec, Variants};
     let p = Params::default();

@@ -13,7 +13,7 @@ mod common;
 #[test]
 fn the_diagnosis_and_the_truth_do_not_share_code() {
     let checked = common::assert_sources_lack(
-        &["gap", "model"],
+        &["gap", "model", "records", "experiment"],
         &["crate::truth", "truth::", "crate::blind", "blind::"],
         "uses the truth generator or the blind harness",
     );
@@ -40,7 +40,9 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
             "gap::record",
             "gap::method",
             "gap::fit",
-            "gap::experiment",
+            "crate::experiment",
+            "experiment::plant",
+            "experiment::synth",
             "crate::plant",
         ],
         "uses the project's model or diagnosis",
@@ -55,8 +57,8 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
 /// each sample (∂T/∂x·σ_x, ∂T/∂ω·σ_ω, from the generator's own torque function).
 #[test]
 fn a_nominal_record_is_matched_by_the_nominal_model_within_noise() {
-    use ddct::gap::data::dataset::Dataset;
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::records::dataset::Dataset;
     use ddct::truth::experiments;
     use ddct::truth::physics::Physics;
     use ddct::truth::sim::{self, Noise};
@@ -201,11 +203,11 @@ fn cli_truth_writes_a_case() {
         "validate_mixed.csv",
         "validate_hot.csv",
     ] {
-        let d = ddct::gap::data::dataset::Dataset::load(dir.join(name)).unwrap();
+        let d = ddct::records::dataset::Dataset::load(dir.join(name)).unwrap();
         assert!(d.len() > 10_000, "{name}");
-        assert!(d.get(ddct::gap::data::dataset::Col::X1Req).is_some());
+        assert!(d.get(ddct::records::dataset::Col::X1Req).is_some());
         assert!(
-            d.get(ddct::gap::data::dataset::Col::X2Req).is_none(),
+            d.get(ddct::records::dataset::Col::X2Req).is_none(),
             "only x_to1_req_mm"
         );
     }

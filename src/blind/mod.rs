@@ -22,12 +22,12 @@ mod scored;
 
 pub use scored::{Scored, ScoredTruth};
 
-use crate::gap::data::dataset::Dataset;
 use crate::gap::method::diagnose::{diagnose, DiagnoseOptions};
 use crate::gap::method::finding::{named_classes, Finding};
 use crate::gap::model::class::ClassId;
 use crate::model::params::Params;
 use crate::plot::{Figure, LegendPos, Panel, Series, Style};
+use crate::records::dataset::Dataset;
 use crate::truth::{self, Band, Truth, TruthKind};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -185,7 +185,7 @@ pub fn score(
 }
 
 /// Runs trial `index`: draws the truth, generates and parses its records, diagnoses on
-/// `threads` threads (0: the available cores), scores.
+/// `threads` threads (at least 1), scores.
 pub fn run_trial(seed: u64, index: usize, nominal: &Params, threads: usize) -> TrialResult {
     let t0 = Instant::now();
     let (truth, recs) = truth::draw_and_records(seed, index, nominal);

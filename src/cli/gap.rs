@@ -5,8 +5,7 @@ use anyhow::{bail, Context};
 use clap::{Args, Subcommand};
 use ddct::blind::{self, TrialResult};
 use ddct::can::logfile;
-use ddct::gap::data::dataset::{Dataset, Segments};
-use ddct::gap::experiment::plant::{self, PlantTruth};
+use ddct::experiment::plant::{self, PlantTruth};
 use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use ddct::gap::method::identify::{identify, Identification, IdentifyOptions};
 use ddct::gap::model::class::ClassId;
@@ -15,6 +14,7 @@ use ddct::gap::report::findings_table;
 use ddct::gap::report::render;
 use ddct::model::effects::EffectId;
 use ddct::model::Params;
+use ddct::records::dataset::{Dataset, Segments};
 use ddct::truth::form::Family;
 use ddct::truth::inject::{OutsideKind, Target};
 use ddct::truth::{self, CaseSpec, Truth, TruthKind, Variants};
@@ -271,7 +271,7 @@ fn write_records_mf4(
     let mut at = start;
     for (name, csv) in records {
         let d = Dataset::from_csv(name, csv)?;
-        let frames = ddct::gap::data::record_frames::frames(&d, at, "can0")?;
+        let frames = ddct::records::record_frames::frames(&d, at, "can0")?;
         if let Some(last) = frames.last() {
             at = last.timestamp + RECORD_GAP;
         }
@@ -326,14 +326,19 @@ fn load_params(p: &Option<PathBuf>) -> anyhow::Result<Params> {
 /// Loads the records of `files` in order: each file is checked and cut at its gaps in time into
 /// segments, each segment a record of its own; the cuts and the segments left out are noted on
 /// stderr (stdout may be JSON).
+/// The machine's cores: the threads of the diagnosis, its file loading and the blind trials
+/// when `--threads` is not given (the library reads no machine state).
+fn available_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// The training and the validation records, every file read on its own thread (decoding a
 /// long candump log is a second of work); notes and the first error in the order given.
 fn load_train_validate(
     train: &[PathBuf],
     validate: &[PathBuf],
 ) -> anyhow::Result<(Vec<Dataset>, Vec<Dataset>)> {
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    load_train_validate_on(train, validate, threads)
+    load_train_validate_on(train, validate, available_cores())
 }
 
 /// [`load_train_validate`] on `threads` threads.
@@ -529,11 +534,8 @@ fn run_diagnose(a: DiagnoseArgs) -> anyhow::Result<ExitCode> {
 fn diagnose_and_report(a: &DiagnoseArgs) -> anyhow::Result<Diagnosis> {
     let t0 = Instant::now();
     let p = load_params(&a.params)?;
-    let threads = a.threads.map_or(0, usize::from);
-    let (train, val) = match threads {
-        0 => load_train_validate(&a.train, &a.validate)?,
-        n => load_train_validate_on(&a.train, &a.validate, n)?,
-    };
+    let threads = a.threads.map_or_else(available_cores, usize::from);
+    let (train, val) = load_train_validate_on(&a.train, &a.validate, threads)?;
     let t_load = t0.elapsed().as_secs_f64();
     let opts = DiagnoseOptions {
         carry_energy: a.carry_energy,
@@ -659,10 +661,7 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         bail!("--trials must be at least 1");
     }
     let p = load_params(&a.params)?;
-    let threads = a
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .clamp(1, 64);
+    let threads = a.threads.unwrap_or_else(available_cores).clamp(1, 64);
     let started = Instant::now();
     let correct = std::sync::atomic::AtomicUsize::new(0);
     let kinds: Vec<TruthKind> = a.kind.iter().map(|k| (*k).into()).collect();

@@ -337,10 +337,10 @@ pub fn driveline_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::data::dataset::Dataset;
-    use crate::gap::data::events::SegmentOptions;
-    use crate::gap::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
+    use crate::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
     use crate::model::powertrain::Nominal;
+    use crate::records::dataset::Dataset;
+    use crate::records::events::SegmentOptions;
 
     /// Requests that step, ramp, hold, leave the actuator's range and are missing: the replay
     /// that skips the substeps of a settled actuator and takes those of the linear lag in one

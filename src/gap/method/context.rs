@@ -9,13 +9,13 @@
 //! consistency factor, so the floor is unbiased for Gaussian noise (the untrimmed-corrected
 //! estimate was 9 % low and made every clean record look significant).
 
-use crate::gap::data::dataset::Dataset;
-use crate::gap::data::events::SegmentOptions;
 use crate::gap::eval::predict::{self, Predictions, Samples};
 use crate::gap::eval::set_hooks::SetHooks;
 use crate::gap::model::candidate::{Channel, Model};
 use crate::gap::record::measured::Measured;
 use crate::model::params::Params;
+use crate::records::dataset::Dataset;
+use crate::records::events::SegmentOptions;
 
 /// E[X² | X² below its 98 % quantile] for a standard normal X: the consistency factor of the
 /// 2 %-trimmed mean of squared differences.

@@ -21,8 +21,6 @@
 //! 7. How far: RMSE and fit % of every output before (nominal, recalibrated) and after, with
 //!    event-bootstrap intervals; equation error and replay error.
 
-use crate::gap::data::dataset::{Col, Dataset};
-use crate::gap::data::events::SegmentOptions;
 use crate::gap::eval::predict::{self, Samples};
 use crate::gap::eval::replay;
 use crate::gap::eval::set_hooks::SetHooks;
@@ -46,6 +44,8 @@ use crate::gap::record::measured;
 use crate::gap::record::measured::Measured;
 use crate::model::effects::{EffectSet, Subsystem};
 use crate::model::params::Params;
+use crate::records::dataset::{Col, Dataset};
+use crate::records::events::SegmentOptions;
 use std::collections::BTreeMap;
 
 /// Options of the diagnosis.
@@ -75,7 +75,8 @@ pub struct DiagnoseOptions {
     pub max_fit_samples: usize,
     /// Largest number of classes selected together.
     pub max_classes: usize,
-    /// Worker threads for the class fits (0: the available cores).
+    /// Worker threads for the class fits (0 counts as 1). The caller chooses: the diagnosis
+    /// reads no machine state (the CLI and the blind harness give the available cores).
     pub threads: usize,
 }
 
@@ -94,7 +95,7 @@ impl Default for DiagnoseOptions {
             fdr_q: 0.05,
             max_fit_samples: 8_000,
             max_classes: 3,
-            threads: 0,
+            threads: 1,
         }
     }
 }
@@ -1048,7 +1049,7 @@ pub fn diagnose(
     let (mut tr, mut va, chans) = prepare_files(train, validate, nominal, o)?;
     let checkable = checkability(&[train, validate].concat());
     let nunits_v = context::units(&va);
-    let threads = worker_threads(o.threads);
+    let threads = o.threads.max(1);
     let nominal_model = Model::nominal(*nominal);
     let mut rng = Rng::new(o.seed);
 
@@ -1163,15 +1164,6 @@ fn prepare_files(
         return Err(DiagnoseError::NothingCheckable);
     }
     Ok((tr, va, chans))
-}
-
-/// Worker threads for the class fits: the option, or the available cores when it is 0.
-fn worker_threads(threads: usize) -> usize {
-    if threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        threads
-    }
 }
 
 /// Phases 1–2: the recalibrated model, with the noise floors of the training records (set

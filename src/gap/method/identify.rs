@@ -22,14 +22,14 @@
 //! free-running replay (torque and temperatures from the measured inputs only) and for the
 //! per-subsystem replays.
 
-use crate::gap::data::dataset::Dataset;
-use crate::gap::data::events::{EventKind, SegmentOptions};
 use crate::gap::eval::replay;
 use crate::gap::fit::lsq::{self, LmOptions, ParamSpec};
 use crate::gap::model::keys::ParamKey;
 use crate::gap::record::measured::Measured;
 use crate::model::params::{Params, ParamsError};
 use crate::model::powertrain::{Hooks, Nominal};
+use crate::records::dataset::Dataset;
+use crate::records::events::{EventKind, SegmentOptions};
 
 /// Options of the identification.
 #[derive(Debug, Clone, PartialEq)]

@@ -10,8 +10,6 @@
 
 use std::sync::Arc;
 
-use crate::gap::data::dataset::{Col, Dataset};
-use crate::gap::data::events::{segment, SegmentOptions, Segmentation};
 use crate::gap::model::shape::{Shape, KNOTS};
 use crate::gap::record::memo::Memo;
 use crate::gap::record::power_sites::PowerSites;
@@ -22,6 +20,8 @@ use crate::model::clutch;
 use crate::model::params::{ClutchParams, Params};
 use crate::model::powertrain::ClutchContext;
 use crate::model::thermal::Thermal5State;
+use crate::records::dataset::{Col, Dataset};
+use crate::records::events::{segment, SegmentOptions, Segmentation};
 
 /// A measured series, shared: clones of a [`Measured`] (the sensor classes correct a few of its
 /// inputs per evaluation) copy only what they change.
@@ -389,7 +389,7 @@ pub fn is_rig_record(d: &Dataset) -> bool {
 /// samples), for the tests of the replays and the predictions.
 #[cfg(test)]
 pub fn test_record(p: &Params) -> Measured {
-    use crate::gap::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
+    use crate::experiment::synth::{rig_frames, RigExperiment, SensorNoise};
     use crate::model::powertrain::Nominal;
     let exp = RigExperiment::identification(6, 40.0);
     let frames = rig_frames(p, Nominal, &exp, SensorNoise::default(), 3, 0.005).unwrap();

@@ -19,13 +19,13 @@ use crate::can::messages::{
     BenchTemps, BenchTorque, DctActuators, DctSensors, EngStatus, SimTruth, TcuClutchCmd,
 };
 use crate::can::CanFrame;
-use crate::gap::data::dataset::{Dataset, DatasetError, DEFAULT_DT_S};
 use crate::gap::fit::stats::Rng;
 use crate::model::actuator;
 use crate::model::integrator::{rk4_step, OdeState, OdeSystem};
 use crate::model::params::Params;
 use crate::model::powertrain::{ClutchContext, Hooks};
 use crate::model::thermal::{Thermal5, Thermal5State, ThermalInputs};
+use crate::records::dataset::{Dataset, DatasetError, DEFAULT_DT_S};
 use std::time::Duration;
 
 /// State of the rig: bearing positions, the five temperatures of (16), friction energies.
@@ -293,7 +293,7 @@ pub fn rig_frames<H: Hooks>(
     let mut e2e = E2eSender::new();
     let mut out = Vec::with_capacity(steps / sample_every * 7 + 7);
     let t_base = Duration::from_secs(1_700_000_000);
-    let rpm_to = crate::gap::data::dataset::RPM_TO_RADPS;
+    let rpm_to = crate::records::dataset::RPM_TO_RADPS;
     for k in 0..=steps {
         let t = k as f64 * step_s;
         let (x, rpm) = exp.setpoint(t);
@@ -437,8 +437,8 @@ pub fn rig_dataset<H: Hooks>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::data::dataset::Col;
     use crate::model::powertrain::Nominal;
+    use crate::records::dataset::Col;
 
     #[test]
     fn rig_heats_and_torque_follows_13() {

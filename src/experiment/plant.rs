@@ -17,13 +17,13 @@ use crate::can::messages::{
     DrvPedal, GearEvenReq, GearLever, GearOddReq, TcuClutchCmd, TcuGearCmd,
 };
 use crate::can::{CanFrame, Received};
-use crate::gap::data::dataset::{Dataset, DEFAULT_DT_S};
-use crate::gap::experiment::synth::RigExperiment;
+use crate::experiment::synth::RigExperiment;
 use crate::model::effects::{EffectId, EffectSet};
 use crate::model::gear::Gear;
 use crate::model::params::Params;
 use crate::plant::core::CYCLE;
 use crate::plant::{Mode, Plant, PlantConfig, StepPolicy};
+use crate::records::dataset::{Dataset, DEFAULT_DT_S};
 use std::time::Duration;
 
 /// Epoch of the records (s): a plausible candump timestamp.
@@ -480,7 +480,7 @@ pub fn experiments(truth: &PlantTruth, seed: u64, plant_params: &Params) -> Expe
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::data::dataset::{Col, Dataset, DEFAULT_DT_S};
+    use crate::records::dataset::{Col, Dataset, DEFAULT_DT_S};
 
     #[test]
     fn rig_on_the_plant_logs_requests_and_heats() {
@@ -494,9 +494,7 @@ mod tests {
         let t1 = d.req(Col::T1).iter().fold(0.0f64, |m, v| m.max(*v));
         let t2 = d.req(Col::T2).iter().fold(0.0f64, |m, v| m.max(*v));
         assert!(t1 > 100.0 && t2 > 100.0, "{t1} {t2}");
-        assert!(
-            (d.req(Col::Wf)[100] - 1500.0 * crate::gap::data::dataset::RPM_TO_RADPS).abs() < 1.0
-        );
+        assert!((d.req(Col::Wf)[100] - 1500.0 * crate::records::dataset::RPM_TO_RADPS).abs() < 1.0);
     }
 
     #[test]

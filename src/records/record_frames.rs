@@ -15,7 +15,7 @@ use crate::can::messages::{
     message_def, BenchTemps, BenchTorque, DctActuators, DctSensors, EngStatus, Message,
     TcuClutchCmd,
 };
-use crate::gap::data::dataset::{Col, Dataset, RPM_TO_RADPS};
+use crate::records::dataset::{Col, Dataset, RPM_TO_RADPS};
 use std::time::Duration;
 use thiserror::Error;
 
@@ -149,7 +149,7 @@ fn message(id: u16, d: &Dataset, i: usize) -> Message {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gap::data::dataset::Segments;
+    use crate::records::dataset::Segments;
 
     /// A record written as frames and loaded back gives its columns within one quantum.
     #[test]
