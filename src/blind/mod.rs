@@ -184,11 +184,31 @@ pub fn score(
     r
 }
 
+/// Which truths a blind run draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Draw {
+    /// The campaign's: kinds in blocks of ten, classes in turn.
+    #[default]
+    Campaign,
+    /// Every trial's effect this class (its magnitude, form, detuning and noise drawn from the
+    /// seed and the index): a class's own blind trials.
+    Class(truth::Injected),
+}
+
 /// Runs trial `index`: draws the truth, generates and parses its records, diagnoses on
 /// `threads` threads (at least 1), scores.
-pub fn run_trial(seed: u64, index: usize, nominal: &Params, threads: usize) -> TrialResult {
+pub fn run_trial(
+    seed: u64,
+    index: usize,
+    nominal: &Params,
+    threads: usize,
+    draw: Draw,
+) -> TrialResult {
     let t0 = Instant::now();
-    let (truth, recs) = truth::draw_and_records(seed, index, nominal);
+    let (truth, recs) = match draw {
+        Draw::Campaign => truth::draw_and_records(seed, index, nominal),
+        Draw::Class(c) => truth::draw_class_and_records(seed, index, nominal, c),
+    };
     let parse = |v: &[(String, String)]| -> Result<Vec<Dataset>, String> {
         v.iter()
             .map(|(name, csv)| Dataset::from_csv(name, csv).map_err(|e| e.to_string()))
@@ -239,6 +259,7 @@ pub fn run(
     indices: &[usize],
     threads: usize,
     nominal: &Params,
+    draw: Draw,
     on_done: &(dyn Fn(&TrialResult) + Sync),
 ) -> Vec<TrialResult> {
     // The trials share the cores: each diagnosis takes its share (a diagnosis's fits on one
@@ -250,7 +271,7 @@ pub fn run(
     let tail = indices.len().saturating_sub(threads - 1);
     let mut v = crate::par::map(threads, indices, |q, &i| {
         let inner = if q >= tail { cores } else { share };
-        let r = run_trial(seed, i, nominal, inner);
+        let r = run_trial(seed, i, nominal, inner, draw);
         on_done(&r);
         r
     });

@@ -116,7 +116,7 @@ pub struct BlindArgs {
     first: usize,
     /// Summarise the trials of these report.json files (chunks of one seed run apart) together
     /// instead of running trials; a trial index found twice is taken once.
-    #[arg(long, num_args = 1.., value_name = "REPORT_JSON", conflicts_with_all = ["first", "kind", "threads", "params"])]
+    #[arg(long, num_args = 1.., value_name = "REPORT_JSON", conflicts_with_all = ["first", "kind", "class", "threads", "params"])]
     merge: Vec<PathBuf>,
     /// Seed of the hidden truths (kinds, classes, forms, magnitudes, detuning) and of the sensor
     /// noise.
@@ -139,6 +139,11 @@ pub struct BlindArgs {
     /// have no trials.
     #[arg(long, value_enum, value_delimiter = ',')]
     kind: Vec<TruthKindArg>,
+    /// Every trial's truth is this one class (its magnitude, form, detuning and noise drawn from
+    /// the seed and the trial's index): the class's own blind trials. For a class the
+    /// campaign does not draw (`sensor_speed`), or to test one class at length.
+    #[arg(long, value_parser = parse_class, conflicts_with = "kind")]
+    class: Option<ClassId>,
 }
 
 /// A kind of blind trial.
@@ -675,7 +680,11 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         );
     }
     let pb = super::bar(indices.len() as u64, "trials");
-    let results = blind::run(a.seed, &indices, threads, &p, &|r: &TrialResult| {
+    let draw = match a.class {
+        Some(c) => blind::Draw::Class(truth::Injected::new(c).map_err(anyhow::Error::msg)?),
+        None => blind::Draw::Campaign,
+    };
+    let results = blind::run(a.seed, &indices, threads, &p, draw, &|r: &TrialResult| {
         let c = correct.fetch_add(usize::from(r.correct), std::sync::atomic::Ordering::Relaxed)
             + usize::from(r.correct);
         pb.inc(1);
@@ -690,7 +699,11 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         seed: a.seed,
         seconds: started.elapsed().as_secs_f64(),
         how: format!("on {threads} thread(s)"),
-        extra: serde_json::json!({ "threads": threads, "first": a.first }),
+        extra: serde_json::json!({
+            "threads": threads,
+            "first": a.first,
+            "class": a.class.map(|c| c.as_str()),
+        }),
     };
     write_blind(&a, &run, trials)
 }

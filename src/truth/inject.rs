@@ -125,8 +125,21 @@ pub const PHYSICS_CLASSES: [ClassId; 17] = [
     ClassId::HeatPartition,
 ];
 
-/// The sensor classes the truth's rig injects.
-pub const SENSOR_CLASSES: [ClassId; 5] = [
+/// The sensor classes the truth's rig injects. The campaign's sensor and pair trials draw
+/// among the first five ([`SENSOR_DRAWN`]); `sensor_speed` (added later) is drawn when a run asks
+/// for its class (`ddct gap blind --class sensor_speed`), so that the trials of a seed, and the
+/// figures documented from them, stay what they were.
+pub const SENSOR_CLASSES: [ClassId; 6] = [
+    ClassId::SensorTorque,
+    ClassId::SensorTorqueSkew,
+    ClassId::SensorTemperatureLag,
+    ClassId::SensorTemperature,
+    ClassId::SensorPosition,
+    ClassId::SensorSpeed,
+];
+
+/// The sensor classes the campaign's sensor and pair trials draw among.
+pub const SENSOR_DRAWN: [ClassId; 5] = [
     ClassId::SensorTorque,
     ClassId::SensorTorqueSkew,
     ClassId::SensorTemperatureLag,
@@ -198,6 +211,7 @@ pub fn range(t: Target) -> MagnitudeRange {
             C::SensorTemperatureLag => (0.15, 12.0, "s", false, SCALAR, "thermocouple response time: a transport delay and two first-order lags in series"),
             C::SensorTemperature => (0.15, 20.0, "K", true, SHAPES, "thermocouple reading error: characteristic part share·m·f((θ − 25 °C)/175 K), offset part ±(1 − share)·m"),
             C::SensorPosition => (0.004, 0.3, "mm", true, SHAPES, "position reading error: characteristic part share·m·f(x/6 mm), offset part ±(1 − share)·m"),
+            C::SensorSpeed => (0.002, 0.1, "1", true, SCALAR, "relative gain error of the speed channels (each read (1 + m)·ω), read late or early by a skew"),
             _ => (0.0, 0.0, "", false, SCALAR, "not injected"),
         },
         Target::Outside(o) => match o {
@@ -291,6 +305,11 @@ fn draw_aux(target: Target, rng: &mut Xoshiro) -> Vec<(&'static str, f64)> {
             // the diagnosis's own form.
             aux.push(("first_share", rng.range(0.5, 1.0)));
             aux.push(("delay_share", rng.range(0.05, 0.3)));
+        }
+        Target::Class(C::SensorSpeed) => {
+            // The speed channels' time skew against the others (s): a pulse-counting speed
+            // sensor's gate time, late or early.
+            aux.push(("skew_s", rng.range(-0.03, 0.03)));
         }
         Target::Class(C::SensorTorqueSkew) => {
             // Share of a positive delay made by an anti-aliasing filter's group delay.

@@ -29,7 +29,9 @@ use crate::gap::model::class::ClassId;
 use crate::model::params::Params;
 use experiments::RecordDef;
 use form::Family;
-use inject::{Effect, OutsideKind, Strength, Target, PHYSICS_CLASSES, SENSOR_CLASSES};
+use inject::{
+    Effect, OutsideKind, Strength, Target, PHYSICS_CLASSES, SENSOR_CLASSES, SENSOR_DRAWN,
+};
 use physics::Physics;
 use rng::{derive, Xoshiro};
 use sim::Noise;
@@ -246,14 +248,7 @@ pub fn build(spec: &CaseSpec, nominal: &Params) -> Result<Truth, String> {
     for t in &spec.targets {
         if let Target::Class(c) = t {
             if !PHYSICS_CLASSES.contains(c) && !SENSOR_CLASSES.contains(c) {
-                return Err(format!(
-                    "class `{c}` is not injected by the truth generator ({})",
-                    inject::skipped_classes()
-                        .iter()
-                        .find(|(k, _)| k == c)
-                        .map(|(_, why)| *why)
-                        .unwrap_or("")
-                ));
+                return Err(not_injected(*c));
             }
         }
         if let (Some(f), rg) = (spec.family, inject::range(*t)) {
@@ -322,13 +317,63 @@ pub fn kind_of(seed: u64, index: usize) -> (TruthKind, usize) {
 
 /// Draws the truth of trial `index` (deterministic in seed and index).
 pub fn draw(seed: u64, index: usize, nominal: &Params) -> Truth {
-    draw_with(seed, index, nominal).0
+    draw_with(seed, index, nominal, None).0
 }
 
 /// The truth of trial `index` and its noisy records ([`records`]): the noise-free records the
 /// effect's size was measured on are the ones the noise is added to, simulated once.
 pub fn draw_and_records(seed: u64, index: usize, nominal: &Params) -> (Truth, TruthRecords) {
-    let (t, sims) = draw_with(seed, index, nominal);
+    draw_and_records_of(seed, index, nominal, None)
+}
+
+/// A class the truth generator injects (made by [`Injected::new`], which says why not).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Injected(ClassId);
+
+impl Injected {
+    pub fn new(class: ClassId) -> Result<Injected, String> {
+        if PHYSICS_CLASSES.contains(&class) || SENSOR_CLASSES.contains(&class) {
+            Ok(Injected(class))
+        } else {
+            Err(not_injected(class))
+        }
+    }
+
+    pub fn class(self) -> ClassId {
+        self.0
+    }
+}
+
+/// [`draw_and_records`] with the truth's effect this class (its magnitude, form, detuning and
+/// noise drawn from the seed and the index as for any trial): a class's own blind trials.
+pub fn draw_class_and_records(
+    seed: u64,
+    index: usize,
+    nominal: &Params,
+    class: Injected,
+) -> (Truth, TruthRecords) {
+    draw_and_records_of(seed, index, nominal, Some(class.0))
+}
+
+/// Why the truth generator does not inject `class`.
+fn not_injected(class: ClassId) -> String {
+    format!(
+        "class `{class}` is not injected by the truth generator ({})",
+        inject::skipped_classes()
+            .iter()
+            .find(|(k, _)| *k == class)
+            .map(|(_, why)| *why)
+            .unwrap_or("")
+    )
+}
+
+fn draw_and_records_of(
+    seed: u64,
+    index: usize,
+    nominal: &Params,
+    only: Option<ClassId>,
+) -> (Truth, TruthRecords) {
+    let (t, sims) = draw_with(seed, index, nominal, only);
     let recs = match sims {
         Some(sims) => records_from(&t, seed, &Noise::default(), &sims),
         None => records(&t, seed),
@@ -338,37 +383,21 @@ pub fn draw_and_records(seed: u64, index: usize, nominal: &Params) -> (Truth, Tr
 
 /// [`draw`] and the noise-free records of all its effects together when sizing them simulated
 /// them.
-fn draw_with(seed: u64, index: usize, nominal: &Params) -> (Truth, Option<Records>) {
-    let (kind, j) = kind_of(seed, index);
-    let mut rng = Xoshiro::new(derive(seed, &[0x7407, index as u64]));
-    let pick = |list: &[ClassId], salt: u64, j: usize| -> ClassId {
-        let round = j / list.len();
-        let perm = Xoshiro::new(derive(seed, &[salt, round as u64])).permutation(list.len());
-        list[perm[j % list.len()]]
+fn draw_with(
+    seed: u64,
+    index: usize,
+    nominal: &Params,
+    only: Option<ClassId>,
+) -> (Truth, Option<Records>) {
+    let (kind, j) = match only {
+        Some(c) if SENSOR_CLASSES.contains(&c) => (TruthKind::Sensor, index),
+        Some(_) => (TruthKind::Class, index),
+        None => kind_of(seed, index),
     };
-    let targets: Vec<Target> = match kind {
-        TruthKind::Nominal => vec![],
-        TruthKind::Class => vec![Target::Class(pick(&PHYSICS_CLASSES, 0xC1A5, j))],
-        TruthKind::Sensor => vec![Target::Class(pick(&SENSOR_CLASSES, 0x5E45, j))],
-        TruthKind::Outside => {
-            let drawn = &OutsideKind::DRAWN;
-            let round = j / drawn.len();
-            let perm = Xoshiro::new(derive(seed, &[0x0075, round as u64])).permutation(drawn.len());
-            vec![Target::Outside(drawn[perm[j % drawn.len()]])]
-        }
-        TruthKind::Pair => {
-            let all: Vec<ClassId> = PHYSICS_CLASSES
-                .iter()
-                .chain(SENSOR_CLASSES.iter())
-                .copied()
-                .collect();
-            let a = all[rng.below(all.len())];
-            let mut b = a;
-            while b == a {
-                b = all[rng.below(all.len())];
-            }
-            vec![Target::Class(a), Target::Class(b)]
-        }
+    let mut rng = Xoshiro::new(derive(seed, &[0x7407, index as u64]));
+    let targets: Vec<Target> = match (only, kind) {
+        (Some(c), _) => vec![Target::Class(c)],
+        (None, kind) => draw_targets(seed, kind, j, &mut rng),
     };
     let strength = match kind {
         TruthKind::Pair => Strength::UpperHalf,
@@ -389,6 +418,40 @@ fn draw_with(seed: u64, index: usize, nominal: &Params) -> (Truth, Option<Record
             && rng.uniform() < 0.5,
     };
     finish(seed, index, kind, effects, plant, factors, variants)
+}
+
+/// The effects of the campaign's trial of `kind`, the `j`-th of its kind: classes in turn from
+/// a seeded permutation (so they are covered evenly), pairs at random.
+fn draw_targets(seed: u64, kind: TruthKind, j: usize, rng: &mut Xoshiro) -> Vec<Target> {
+    let pick = |list: &[ClassId], salt: u64, j: usize| -> ClassId {
+        let round = j / list.len();
+        let perm = Xoshiro::new(derive(seed, &[salt, round as u64])).permutation(list.len());
+        list[perm[j % list.len()]]
+    };
+    match kind {
+        TruthKind::Nominal => vec![],
+        TruthKind::Class => vec![Target::Class(pick(&PHYSICS_CLASSES, 0xC1A5, j))],
+        TruthKind::Sensor => vec![Target::Class(pick(&SENSOR_DRAWN, 0x5E45, j))],
+        TruthKind::Outside => {
+            let drawn = &OutsideKind::DRAWN;
+            let round = j / drawn.len();
+            let perm = Xoshiro::new(derive(seed, &[0x0075, round as u64])).permutation(drawn.len());
+            vec![Target::Outside(drawn[perm[j % drawn.len()]])]
+        }
+        TruthKind::Pair => {
+            let all: Vec<ClassId> = PHYSICS_CLASSES
+                .iter()
+                .chain(SENSOR_DRAWN.iter())
+                .copied()
+                .collect();
+            let a = all[rng.below(all.len())];
+            let mut b = a;
+            while b == a {
+                b = all[rng.below(all.len())];
+            }
+            vec![Target::Class(a), Target::Class(b)]
+        }
+    }
 }
 
 /// Every record's definition and its noise-free simulation, training then validation.

@@ -183,6 +183,9 @@ struct Fx<'a> {
     tc_lag: [f64; 2],
     s_temp: ReadingError<'a>,
     s_pos: ReadingError<'a>,
+    /// Speed channels: relative gain error and time skew (s).
+    speed_gain_error: f64,
+    speed_skew: f64,
     judder: Option<&'a Effect>,
     drift: Option<&'a Effect>,
     cross: Option<&'a Effect>,
@@ -248,6 +251,10 @@ impl<'a> Fx<'a> {
                     }
                     C::SensorTemperature => f.s_temp = reading(e),
                     C::SensorPosition => f.s_pos = reading(e),
+                    C::SensorSpeed => {
+                        f.speed_gain_error = e.magnitude;
+                        f.speed_skew = e.aux("skew_s");
+                    }
                     _ => {}
                 },
                 Target::Outside(o) => match o {
@@ -584,6 +591,7 @@ pub fn simulate_with(
     }
     sig.torque = torque_channel(&rig.fx, &mut t_ms, n, sub, h);
     thermocouple_reading(rig.fx.s_temp, &mut sig);
+    speed_channels(&rig.fx, rec, &mut sig);
     SimOut {
         signals: sig,
         true_temps,
@@ -733,6 +741,19 @@ fn thermocouple_reading(s_temp: ReadingError, sig: &mut Signals) {
                 *x = s_temp.read(*x);
             }
         }
+    }
+}
+
+/// The speed sensors' gain error and skew, applied to the recorded speeds: the input speed read
+/// from the dyno's exact speed `skew` earlier, times 1 + the gain error; the braked clutch and
+/// output speeds (zero) read as zero.
+fn speed_channels(fx: &Fx, rec: &RecordDef, sig: &mut Signals) {
+    if fx.speed_gain_error == 0.0 && fx.speed_skew == 0.0 {
+        return;
+    }
+    let g = 1.0 + fx.speed_gain_error;
+    for (w, t) in sig.wf.iter_mut().zip(&sig.time) {
+        *w = g * rec.speed_radps((t - fx.speed_skew).max(0.0));
     }
 }
 
@@ -941,6 +962,7 @@ mod tests {
             (ClassId::SensorTorque, 3.0),
             (ClassId::SensorTemperature, 2.0),
             (ClassId::SensorPosition, 0.1),
+            (ClassId::SensorSpeed, 0.03),
         ] {
             let mut e = effect(c, m);
             e.aux = vec![("gain_share", 0.5), ("offset_sign", 1.0)];
@@ -948,6 +970,28 @@ mod tests {
             assert_eq!(a.true_temps, b.true_temps, "{c}");
             assert_ne!(a.signals, b.signals, "{c}");
         }
+    }
+
+    /// The speed sensors read the dyno's speed times 1 + the gain error, `skew_s` late; the
+    /// torque, temperatures and positions are what they were.
+    #[test]
+    fn a_speed_sensor_scales_and_delays_the_speed_channel_only() {
+        let ph = Physics::new(&Params::default());
+        let rec = experiments::train_hot();
+        let a = simulate(&ph, &[], &rec, [0.0; 2], 1).signals;
+        let mut e = effect(ClassId::SensorSpeed, 0.03);
+        e.aux = vec![("skew_s", 0.02)];
+        let b = simulate(&ph, &[e], &rec, [0.0; 2], 1).signals;
+        let mut moving = 0;
+        for k in 2..a.len() {
+            assert!((b.wf[k] - 1.03 * a.wf[k - 2]).abs() < 1e-9, "sample {k}");
+            moving += usize::from(a.wf[k] != a.wf[k - 2]);
+        }
+        assert!(
+            moving > 0,
+            "the dyno speed never changes: the skew is not checked"
+        );
+        assert_eq!((a.torque, a.pp, a.cd, a.x), (b.torque, b.pp, b.cd, b.x));
     }
 
     #[test]

@@ -297,7 +297,8 @@ pub fn predict(model: &Model, m: &Measured, s: &Samples, chans: &[Channel]) -> P
 
 /// The measured inputs of the replays as the sensor terms say they really were: thermocouple
 /// readings corrected for their reading error, then un-lagged (θ + τ·dθ/dt, derivative over
-/// ±1 s), the friction power and energy from the corrected torque. `None` without sensor
+/// ±1 s), the speeds (slip, flywheel) as the speed sensors' gain and skew say they were, the
+/// friction power and energy from the corrected torque and slip. `None` without sensor
 /// terms. The free replays start from the corrected readings before the un-lag
 /// ([`Measured::start`]: the un-lag's noise would last in the slow states).
 fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
@@ -324,12 +325,18 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         c.pp = [unlag(&c.pp[0]), unlag(&c.pp[1])];
         c.cd = unlag(&c.cd);
     }
-    if let Some(g) = &t.torque_sensor {
+    if let Some(sp) = &t.speed_sensor {
+        let speeds = |v: &Shared| -> Shared { sp.true_speeds(v, m.dt).into() };
+        c = c.with_speeds([speeds(&m.slip[0]), speeds(&m.slip[1])], speeds(&m.w_f));
+    }
+    if t.torque_sensor.is_some() || t.speed_sensor.is_some() {
         let mut e_cum = m.e_cum.clone();
         let power = [0, 1].map(|i| {
-            let power: Vec<f64> = (0..m.n)
-                .map(|k| g.invert(m.torque[i][k], 0.0) * m.slip[i][k])
-                .collect();
+            let torque = |k: usize| match &t.torque_sensor {
+                Some(g) => g.invert(m.torque[i][k], 0.0),
+                None => m.torque[i][k],
+            };
+            let power: Vec<f64> = (0..m.n).map(|k| torque(k) * c.slip[i][k]).collect();
             let e0 = m.e_cum[i].first().copied().unwrap_or(0.0);
             e_cum[i] = series::cumulative_energy(&power, e0, m.dt).into();
             Shared::from(power)
@@ -548,6 +555,7 @@ fn input_key(t: &Terms) -> Terms {
         temp_lag_s: t.temp_lag_s,
         temp_lag2_share: t.temp_lag2_share,
         torque_sensor: t.torque_sensor,
+        speed_sensor: t.speed_sensor,
         ..Terms::default()
     }
 }
@@ -639,10 +647,13 @@ pub fn predict_with_disk_ref(
 }
 
 /// Whether the sensor terms change the measured inputs of the replays (a thermocouple lag or
-/// reading error, a torque reading error): then a disk estimate cached from the readings as
+/// reading error, a torque reading error, a speed sensor's gain or skew): then a disk estimate cached from the readings as
 /// read does not hold for the model.
 pub fn corrects_inputs(t: &Terms) -> bool {
-    t.temp_lag_s > 0.0 || t.temp_sensor.is_some() || t.torque_sensor.is_some()
+    t.temp_lag_s > 0.0
+        || t.temp_sensor.is_some()
+        || t.torque_sensor.is_some()
+        || t.speed_sensor.is_some()
 }
 
 /// Whether `chans` asks for channel `c` and `s` has samples of it.
@@ -936,6 +947,56 @@ mod tests {
         let a = predict(&base, &m, &s, &chans).disk.unwrap();
         let b = predict(&thermal, &m, &s, &chans).disk.unwrap();
         assert!(a[0].iter().zip(&b[0]).any(|(x, y)| (x - y).abs() > 1e-3));
+    }
+
+    /// A record whose speed channels read 4 % high predicts, with a speed-sensor term of gain
+    /// 1.04, what the record of the true speeds predicts without one (to rounding): the slip,
+    /// the flywheel speed and the friction power are corrected before the replays. Without
+    /// the term the temperatures are off by kelvins.
+    #[test]
+    fn a_speed_sensor_term_undoes_the_speed_channels_gain() {
+        let p = Params::default();
+        let m = record(&p);
+        let read = |v: &Shared| -> Shared { v.iter().map(|w| 1.04 * w).collect() };
+        let high = m
+            .clone()
+            .with_speeds([read(&m.slip[0]), read(&m.slip[1])], read(&m.w_f));
+        let power: [Shared; 2] = [0, 1]
+            .map(|i| -> Shared { (0..m.n).map(|k| m.torque[i][k] * high.slip[i][k]).collect() });
+        let e_cum = [0, 1].map(|i| -> Shared {
+            series::cumulative_energy(&power[i], m.e_cum[i][0], m.dt).into()
+        });
+        let high = high.with_power(power, e_cum);
+        let s = Samples::new(&m, 1, 10);
+        let chans = Channel::ALL;
+        let base = Model::nominal(p);
+        let mut corrected = base;
+        corrected.terms.speed_sensor = Some(terms::SpeedSensor {
+            gain: 1.04,
+            skew_s: 0.0,
+        });
+        let truth = predict(&base, &m, &s, &chans);
+        let fixed = predict(&corrected, &high, &s, &chans);
+        let wrong = predict(&base, &high, &s, &chans);
+        let largest = |a: &Predictions, b: &Predictions, c: Channel| {
+            let (x, y) = (&a.y[c.index()], &b.y[c.index()]);
+            assert_eq!(x.len(), y.len());
+            x.iter()
+                .zip(y)
+                .filter(|(u, v)| u.is_finite() && v.is_finite())
+                .map(|(u, v)| (u - v).abs())
+                .fold(0.0, f64::max)
+        };
+        for c in [Channel::Temp(0), Channel::Temp(2), Channel::Torque(0)] {
+            assert!(!truth.y[c.index()].is_empty(), "{c:?} not predicted");
+            let d = largest(&fixed, &truth, c);
+            assert!(d < 1e-6, "{c:?}: corrected prediction off by {d}");
+        }
+        let off = largest(&wrong, &truth, Channel::Temp(0));
+        assert!(
+            off > 0.5,
+            "the gain moves the plate temperature by {off} K only"
+        );
     }
 
     /// On the record's cached disk estimate, a fit's models — a surface term, the term moved, a

@@ -18,7 +18,8 @@
 //!   partition between plate and disk;
 //! - engine torque (18a): a relative map error;
 //! - sensors: gain/offset of the torque channel, lag and gain/offset of the thermocouples,
-//!   gain/offset of the position sensor, time skew of the torque channel.
+//!   gain/offset of the position sensor, time skew of the torque channel, gain and time skew
+//!   of the speed channels (the slip of (4)–(6) and the friction power of (16)).
 //!
 //! The library's named effects (`model::effects`) are members or special cases of these classes
 //! ([`ClassId::member`]), so calibration files and `ddct plant --effects` keep working.
@@ -198,6 +199,8 @@ classes! {
         "thermocouple gain and offset";
     SensorPosition = "sensor_position", Actuator, Measurement, Sensor, None,
         "position sensor gain and offset (seen in position vs request and in the torque)";
+    SensorSpeed = "sensor_speed", Thermal, Measurement, Sensor, None,
+        "speed sensors' gain and time skew: the slip and friction power the model is given";
 }
 
 impl ClassId {

@@ -277,6 +277,39 @@ impl ThermalTerms {
     }
 }
 
+/// The speed channels (input shaft or dyno, clutches, engine) as the speed sensors read them:
+/// measured ω(t) = gain·ω(t − skew_s). They set the slip the friction model sees — its slip
+/// dependence Q(ω) of (6) and the friction power T·ω_fc that heats (16).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedSensor {
+    /// Measured over true speed (1: exact).
+    pub gain: f64,
+    /// The speed channels are recorded `skew_s` late (s; negative: early).
+    pub skew_s: f64,
+}
+
+impl SpeedSensor {
+    /// The true speed of a measured series sampled every `dt` s: read `skew_s` ahead
+    /// (interpolated, held at the ends), divided by the gain.
+    pub fn true_speeds(&self, measured: &[f64], dt: f64) -> Vec<f64> {
+        let shift = self.skew_s / dt;
+        let last = measured.len().saturating_sub(1);
+        (0..measured.len())
+            .map(|k| {
+                let pos = (k as f64 + shift).clamp(0.0, last as f64);
+                let a = pos.floor() as usize;
+                let f = pos - a as f64;
+                let v = if a < last {
+                    measured[a] * (1.0 - f) + measured[a + 1] * f
+                } else {
+                    measured[a]
+                };
+                v / self.gain
+            })
+            .collect()
+    }
+}
+
 /// The class terms of a model (all off by default).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Terms {
@@ -304,6 +337,8 @@ pub struct Terms {
     pub temp_sensor: Option<Reading>,
     /// Measured position = pos_sensor(position).
     pub pos_sensor: Option<GainOffset>,
+    /// The speed channels' gain and time skew.
+    pub speed_sensor: Option<SpeedSensor>,
     /// Conduction to supports.
     pub support: Option<Support>,
     /// Convection depending on the flywheel speed.
@@ -336,6 +371,7 @@ impl Terms {
             || self.torque_sensor.is_some()
             || self.torque_skew_s != 0.0
             || self.pos_sensor.is_some()
+            || self.speed_sensor.is_some()
     }
 
     /// The bearing position for a measured actuator position (sensor and transfer terms).

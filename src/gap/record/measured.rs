@@ -5,8 +5,9 @@
 //! the slip dependence Q(ω) of (6) per clutch geometry, the sliding acceleration, the thermal
 //! replay's windows per stride, the friction power's window means and its sites on a surface
 //! rise's knots. Those are kept by value (a geometry's bits, a stride, knots' bits) and made on
-//! first use; the one correction that changes an input they read, the friction power of a
-//! torque-sensor term, goes through [`Measured::with_power`], which starts the power's anew.
+//! first use; the corrections that change an input they read — the speeds of a speed-sensor
+//! term, the friction power of a torque- or speed-sensor term — go through
+//! [`Measured::with_speeds`] and [`Measured::with_power`], which start them anew.
 
 use std::sync::Arc;
 
@@ -280,6 +281,19 @@ impl Measured {
     pub fn with_power(mut self, power: [Shared; 2], e_cum: [Shared; 2]) -> Measured {
         self.power = power;
         self.e_cum = e_cum;
+        self.power_memo = PowerMemo::default();
+        self
+    }
+
+    /// The record with the slip of each clutch and the flywheel speed `w_f` in place of its own
+    /// (a speed-sensor correction): the sliding acceleration is taken anew, and what was kept of
+    /// the old speeds and power is not carried over (the caller sets the power with
+    /// [`Measured::with_power`]).
+    pub fn with_speeds(mut self, slip: [Shared; 2], w_f: Shared) -> Measured {
+        self.slides = Arc::new([0, 1].map(|i| series::slide_acceleration(&slip[i], self.dt)));
+        self.slip = slip;
+        self.w_f = w_f;
+        self.inputs_memo = InputsMemo::default();
         self.power_memo = PowerMemo::default();
         self
     }

@@ -11,7 +11,7 @@
 //! facing-surface temperature), [`factor`] (a factor in θ_c on μ_s of (4) or on the spring load
 //! of (10): [`friction::STATIC_TEMPERATURE`], [`spring::SPRING_TEMPERATURE`]), [`kiss_point`]
 //! ((9)), [`actuator`], [`thermal`] (the paths of (16)), [`engine`] ((18a)), [`sensors`]
-//! (torque, thermocouples, position) and [`member_only`] (the facings of (11), the backlash).
+//! (torque, thermocouples, position), [`speed_sensor`] (the speed channels) and [`member_only`] (the facings of (11), the backlash).
 //!
 //! Adding a class: a variant in `gap::model::class`'s table, one impl (a new file, or a struct in
 //! its family's file), one line in [`registry`]; the trait's required methods are what the
@@ -30,6 +30,7 @@ pub mod knots;
 pub mod member_only;
 pub mod registry;
 pub mod sensors;
+pub mod speed_sensor;
 pub mod spring;
 pub mod thermal;
 

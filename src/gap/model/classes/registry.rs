@@ -3,7 +3,7 @@
 
 use super::effect_class::EffectClass;
 use super::member_only::MemberOnly;
-use super::{actuator, engine, friction, kiss_point, sensors, spring, thermal};
+use super::{actuator, engine, friction, kiss_point, sensors, speed_sensor, spring, thermal};
 use crate::gap::model::class::{ClassId, Variable};
 use crate::model::effects::{EffectId, Subsystem};
 
@@ -51,6 +51,7 @@ impl ClassId {
             SensorTemperatureLag => &sensors::TemperatureLag,
             SensorTemperature => &sensors::Temperature,
             SensorPosition => &sensors::Position,
+            SensorSpeed => &speed_sensor::Speed,
         }
     }
 }
