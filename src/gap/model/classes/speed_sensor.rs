@@ -30,6 +30,11 @@ impl EffectClass for Speed {
     fn also_fitted_on(&self) -> &'static [Subsystem] {
         &[Subsystem::TorqueCharacteristic]
     }
+    /// The corrected friction energy moves the torque's energy terms (the kiss point's wear of
+    /// (9)): the torque characteristic is recalibrated with it, as with a thermocouple's error.
+    fn recalibrates_also(&self) -> &'static [Subsystem] {
+        &[Subsystem::TorqueCharacteristic]
+    }
     fn not_checkable(&self, _knots: &Knots, has: Has) -> Option<String> {
         (!has(Needs::Temperatures)).then(no_temperatures)
     }
