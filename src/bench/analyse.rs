@@ -198,7 +198,8 @@ impl BenchSummary {
             .filter_map(|(name, m)| Some((name, m?)))
     }
 
-    /// The TCU's status events while the plant ran ([`run_events`]).
+    /// The TCU's status events while the plant ran and the TCU was past Init: the events the
+    /// verdict's fault check reads.
     pub fn run_events(&self) -> Vec<metrics::StatusEvent> {
         run_events(&self.bus, self.plant_window)
     }

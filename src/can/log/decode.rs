@@ -146,7 +146,7 @@ mod tests {
     #[derive(Default)]
     struct Kept(RefCell<Vec<String>>);
 
-    impl super::super::Progress for Kept {
+    impl super::super::tally::Progress for Kept {
         fn frames(&self, _n: u64) {}
         fn note(&self, line: &str) {
             self.0.borrow_mut().push(line.to_string());
