@@ -16,7 +16,7 @@ const EXACT_INT: f64 = 9_007_199_254_740_992.0;
 /// through integer formatting, the others through zmij's shortest digits (the Schubfach
 /// algorithm) where they are Rust's (see [`same_shortest_digits`]), `core::fmt` otherwise and
 /// where zmij would use an exponent.
-pub fn push_f64(out: &mut Vec<u8>, v: f64) {
+pub(crate) fn push_f64(out: &mut Vec<u8>, v: f64) {
     let i = v as i64;
     // −0.0 == 0.0 but prints "-0": it takes the general way.
     if i as f64 == v && v.abs() < EXACT_INT && (i != 0 || v.is_sign_positive()) {
@@ -81,7 +81,7 @@ const EXACT_SECS: u64 = 1 << 32;
 /// Appends `t` as `format!("{:.6}", t.as_secs_f64())` prints it. A time on whole microseconds
 /// (every candump time) before 2^32 s (the year 2106) is written from its integer seconds and
 /// microseconds; any other through `core::fmt`.
-pub fn push_secs_micros(out: &mut Vec<u8>, t: Duration) {
+pub(crate) fn push_secs_micros(out: &mut Vec<u8>, t: Duration) {
     let secs = t.as_secs();
     let nanos = t.subsec_nanos();
     if secs >= EXACT_SECS || nanos % 1000 != 0 {
@@ -104,7 +104,7 @@ fn push_padded(out: &mut Vec<u8>, mut n: u32, width: usize) {
 }
 
 /// Appends `id` as `format!("0x{id:03X}")` prints it (upper-case hex, at least three digits).
-pub fn push_hex_id(out: &mut Vec<u8>, id: u32) {
+pub(crate) fn push_hex_id(out: &mut Vec<u8>, id: u32) {
     const HEX: &[u8; 16] = b"0123456789ABCDEF";
     let digits = ((32 - id.leading_zeros()).div_ceil(4) as usize).max(3);
     out.extend_from_slice(b"0x");

@@ -14,7 +14,7 @@ pub fn map<T: Sync, R: Send>(
 
 /// [`map`] with a state per thread: `init()` once on each thread, then `f(&mut state, i, item)`
 /// for the items that thread takes (scratch buffers, caches that are only a matter of speed).
-pub fn map_with<T: Sync, S, R: Send>(
+pub(crate) fn map_with<T: Sync, S, R: Send>(
     threads: usize,
     items: &[T],
     init: impl Fn() -> S + Sync,
@@ -28,7 +28,7 @@ pub fn map_with<T: Sync, S, R: Send>(
 /// order): the longest item does not start last and leave the other threads idle while it runs.
 /// Only the schedule changes: `f` sees the same `(i, item)` pairs and the results come back in
 /// index order.
-pub fn map_costliest_first<T: Sync, R: Send, C: Ord>(
+pub(crate) fn map_costliest_first<T: Sync, R: Send, C: Ord>(
     threads: usize,
     items: &[T],
     cost: impl Fn(&T) -> C,

@@ -133,7 +133,7 @@ pub fn check<B: Bounded + ?Sized>(
 }
 
 /// A configuration table whose numeric keys have declared ranges.
-pub trait Ranged {
+pub(crate) trait Ranged {
     /// The table's name in its file (`""` for keys at the top level).
     const TABLE: &'static str;
     /// Checks every declared range, in declaration order; the first failure is returned.

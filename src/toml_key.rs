@@ -33,7 +33,7 @@ fn span_of(root: &Item, path: &str) -> Span {
 /// [`line_of`], and for a key named relative to a table of the text (a scenario's `[driver]`
 /// read by the profile parser says `pedal_pct[3]`) the line under the one top-level table that
 /// holds it (none when several do).
-pub fn line_in_text(text: &str, key: &str) -> Option<usize> {
+pub(crate) fn line_in_text(text: &str, key: &str) -> Option<usize> {
     let doc = ImDocument::parse(text).ok()?;
     let root = doc.as_item();
     let span = span_of(root, key).or_else(|| {
@@ -51,7 +51,7 @@ pub fn line_in_text(text: &str, key: &str) -> Option<usize> {
 }
 
 /// ` line N` after a file name, or nothing.
-pub fn at_line(line: Option<usize>) -> String {
+pub(crate) fn at_line(line: Option<usize>) -> String {
     line.map_or(String::new(), |l| format!(" line {l}"))
 }
 
@@ -100,7 +100,7 @@ fn line_at(text: &str, offset: usize) -> usize {
 }
 
 /// The key of `table` that `T` refuses, if one alone explains the error.
-pub fn refused_key<T: for<'de> Deserialize<'de>>(table: &toml::Table) -> Option<String> {
+pub(crate) fn refused_key<T: for<'de> Deserialize<'de>>(table: &toml::Table) -> Option<String> {
     table
         .keys()
         .find(|k| {
@@ -115,7 +115,10 @@ pub fn refused_key<T: for<'de> Deserialize<'de>>(table: &toml::Table) -> Option<
 }
 
 /// `name.key` for the key `T` refuses in `table`, else `name`.
-pub fn refused_path<T: for<'de> Deserialize<'de>>(name: &str, table: &toml::Table) -> String {
+pub(crate) fn refused_path<T: for<'de> Deserialize<'de>>(
+    name: &str,
+    table: &toml::Table,
+) -> String {
     refused_key::<T>(table).map_or(name.to_string(), |k| format!("{name}.{k}"))
 }
 

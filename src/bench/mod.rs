@@ -8,9 +8,12 @@
 //! pinger) sent and the TCU's answer to the last DCT_Sensors frame ([`recorder::Recorder::settle`],
 //! bounded by a timeout for a TCU that no longer answers).
 //!
-//! [`timing`] turns the recording into the latency and cycle figures (pure). [`tester`] is a UDS
-//! tester on the bus (`ddct diag`).
+//! [`timing`] turns the recording into the latency and cycle figures (pure); [`analyse`] turns a
+//! recording (a run's, or a log recorded elsewhere) into the metrics, the lockstep simulation
+//! beside it, the verdict and the HTML report (pure: the caller writes the files). [`tester`] is
+//! a UDS tester on the bus (`ddct diag`).
 
+pub mod analyse;
 pub mod harness;
 pub mod net;
 pub mod recorder;

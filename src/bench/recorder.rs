@@ -72,7 +72,7 @@ pub struct Recorder {
 }
 
 /// How long a node may take to open its socket.
-pub const READY_TIMEOUT: Duration = Duration::from_secs(5);
+pub(crate) const READY_TIMEOUT: Duration = Duration::from_secs(5);
 
 impl Recorder {
     /// Starts recording on `net`; returns once the recorder's node listens. `before` runs first

@@ -77,7 +77,7 @@ pub enum LogError {
 
 /// The frames a `candump -d` `DROPCOUNT` line reports lost ("DROPCOUNT: dropped 3 CAN frames on
 /// 'vcan0' socket (total drops 7)"); `None` for any other line.
-pub fn dropcount(line: &str) -> Option<u64> {
+pub(crate) fn dropcount(line: &str) -> Option<u64> {
     let rest = line.trim().strip_prefix("DROPCOUNT: dropped ")?;
     rest.split_whitespace().next()?.parse().ok()
 }
@@ -315,7 +315,7 @@ fn push_line(
 }
 
 /// The time a line without one is stamped with (seconds since the Unix epoch).
-pub type ArrivalClock = Box<dyn FnMut() -> Duration>;
+pub(crate) type ArrivalClock = Box<dyn FnMut() -> Duration>;
 
 /// Reads records from a candump log, one `Result` per non-empty line. The log is read in large
 /// blocks; a line in the form candump writes is parsed in place ([`parse_canonical`]), any other

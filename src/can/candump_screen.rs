@@ -12,7 +12,7 @@ use std::time::Duration;
 
 /// One screen-format line.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ScreenLine {
+pub(crate) struct ScreenLine {
     /// The `(seconds.micros)` column when candump printed one (`-t a` or `-t z`).
     pub timestamp: Option<Duration>,
     pub iface: String,
@@ -33,7 +33,7 @@ fn parse_time(t: &str) -> Result<Duration, LineError> {
 }
 
 /// Parses one line of candump's screen output.
-pub fn parse_screen_line(line: &str) -> Result<ScreenLine, LineError> {
+pub(crate) fn parse_screen_line(line: &str) -> Result<ScreenLine, LineError> {
     let line = line.trim();
     let (timestamp, rest) = match line.strip_prefix('(') {
         Some(r) => {

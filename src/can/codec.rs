@@ -270,7 +270,7 @@ impl DecodedSignal {
 }
 
 /// Number of decimals needed to show a quantity of the given resolution exactly.
-pub fn decimals_of(factor: f64) -> usize {
+pub(crate) fn decimals_of(factor: f64) -> usize {
     let mut d = 0;
     let mut f = factor.abs();
     while d < 9 && (f - f.round()).abs() > 1e-9 {

@@ -29,7 +29,7 @@ pub enum ColumnarError {
 }
 
 /// A Snappy-compressed Parquet writer of `schema` to `out` (the columnar outputs' settings).
-pub fn snappy_writer<W: Write + Send>(
+pub(crate) fn snappy_writer<W: Write + Send>(
     out: W,
     schema: SchemaRef,
 ) -> Result<ArrowWriter<W>, ColumnarError> {
@@ -40,7 +40,7 @@ pub fn snappy_writer<W: Write + Send>(
 }
 
 /// Writes `columns` as one record batch and row group (memory bounded by the batch).
-pub fn write_row_group<W: Write + Send>(
+pub(crate) fn write_row_group<W: Write + Send>(
     writer: &mut ArrowWriter<W>,
     schema: &SchemaRef,
     columns: Vec<ArrayRef>,
@@ -88,7 +88,7 @@ pub struct SignalWriter<W: Write + Send> {
 }
 
 /// The table's schema.
-pub fn schema() -> SchemaRef {
+pub(crate) fn schema() -> SchemaRef {
     Arc::new(Schema::new(vec![
         Field::new("time_s", DataType::Float64, false),
         Field::new("iface", DataType::Utf8, false),

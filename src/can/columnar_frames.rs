@@ -15,7 +15,7 @@ use std::io::Write;
 use std::sync::Arc;
 
 /// The table's schema.
-pub fn schema() -> SchemaRef {
+pub(crate) fn schema() -> SchemaRef {
     Arc::new(Schema::new(vec![
         Field::new("time_s", DataType::Float64, false),
         Field::new("iface", DataType::Utf8, false),
@@ -28,7 +28,7 @@ pub fn schema() -> SchemaRef {
 }
 
 /// A Parquet file of frames.
-pub struct FrameWriter<W: Write + Send> {
+pub(crate) struct FrameWriter<W: Write + Send> {
     writer: ArrowWriter<W>,
     schema: SchemaRef,
     time_s: Float64Builder,

@@ -125,7 +125,7 @@ pub struct Gap<'a> {
 /// every interval of at least `timeout_cycles` of the message's cycle (messages without a cycle
 /// are never silent).
 #[derive(Debug)]
-pub struct Silences<'a, K> {
+pub(crate) struct Silences<'a, K> {
     /// By key: the time last seen (a table, not a hash map: one look-up per frame).
     last_seen: Vec<Option<Duration>>,
     gaps: Vec<Gap<'a>>,

@@ -11,11 +11,11 @@ use std::ops::Range;
 use std::time::Duration;
 
 /// The CSV's header line.
-pub const CSV_HEADER: &str = "time_s,iface,id,message,signal,value,unit,e2e\n";
+pub(crate) const CSV_HEADER: &str = "time_s,iface,id,message,signal,value,unit,e2e\n";
 
 /// The columns of a frame shared by its rows.
 #[derive(Debug, Clone, Copy)]
-pub struct CsvFrame<'a> {
+pub(crate) struct CsvFrame<'a> {
     pub timestamp: Duration,
     pub iface: &'a str,
     pub id: u32,
@@ -26,7 +26,7 @@ pub struct CsvFrame<'a> {
 
 /// One signal's columns.
 #[derive(Debug, Clone, Copy)]
-pub struct CsvSignal<'a> {
+pub(crate) struct CsvSignal<'a> {
     pub name: &'a str,
     pub value: f64,
     pub unit: &'a str,
@@ -34,7 +34,7 @@ pub struct CsvSignal<'a> {
 
 /// Rows of CSV text, appended frame by frame.
 #[derive(Debug, Default)]
-pub struct CsvRows {
+pub(crate) struct CsvRows {
     text: Vec<u8>,
     /// The time column of the frame before and its text: frames of one cycle share it.
     time: Option<Duration>,

@@ -13,7 +13,7 @@ use thiserror::Error;
 
 pub use super::messages::e2e_layout::{COUNTER_BYTE, CRC_BYTE};
 /// Alive counter modulus.
-pub const COUNTER_MODULUS: u8 = 16;
+pub(crate) const COUNTER_MODULUS: u8 = 16;
 
 /// CRC-8/SAE-J1850 (poly 0x1D, init 0xFF, xor-out 0xFF) from the maintained `crc` crate.
 const CRC8: crc::Crc<u8> = crc::Crc::<u8>::new(&crc::CRC_8_SAE_J1850);
@@ -32,7 +32,7 @@ pub fn e2e_crc(id: u16, data: &[u8; 8]) -> u8 {
 }
 
 /// Whether a frame's data carry the right E2E CRC for `id` (eight bytes, CRC in the last).
-pub fn crc_ok(id: u16, data: &[u8]) -> bool {
+pub(crate) fn crc_ok(id: u16, data: &[u8]) -> bool {
     <&[u8; 8]>::try_from(data).is_ok_and(|d| d[CRC_BYTE] == e2e_crc(id, d))
 }
 
@@ -48,7 +48,7 @@ pub fn counter_of(data: &[u8; 8]) -> u8 {
 }
 
 /// Whether a message id is E2E-protected in the contract.
-pub fn is_protected(id: u32) -> bool {
+pub(crate) fn is_protected(id: u32) -> bool {
     message_def(id).is_some_and(|m| m.e2e)
 }
 

@@ -11,7 +11,7 @@ use std::ops::Range;
 const BLOCK: usize = 256 * 1024;
 
 /// Lines of `R`, each with its `\n` (a last line without one as it is) and its number from 1.
-pub struct BlockLines<R> {
+pub(crate) struct BlockLines<R> {
     input: R,
     buf: Vec<u8>,
     /// The unread data: `buf[start..end]`.

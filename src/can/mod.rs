@@ -1,7 +1,9 @@
 //! The bus layer: the DBC contract (generated message types), E2E protection, the `Bus` trait
 //! with its SocketCAN and in-process implementations, and candump log I/O; `runtime_dbc` decodes
 //! logs with a DBC file given at run time instead of the contract; `columnar` writes decoded
-//! signals as Parquet, `decode_csv` as CSV; `mf4` reads and writes MDF 4 bus-logging files.
+//! signals as Parquet, `decode_csv` as CSV; `mf4` reads and writes MDF 4 bus-logging files;
+//! `log` is what `ddct log` does with a log (decode runs into each format, conversion, cycle
+//! statistics, recording), `replay` its sending at the log's timing.
 
 pub mod bus;
 pub mod candump;
@@ -17,6 +19,7 @@ pub mod e2e;
 pub mod frame;
 pub mod gear;
 pub mod lines;
+pub mod log;
 pub mod logfile;
 pub mod messages;
 pub mod mf4;

@@ -1,7 +1,51 @@
 //! When `ddct log replay` sends each frame of a log: the log's own timing, relative to its first
-//! frame, repeated for `--loop` passes. Pure: the shell scales by `--speed` and sleeps.
+//! frame, repeated for `--loop` passes ([`schedule`], pure), and the sending itself at that
+//! timing scaled by a speed, or as fast as the bus takes the frames ([`play`]).
 
+use super::candump::LogRecord;
+use super::{Bus, BusError};
 use std::time::Duration;
+
+/// How a replay spaces the frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pace {
+    /// The log's own timing, `speed` times faster.
+    Log { speed: f64 },
+    /// As fast as the interface takes them, at least `interval_us` apart.
+    MaxRate { interval_us: u64 },
+}
+
+/// Sends the frames of `records` on `bus`, `passes` times over, spaced as `pace` says (tokio's
+/// clock, from the call); `sent` after each frame. The number of frames sent.
+pub async fn play<B: Bus>(
+    bus: &mut B,
+    records: &[LogRecord],
+    pace: Pace,
+    passes: u32,
+    mut sent: impl FnMut(),
+) -> Result<usize, BusError> {
+    let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();
+    let start = tokio::time::Instant::now();
+    let mut next = start;
+    let mut n = 0usize;
+    let frames = records.iter().cycle().take(records.len() * passes as usize);
+    for (r, at) in frames.zip(schedule(&stamps, passes)) {
+        match pace {
+            Pace::Log { speed } => {
+                tokio::time::sleep_until(start + at.div_f64(speed)).await;
+            }
+            Pace::MaxRate { interval_us } if interval_us > 0 => {
+                tokio::time::sleep_until(next).await;
+                next += Duration::from_micros(interval_us);
+            }
+            Pace::MaxRate { .. } => {}
+        }
+        bus.send(r.frame).await?;
+        n += 1;
+        sent();
+    }
+    Ok(n)
+}
 
 /// The send offsets (from the start of the replay, at speed 1) of `passes` passes over frames
 /// stamped `stamps`: each pass starts one median frame interval after the last frame of the one

@@ -15,24 +15,20 @@ use super::args::{probe_can, rt_priority, Iface};
 use super::shutdown_signal;
 use anyhow::Context;
 use clap::Args;
-use ddct::bench::{bench_run, echo_run, timing, BenchPacing, Net, Timing};
-use ddct::can::candump::{LogReader, LogWriter};
-use ddct::can::messages::{ids, FaultCode, TcuState};
+use ddct::bench::analyse::{analyse, f2, html_report, BenchSummary, Recorded};
+use ddct::bench::{bench_run, echo_run, BenchPacing, Net, Timing};
+use ddct::can::candump::LogWriter;
+use ddct::can::messages::FaultCode;
 use ddct::can::{CanFrame, InProcessBus};
 use ddct::daemon::os::set_realtime_priority;
-use ddct::daemon::plant::PlantReport;
-use ddct::daemon::tcu::TcuReport;
-use ddct::sim::buslog::{self, Spread, TimeAxis};
-use ddct::sim::html::{self, Table};
-use ddct::sim::metrics::{self, Metrics};
-use ddct::sim::verdict::{self, Check};
-use ddct::sim::{self, plots, SimOptions, SimScenario};
+use ddct::sim::buslog::{Spread, TimeAxis};
+use ddct::sim::verdict;
+use ddct::sim::SimScenario;
 use ddct::tcu::TcuConfig;
-use serde::Serialize;
 use std::io::{BufReader, BufWriter};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
@@ -153,53 +149,6 @@ fn write_log(path: &Path, iface: &str, frames: &[(Duration, CanFrame)]) -> anyho
     Ok(())
 }
 
-fn read_log(path: &Path) -> anyhow::Result<Vec<(Duration, CanFrame)>> {
-    let f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let mut out = Vec::new();
-    for r in LogReader::new(BufReader::new(f)) {
-        match r {
-            Ok(rec) => out.push((rec.timestamp, rec.frame)),
-            Err(e) => eprintln!("{}: {e}", path.display()),
-        }
-    }
-    out.sort_by_key(|x| x.0);
-    Ok(out)
-}
-
-/// What `ddct bench` prints with `--json`.
-#[derive(Debug, Serialize)]
-pub struct BenchSummary {
-    pub iface: String,
-    pub scenario: String,
-    pub description: String,
-    pub duration_s: f64,
-    pub bus: Metrics,
-    pub sim: Option<Metrics>,
-    pub sim_wall_s: Option<f64>,
-    pub timing: Timing,
-    pub plant: Option<PlantReport>,
-    pub tcu: Option<TcuReport>,
-    pub log: PathBuf,
-    pub plots: Vec<PathBuf>,
-    /// First and last DCT_Sensors frame, relative to the first frame of the log (s).
-    pub plant_window: Option<(f64, f64)>,
-    /// The clock of the physics (rows, windows, plots): bus or receive time.
-    pub time_axis: TimeAxis,
-    /// The checks of the scenario's `[limits]` on the bus run (`ddct::sim::verdict`).
-    pub verdict: Vec<Check>,
-}
-
-/// What the bench recorded: the bus (a live run, or a log given with `--analyze`), the echo and
-/// the daemons' reports.
-struct Recorded {
-    iface: String,
-    frames: Vec<(Duration, CanFrame)>,
-    echo: Option<Vec<(Duration, CanFrame)>>,
-    plant: Option<PlantReport>,
-    tcu: Option<TcuReport>,
-    log: PathBuf,
-}
-
 pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
     let cfg = super::args::tcu_config(a.config.as_deref())?;
     let sc = match &a.scenario {
@@ -212,18 +161,19 @@ pub fn run(a: BenchArgs) -> anyhow::Result<ExitCode> {
     let out = a.out();
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let recorded = match &a.analyze {
-        Some(p) => Recorded {
-            iface: "log".to_string(),
-            frames: read_log(p)?,
-            echo: None,
-            plant: None,
-            tcu: None,
-            log: p.clone(),
-        },
+        Some(p) => {
+            let f = std::fs::File::open(p).with_context(|| format!("opening {}", p.display()))?;
+            Recorded::from_log(BufReader::new(f), p.clone(), |e| {
+                eprintln!("{}: {e}", p.display())
+            })
+        }
         None => record(&a, &sc, &cfg)?,
     };
-    let summary = analyse(&out, &sc, &cfg, recorded, a.time.into())?;
-    report(&a, &summary)
+    let analysis = analyse(&out, &sc, &cfg, recorded, a.time.into());
+    for (path, text) in &analysis.files {
+        std::fs::write(path, text)?;
+    }
+    report(&a, &analysis.summary)
 }
 
 /// The live part: the echo (if asked), then the daemons playing the scenario, each recording
@@ -290,105 +240,6 @@ fn record(a: &BenchArgs, sc: &SimScenario, cfg: &TcuConfig) -> anyhow::Result<Re
     })
 }
 
-/// The analysis of a recording: metrics, figures and CSV in `out`, the lockstep simulation of
-/// the same scenario beside it, the timing and the verdict of the scenario's limits.
-fn analyse(
-    out: &Path,
-    sc: &SimScenario,
-    cfg: &TcuConfig,
-    r: Recorded,
-    axis: TimeAxis,
-) -> anyhow::Result<BenchSummary> {
-    let mut plots = Vec::new();
-    let physics = buslog::on_axis(&r.frames, axis);
-    let rows = buslog::rows(&physics);
-    let mut tcfg = cfg.clone();
-    sc.tcu.apply(&mut tcfg);
-    let bus = metrics::compute(&rows, &tcfg);
-    let p = out.join(format!("{}_bus.svg", sc.name));
-    let title = format!("{} on {} (recorded): {}", sc.name, r.iface, sc.description);
-    std::fs::write(&p, plots::run_figure(&title, &rows))?;
-    plots.push(p);
-    std::fs::write(
-        out.join(format!("{}_bus.csv", sc.name)),
-        sim::rows_csv(&rows),
-    )?;
-    // The same scenario in lockstep simulation, for comparison.
-    let t0 = Instant::now();
-    let srun = sim::run_scenario(sc, cfg, &SimOptions::default());
-    let sim_wall = t0.elapsed().as_secs_f64();
-    let simm = metrics::compute(&srun.rows, &tcfg);
-    let p = out.join(format!("{}_sim.svg", sc.name));
-    let title = format!("{} in lockstep simulation: {}", sc.name, sc.description);
-    std::fs::write(&p, plots::run_figure(&title, &srun.rows))?;
-    plots.push(p);
-    let t0 = physics.first().map_or(Duration::ZERO, |f| f.0);
-    let sensors: Vec<f64> = physics
-        .iter()
-        .filter(|(_, f)| f.standard_id() == Some(ids::DCT_SENSORS))
-        .map(|(t, _)| t.saturating_sub(t0).as_secs_f64())
-        .collect();
-    let plant_window = sensors.first().zip(sensors.last()).map(|(a, b)| (*a, *b));
-    let timing = timing(&r.frames, r.echo.as_deref());
-    let latency_ratio = timing
-        .echo_latency
-        .as_ref()
-        .filter(|e| e.n > 0 && e.p99_us > 0.0 && timing.tcu_latency.n > 0)
-        .map(|e| timing.tcu_latency.p99_us / e.p99_us);
-    let in_run = Metrics {
-        status_events: run_events(&bus, plant_window),
-        ..bus.clone()
-    };
-    let mut verdict = verdict::judge(sc.limits.as_ref(), &in_run, latency_ratio);
-    verdict.extend(r.plant.as_ref().and_then(lockstep_check));
-    Ok(BenchSummary {
-        verdict,
-        plant_window,
-        time_axis: axis,
-        iface: r.iface,
-        scenario: sc.name.clone(),
-        description: sc.description.clone(),
-        duration_s: sc.duration_s,
-        bus,
-        sim: Some(simm),
-        sim_wall_s: Some(sim_wall),
-        timing,
-        plant: r.plant,
-        tcu: r.tcu,
-        log: r.log,
-        plots,
-    })
-}
-
-/// The TCU's status while the plant ran and the TCU was past Init: the one set of events both
-/// the verdict's fault check and the printed fault codes read. The TCU starts before the plant
-/// (Init, waiting for its inputs) and stops after it (an ENG_Status timeout once the plant's
-/// last frame is gone): neither is a fault of the run.
-fn run_events(bus: &Metrics, plant_window: Option<(f64, f64)>) -> Vec<metrics::StatusEvent> {
-    bus.status_events
-        .iter()
-        .filter(|e| e.state != TcuState::Init)
-        .filter(|e| plant_window.is_none_or(|(a, b)| e.t_s >= a && e.t_s <= b))
-        .copied()
-        .collect()
-}
-
-/// A lockstep run's own check: the TCU answered every plant cycle within the lockstep timeout
-/// (a cycle without its answer was simulated on the TCU's previous command, as a free-running
-/// plant would).
-fn lockstep_check(p: &PlantReport) -> Option<Check> {
-    p.lockstep.as_ref()?;
-    Some(Check {
-        name: "lockstep_answers",
-        limit: format!(
-            "every cycle answered within {} s",
-            ddct::bench::LOCKSTEP_TIMEOUT.as_secs_f64()
-        ),
-        measured: format!("{} of {} cycles unanswered", p.lockstep_timeouts, p.cycles),
-        pass: p.lockstep_timeouts == 0,
-    })
-}
-
 /// Writes summary.json, report.html and the JUnit file, prints the summary and the verdict;
 /// the exit code is the verdict's.
 fn report(a: &BenchArgs, summary: &BenchSummary) -> anyhow::Result<ExitCode> {
@@ -409,7 +260,7 @@ fn report(a: &BenchArgs, summary: &BenchSummary) -> anyhow::Result<ExitCode> {
         a.out().join("summary.json").display()
     );
     let html = a.out().join("report.html");
-    std::fs::write(&html, html_report(summary)?)
+    std::fs::write(&html, html_page(summary)?)
         .with_context(|| format!("writing {}", html.display()))?;
     eprintln!("bench: report in {}", html.display());
     if let Some(path) = &a.junit {
@@ -424,20 +275,8 @@ fn report(a: &BenchArgs, summary: &BenchSummary) -> anyhow::Result<ExitCode> {
     }
 }
 
-fn f1(v: Option<f64>) -> String {
-    v.map_or("-".into(), |x| format!("{x:.2}"))
-}
-
-/// The runs whose metrics a summary holds, with their names: the bus's, then the lockstep
-/// simulation's when there is one.
-fn runs(s: &BenchSummary) -> impl Iterator<Item = (&'static str, &Metrics)> {
-    [("bus", Some(&s.bus)), ("sim", s.sim.as_ref())]
-        .into_iter()
-        .filter_map(|(name, m)| Some((name, m?)))
-}
-
-/// The run as a self-contained HTML page: verdict, launches, shifts, timing, the figures.
-fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
+/// The run as a self-contained HTML page, with the figures the analysis wrote.
+fn html_page(s: &BenchSummary) -> anyhow::Result<String> {
     let mut figures = Vec::new();
     for p in &s.plots {
         let svg = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
@@ -447,104 +286,7 @@ fn html_report(s: &BenchSummary) -> anyhow::Result<String> {
             svg,
         ));
     }
-    Ok(html::report(
-        &format!("ddct bench: {} on {}", s.scenario, s.iface),
-        &s.description,
-        verdict::passed(&s.verdict),
-        &[
-            html::verdict_table(&s.verdict),
-            launches_table(s),
-            shifts_table(s),
-            timing_table(&s.timing),
-        ],
-        &figures,
-    ))
-}
-
-/// A table with its caption and head, no row yet.
-fn empty_table(caption: &str, head: &[&str]) -> Table {
-    Table {
-        caption: caption.into(),
-        head: head.iter().map(|x| x.to_string()).collect(),
-        rows: Vec::new(),
-    }
-}
-
-/// The HTML table of every run's launches.
-fn launches_table(s: &BenchSummary) -> Table {
-    let mut launches = empty_table(
-        "Launches (|Terr|300: peak torque error in the first 300 ms, N·m; a_pk600: peak \
-         acceleration in the first 600 ms, m/s²)",
-        &[
-            "run",
-            "pedal %",
-            "lock-up s",
-            "flare rpm",
-            "spike m/s²",
-            "stall",
-            "|Terr|300",
-            "a_pk600",
-        ],
-    );
-    for (name, m) in runs(s) {
-        for l in &m.launches {
-            launches.rows.push(vec![
-                name.into(),
-                format!("{:.0}", l.pedal_pct),
-                f1(l.lockup_s),
-                format!("{:.0}", l.flare_rpm),
-                f1(l.lockup_spike_mps2),
-                l.stall.to_string(),
-                format!("{:.1}", l.peak_torque_error_300ms_nm),
-                format!("{:.2}", l.peak_accel_600ms_mps2),
-            ]);
-        }
-    }
-    launches
-}
-
-/// The HTML table of every run's shifts.
-fn shifts_table(s: &BenchSummary) -> Table {
-    let mut shifts = empty_table(
-        "Shifts",
-        &["run", "shift", "duration s", "min accel m/s²", "completed"],
-    );
-    for (name, m) in runs(s) {
-        for x in &m.shifts {
-            shifts.rows.push(vec![
-                name.into(),
-                format!("{}→{}", x.from, x.to),
-                format!("{:.2}", x.duration_s),
-                format!("{:.2}", x.min_accel_mps2),
-                x.completed.to_string(),
-            ]);
-        }
-    }
-    shifts
-}
-
-/// The HTML table of the bus timing: the TCU's reaction, the bare echo's, the periods' jitter.
-fn timing_table(t: &Timing) -> Table {
-    let mut timing = empty_table(
-        "Timing (recorder receive timestamps, µs)",
-        &["what", "n", "p50", "p99", "max"],
-    );
-    let mut line = |name: &str, x: &Spread| {
-        timing.rows.push(vec![
-            name.into(),
-            x.n.to_string(),
-            format!("{:.0}", x.p50_us),
-            format!("{:.0}", x.p99_us),
-            format!("{:.0}", x.max_us),
-        ])
-    };
-    line("DCT_Sensors → TCU_ClutchCmd (TCU daemon)", &t.tcu_latency);
-    if let Some(e) = &t.echo_latency {
-        line("bare frame echo, same bus", e);
-    }
-    line("TCU_ClutchCmd |interval − 10 ms|", &t.clutch_cmd_jitter);
-    line("DCT_Sensors |interval − 10 ms|", &t.sensors_jitter);
-    timing
+    Ok(html_report(s, &figures))
 }
 
 /// The summary for a terminal: launches, shifts, the bus's estimator and faults, timing, the
@@ -576,15 +318,15 @@ fn print_launches(s: &BenchSummary) {
         "{:<10} {:>7} {:>9} {:>8} {:>8} {:>6} {:>10} {:>9}",
         "run", "pedal%", "lockup_s", "flare", "spike", "stall", "|Terr|300", "a_pk600"
     );
-    for (name, m) in runs(s) {
+    for (name, m) in s.runs() {
         for l in &m.launches {
             println!(
                 "{:<10} {:>7.0} {:>9} {:>8.0} {:>8} {:>6} {:>10.1} {:>9.2}",
                 name,
                 l.pedal_pct,
-                f1(l.lockup_s),
+                f2(l.lockup_s),
                 l.flare_rpm,
-                f1(l.lockup_spike_mps2),
+                f2(l.lockup_spike_mps2),
                 l.stall,
                 l.peak_torque_error_300ms_nm,
                 l.peak_accel_600ms_mps2
@@ -599,7 +341,7 @@ fn print_shifts(s: &BenchSummary) {
         "{:<10} {:>7} {:>10} {:>10} {:>10}",
         "run", "shift", "duration", "min_accel", "completed"
     );
-    for (name, m) in runs(s) {
+    for (name, m) in s.runs() {
         for x in &m.shifts {
             println!(
                 "{:<10} {:>4}->{:<2} {:>10.2} {:>10.2} {:>10}",
@@ -617,7 +359,8 @@ fn print_bus_findings(s: &BenchSummary) {
         "estimator vs SIM_Truth (bus): RMSE {:.2} / {:.2} °C, max {:.2} / {:.2} °C",
         e.rmse_c[0], e.rmse_c[1], e.max_abs_c[0], e.max_abs_c[1]
     );
-    let faults: Vec<_> = run_events(&s.bus, s.plant_window)
+    let faults: Vec<_> = s
+        .run_events()
         .iter()
         .filter(|x| x.fault != FaultCode::None)
         .map(|x| format!("{:.2}s {:?}", x.t_s, x.fault))

@@ -1,9 +1,7 @@
 //! `ddct log`: decode, record, replay and convert bus logs (candump text or MDF 4).
 
 mod convert;
-mod csv;
 mod decode;
-mod decoding;
 
 use super::args::{open_can, Source};
 use super::{announce_ready, runtime, shutdown_signal};
@@ -11,12 +9,11 @@ use anyhow::{bail, Context};
 use clap::Subcommand;
 use ddct::can::candump::{LogError, LogReader, LogRecord, LogWriter};
 use ddct::can::decode::LogDecoder;
+use ddct::can::log::record::record as record_frames;
 use ddct::can::logfile::{self, LogFormat};
-use ddct::can::socketcan::MMSG_BATCH;
+use ddct::can::replay::{self, Pace};
 use ddct::can::Bus;
 use decode::{decode, wall_clock, Format};
-use serde_json::json;
-use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::PathBuf;
@@ -324,32 +321,9 @@ fn stats(file: &std::path::Path, as_json: bool) -> anyhow::Result<ExitCode> {
     let records = logfile::read_all(file)?;
     let stats = ddct::can::decode::cycle_stats(&records);
     if as_json {
-        let arr: Vec<_> = stats
-            .iter()
-            .map(|s| {
-                json!({"id": s.id, "name": s.name, "nominal_ms": s.nominal_ms, "frames": s.frames,
-                       "mean_ms": s.mean_ms, "p50_ms": s.p50_ms, "p99_ms": s.p99_ms, "min_ms": s.min_ms, "max_ms": s.max_ms})
-            })
-            .collect();
-        println!("{}", serde_json::Value::Array(arr));
+        println!("{}", ddct::can::log::stats::json(&stats));
     } else {
-        println!(
-            "{:<6} {:<14} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8}",
-            "id", "message", "frames", "nominal", "p50 ms", "p99 ms", "min ms", "max ms"
-        );
-        for s in &stats {
-            println!(
-                "0x{:03X}  {:<14} {:>7} {:>7} {:>8.3} {:>8.3} {:>8.3} {:>8.3}",
-                s.id,
-                s.name.unwrap_or("?"),
-                s.frames,
-                s.nominal_ms.map_or("-".to_string(), |m| format!("{m} ms")),
-                s.p50_ms,
-                s.p99_ms,
-                s.min_ms,
-                s.max_ms
-            );
-        }
+        print!("{}", ddct::can::log::stats::table(&stats));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -452,15 +426,6 @@ fn monitor_live(
 /// Receive queue asked for by `ddct log record` (bytes).
 const RECORD_RCVBUF: usize = 16 << 20;
 
-/// After a wake-up the recorder reads everything queued (in `recvmmsg` batches) and then waits
-/// this long before it looks again: it needs no latency (every frame carries its kernel
-/// timestamp, and the queue holds minutes), and a wake-up per frame of a flood took the CPU the
-/// daemons under test need (User-Mode Linux: tens of µs per system call, one CPU).
-const RECORD_PACE: Duration = Duration::from_millis(5);
-
-/// Frames read per recorder wake-up at most (the rest on the next one).
-const RECORD_BATCH: usize = 1024;
-
 fn record(
     iface: &str,
     out: &PathBuf,
@@ -471,60 +436,20 @@ fn record(
     let file = File::create(out).with_context(|| format!("{}", out.display()))?;
     let mut writer = LogWriter::new(BufWriter::new(file));
     let rt = runtime()?;
-    let (n, per_id, drops) = rt.block_on(async {
+    let (rec, drops) = rt.block_on(async {
         let mut bus = open_can(iface)?;
         // A recorder the host deschedules for a while must not lose frames: 16 MiB of receive
         // queue (minutes of a 10 ms bus) where the kernel grants it.
         if let Err(e) = bus.set_recv_buffer(RECORD_RCVBUF) {
             tracing::warn!("{e}: the default receive queue may drop frames under load");
         }
-        let deadline = duration.map(|d| tokio::time::Instant::now() + d);
         let stop = shutdown_signal();
         announce_ready(ready_file)?;
-        tokio::pin!(stop);
-        let mut n = 0u64;
-        let mut per_id: BTreeMap<u32, u64> = BTreeMap::new();
-        let mut last_flush = Instant::now();
-        let mut batch = Vec::with_capacity(RECORD_BATCH);
-        loop {
-            if count.is_some_and(|c| n >= c) {
-                break;
-            }
-            let until_deadline = async {
-                match deadline {
-                    Some(d) => tokio::time::sleep_until(d).await,
-                    None => std::future::pending().await,
-                }
-            };
-            let flush_tick = tokio::time::sleep(Duration::from_millis(200));
-            tokio::select! {
-                rx = bus.recv() => {
-                    batch.push(rx);
-                    while !bus.try_recv_many(MMSG_BATCH, &mut batch) && batch.len() < RECORD_BATCH {}
-                    for rx in batch.drain(..) {
-                        if count.is_some_and(|c| n >= c) {
-                            break;
-                        }
-                        let rx = rx?;
-                        writer.write_frame(rx.timestamp, iface, &rx.frame, None)?;
-                        n += 1;
-                        *per_id.entry(rx.frame.raw_id()).or_default() += 1;
-                    }
-                    if last_flush.elapsed() > Duration::from_millis(200) {
-                        writer.flush()?;
-                        last_flush = Instant::now();
-                    }
-                    tokio::time::sleep(RECORD_PACE).await;
-                }
-                _ = flush_tick => { writer.flush()?; last_flush = Instant::now(); }
-                _ = until_deadline => break,
-                _ = &mut stop => break,
-            }
-        }
-        writer.flush()?;
+        let rec = record_frames(&mut bus, iface, &mut writer, count, duration, stop).await?;
         let drops = bus.kernel_drops();
-        anyhow::Ok((n, per_id, drops))
+        anyhow::Ok((rec, drops))
     })?;
+    let (n, per_id) = (rec.frames, rec.per_id);
     eprintln!("recorded {n} frame(s) from {iface} into {}", out.display());
     for (id, k) in &per_id {
         let name = ddct::can::messages::message_def(*id).map_or("-", |d| d.name);
@@ -549,15 +474,6 @@ fn parse_speed(s: &str) -> Result<f64, String> {
     }
 }
 
-/// How `ddct log replay` spaces the frames.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Pace {
-    /// The log's own timing, `speed` times faster.
-    Log { speed: f64 },
-    /// As fast as the interface takes them, at least `interval_us` apart.
-    MaxRate { interval_us: u64 },
-}
-
 fn replay(
     file: &std::path::Path,
     iface: &str,
@@ -566,31 +482,11 @@ fn replay(
 ) -> anyhow::Result<ExitCode> {
     let records = logfile::read_all(file)?;
     let rt = runtime()?;
-    let stamps: Vec<Duration> = records.iter().map(|r| r.timestamp).collect();
     let pb = super::bar((records.len() * passes as usize) as u64, "frames");
     pb.set_message(format!(" sent on {iface}"));
     let sent = rt.block_on(async {
         let mut bus = open_can(iface)?;
-        let start = tokio::time::Instant::now();
-        let mut next = start;
-        let mut sent = 0usize;
-        let frames = records.iter().cycle().take(records.len() * passes as usize);
-        for (r, at) in frames.zip(ddct::can::replay::schedule(&stamps, passes)) {
-            match pace {
-                Pace::Log { speed } => {
-                    tokio::time::sleep_until(start + at.div_f64(speed)).await;
-                }
-                Pace::MaxRate { interval_us } if interval_us > 0 => {
-                    tokio::time::sleep_until(next).await;
-                    next += Duration::from_micros(interval_us);
-                }
-                Pace::MaxRate { .. } => {}
-            }
-            bus.send(r.frame).await?;
-            sent += 1;
-            pb.inc(1);
-        }
-        anyhow::Ok(sent)
+        anyhow::Ok(replay::play(&mut bus, &records, pace, passes, || pb.inc(1)).await?)
     });
     pb.finish_and_clear();
     let sent = sent?;

@@ -109,14 +109,14 @@ pub const FLOOD_PACE: Duration = Duration::from_millis(2);
 
 /// Margin before a deadline below which [`sleep_until_precise`] blocks instead of using tokio's
 /// timer (whose granularity is 1 ms).
-pub const PRECISE_MARGIN: Duration = Duration::from_micros(1500);
+pub(crate) const PRECISE_MARGIN: Duration = Duration::from_micros(1500);
 
 /// Sleeps until `deadline` with sub-millisecond precision: tokio's timer (1 ms granularity, it
 /// rounds up) until [`PRECISE_MARGIN`] before the deadline, then a blocking `std::thread::sleep`
 /// (a high-resolution timer) for the rest. It blocks the runtime thread for at most the margin, so
 /// it suits single-task daemon loops whose other inputs queue in the kernel meanwhile (a
 /// periodic loop faster than ~5 ms would otherwise be late by ~1 ms on every cycle).
-pub async fn sleep_until_precise(deadline: Instant) {
+pub(crate) async fn sleep_until_precise(deadline: Instant) {
     if let Some(coarse) = deadline.checked_sub(PRECISE_MARGIN) {
         if coarse > Instant::now() {
             tokio::time::sleep_until(coarse).await;
@@ -140,7 +140,7 @@ pub struct LoopStats {
 }
 
 /// Lateness above which a wake-up counts as a missed deadline, as a fraction of the period.
-pub const MISS_FRACTION: f64 = 0.5;
+pub(crate) const MISS_FRACTION: f64 = 0.5;
 
 impl LoopStats {
     /// Records one tick of a loop with the given period.
@@ -176,7 +176,7 @@ impl LoopStats {
 /// crate; 3 significant digits up to an hour), so memory stays constant however long a daemon
 /// runs and no sample is dropped.
 #[derive(Debug, Clone)]
-pub struct Micros(hdrhistogram::Histogram<u64>);
+pub(crate) struct Micros(hdrhistogram::Histogram<u64>);
 
 impl Default for Micros {
     fn default() -> Self {
@@ -214,7 +214,7 @@ pub fn wall_clock() -> Duration {
 }
 
 /// Records every frame a daemon receives or sends into a candump -l log.
-pub struct LogTap {
+pub(crate) struct LogTap {
     writer: LogWriter<BufWriter<File>>,
     iface: String,
     frames: u64,

@@ -24,7 +24,7 @@ use crate::diag::values::{Calibration, Measurement, Meta, CALIBRATION_BASE, MEAS
 use crate::diag::xcp::{daq, memory, slave, Command};
 
 /// The bit rate of the bus (bit/s).
-pub const BAUDRATE: u32 = 500_000;
+pub(crate) const BAUDRATE: u32 = 500_000;
 
 /// An A2L string literal: quotes and backslashes escaped.
 fn quote(s: &str) -> String {

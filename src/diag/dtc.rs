@@ -47,9 +47,9 @@ pub mod status {
 use status::*;
 
 /// The status bits this memory supports (all but warningIndicatorRequested).
-pub const STATUS_AVAILABILITY_MASK: u8 = 0x7F;
+pub(crate) const STATUS_AVAILABILITY_MASK: u8 = 0x7F;
 /// The status after a clear (and of a DTC never tested): both "not completed" bits.
-pub const STATUS_AFTER_CLEAR: u8 =
+pub(crate) const STATUS_AFTER_CLEAR: u8 =
     TEST_NOT_COMPLETED_SINCE_LAST_CLEAR | TEST_NOT_COMPLETED_THIS_OPERATION_CYCLE;
 /// How long a fault fails in consecutive steps before its DTC is confirmed.
 pub const CONFIRMATION_TIME: Duration = Duration::from_millis(100);

@@ -9,10 +9,10 @@ use crate::tcu::routine::{Condition, RoutineRefusal as TcuRefusal, RoutineState 
 use crate::tcu::Tcu;
 
 /// The software version read by UDS (DID 0xF195).
-pub const SOFTWARE_VERSION: &str = concat!("ddct ", env!("CARGO_PKG_VERSION"));
+pub(crate) const SOFTWARE_VERSION: &str = concat!("ddct ", env!("CARGO_PKG_VERSION"));
 
 /// The system name read by UDS (DID 0xF197).
-pub const SYSTEM_NAME: &str = "ddct TCU";
+pub(crate) const SYSTEM_NAME: &str = "ddct TCU";
 
 /// The TCU seen by the protocols, for the length of one request or step.
 pub struct TcuEcu<'a> {

@@ -78,7 +78,7 @@ pub enum SendError {
 
 /// What happened to a transfer the core abandoned or refused, counted in [`Counters`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Dropped {
+pub(crate) enum Dropped {
     /// A frame too short, with an unknown PCI or an impossible length.
     Malformed,
     /// A consecutive frame with the wrong sequence number (the reception is abandoned).
@@ -127,7 +127,7 @@ impl Counters {
 
 /// Flow status of a flow control.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FlowStatus {
+pub(crate) enum FlowStatus {
     ContinueToSend,
     Wait,
     Overflow,
@@ -190,7 +190,7 @@ fn parse(frame: &[u8]) -> Option<Pci<'_>> {
 }
 
 /// The separation time a raw STmin byte asks for (reserved values count as 127 ms).
-pub fn st_min_duration(raw: u8) -> Duration {
+pub(crate) fn st_min_duration(raw: u8) -> Duration {
     match raw {
         0x00..=0x7F => Duration::from_millis(u64::from(raw)),
         0xF1..=0xF9 => Duration::from_micros(100 * u64::from(raw - 0xF0)),

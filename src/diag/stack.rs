@@ -27,10 +27,10 @@ use std::time::Duration;
 /// The fault memory's tests are enabled once the TCU has left Init (every input seen valid) or
 /// this long after its start, whichever comes first: a bench whose plant starts a moment after
 /// the TCU logs no lost-communication DTC for it, a plant that never comes still does.
-pub const TEST_ENABLE_AFTER: Duration = Duration::from_secs(2);
+pub(crate) const TEST_ENABLE_AFTER: Duration = Duration::from_secs(2);
 
 /// The XCP event channel of the TCU's 10 ms cycle.
-pub const CYCLE_EVENT: u16 = 0;
+pub(crate) const CYCLE_EVENT: u16 = 0;
 
 /// The ids the diagnostic side listens to (a SocketCAN filter adds them to the TCU's inputs).
 pub const REQUEST_IDS: [u16; 3] = [

@@ -58,7 +58,7 @@ pub struct CorruptReport {
 }
 
 /// `PATH.corrupt`.
-pub fn corrupt_path(path: &Path) -> PathBuf {
+pub(crate) fn corrupt_path(path: &Path) -> PathBuf {
     let mut s = path.as_os_str().to_owned();
     s.push(".corrupt");
     PathBuf::from(s)

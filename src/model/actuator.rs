@@ -5,7 +5,7 @@ use super::params::ActuatorParams;
 
 /// Request clamped to the actuator range (mm); a non-finite request holds `x_mm`.
 #[inline]
-pub fn clamp_request(p: &ActuatorParams, x_ref_mm: f64, x_mm: f64) -> f64 {
+pub(crate) fn clamp_request(p: &ActuatorParams, x_ref_mm: f64, x_mm: f64) -> f64 {
     if x_ref_mm.is_finite() {
         x_ref_mm.clamp(p.x_min_mm, p.x_max_mm)
     } else {

@@ -40,7 +40,7 @@ pub struct Inversion {
 
 /// Dynamic friction coefficient μ_d(θ) of (5).
 #[inline]
-pub fn mu_d(p: &ClutchParams, theta_c: f64) -> f64 {
+pub(crate) fn mu_d(p: &ClutchParams, theta_c: f64) -> f64 {
     p.c1 * (p.c2_rad_per_c * theta_c + p.c3_rad).sin() + p.c4
 }
 
@@ -94,7 +94,7 @@ pub fn r_mu(p: &ClutchParams, slip_radps: f64, theta_fp: f64) -> f64 {
 /// [`r_mu`] with the slip's [`slip_shape`] Q(ω) given: the two facings of a clutch slip alike, so
 /// Q is taken once for both.
 #[inline]
-pub fn r_mu_shaped(p: &ClutchParams, q: f64, theta_fp: f64) -> f64 {
+pub(crate) fn r_mu_shaped(p: &ClutchParams, q: f64, theta_fp: f64) -> f64 {
     p.mu_s * 0.5 * (p.r1_m + p.r2_m) + (mu_d(p, theta_fp) - p.mu_s) * q
 }
 
@@ -126,7 +126,7 @@ pub fn x_isp(p: &ClutchParams, theta_fs: f64) -> f64 {
 
 /// Every parameter [`u_fs`] reads ((7)–(9): λ, the kiss point's λ0, λ1, λ2 and θ_a, x_to,max):
 /// whether the clutch is engaged (β of (16)) depends on the clutch parameters only through these.
-pub fn engagement_params(p: &ClutchParams) -> [f64; 6] {
+pub(crate) fn engagement_params(p: &ClutchParams) -> [f64; 6] {
     [
         p.lambda,
         p.x_isp0_mm,
@@ -139,20 +139,20 @@ pub fn engagement_params(p: &ClutchParams) -> [f64; 6] {
 
 /// Maximum flat-spring compression u_fs,max(θ) of (8) (mm).
 #[inline]
-pub fn u_fs_max(p: &ClutchParams, theta_fs: f64) -> f64 {
+pub(crate) fn u_fs_max(p: &ClutchParams, theta_fs: f64) -> f64 {
     p.lambda * (p.x_to_max_mm - x_isp(p, theta_fs))
 }
 
 /// Flat-spring compression u_fs(x_to, θ) of (7) (mm), saturated to [0, u_fs,max(θ)].
 #[inline]
-pub fn u_fs(p: &ClutchParams, x_to_mm: f64, theta_fs: f64) -> f64 {
+pub(crate) fn u_fs(p: &ClutchParams, x_to_mm: f64, theta_fs: f64) -> f64 {
     let u = p.lambda * (x_to_mm - x_isp(p, theta_fs));
     u.max(0.0).min(u_fs_max(p, theta_fs).max(0.0))
 }
 
 /// Flat-spring load (10) F(u) (N) for a compression in mm (the p's take u in m).
 #[inline]
-pub fn spring_force(p: &ClutchParams, u_fs_mm: f64) -> f64 {
+pub(crate) fn spring_force(p: &ClutchParams, u_fs_mm: f64) -> f64 {
     let u = u_fs_mm * 1e-3;
     ((p.p3_n_per_m3 * u + p.p2_n_per_m2) * u + p.p1_n_per_m) * u
 }
@@ -171,7 +171,7 @@ pub fn torque(p: &ClutchParams, x_to_mm: f64, slip_radps: f64, theta_c: f64) -> 
 
 /// [`torque`] with the slip's Q(ω) ([`slip_shape`]) given when `q` is.
 #[inline]
-pub fn torque_shaped(
+pub(crate) fn torque_shaped(
     p: &ClutchParams,
     x_to_mm: f64,
     slip_radps: f64,

@@ -19,9 +19,9 @@ use super::params::DrivelineParams;
 use serde::{Deserialize, Serialize};
 
 /// Body indices.
-pub const F: usize = 0;
-pub const C1: usize = 1;
-pub const C2: usize = 2;
+pub(crate) const F: usize = 0;
+pub(crate) const C1: usize = 1;
+pub(crate) const C2: usize = 2;
 pub const OUT: usize = 3;
 
 /// Overall ratio k = i_g·i_f of a gear (ω_c = k·ω_out); negative for reverse; `None` for
@@ -60,7 +60,12 @@ pub fn load_torque(p: &DrivelineParams, w_out_radps: f64, grade: f64, brake: f64
 /// [`load_torque`] with the grade torque [`grade_torque`] already computed (it holds over a step
 /// with held inputs; the speed-dependent part does not).
 #[inline]
-pub fn load_torque_graded(p: &DrivelineParams, w_out_radps: f64, grade_nm: f64, brake: f64) -> f64 {
+pub(crate) fn load_torque_graded(
+    p: &DrivelineParams,
+    w_out_radps: f64,
+    grade_nm: f64,
+    brake: f64,
+) -> f64 {
     let v = p.wheel_radius_m * w_out_radps;
     let s = (v / p.load_smoothing_m_per_s).tanh();
     let brake = brake_fraction(brake);
@@ -84,7 +89,7 @@ fn brake_fraction(brake: f64) -> f64 {
 /// ∂T_load/∂ω_out of [`load_torque_graded`] (N·m·s/rad, ≥ 0): the stiffness of the road load,
 /// largest at standstill where the constant terms and the brake are regularised over
 /// `load_smoothing_m_per_s` (what limits an explicit step there).
-pub fn load_stiffness(p: &DrivelineParams, w_out_radps: f64, brake: f64) -> f64 {
+pub(crate) fn load_stiffness(p: &DrivelineParams, w_out_radps: f64, brake: f64) -> f64 {
     let r = p.wheel_radius_m;
     let v = r * w_out_radps;
     let eps = p.load_smoothing_m_per_s;
@@ -96,7 +101,7 @@ pub fn load_stiffness(p: &DrivelineParams, w_out_radps: f64, brake: f64) -> f64 
 }
 
 /// Grade torque m·g·sin(atan(grade))·R_w (N·m).
-pub fn grade_torque(p: &DrivelineParams, grade: f64) -> f64 {
+pub(crate) fn grade_torque(p: &DrivelineParams, grade: f64) -> f64 {
     if grade == 0.0 {
         // Level road (most steps): no atan/sin.
         return 0.0;
@@ -106,7 +111,7 @@ pub fn grade_torque(p: &DrivelineParams, grade: f64) -> f64 {
 
 /// Slip speeds (20): ω_fc1 = ω_f − ω_c1, ω_fc2 = ω_f − ω_c2.
 #[inline]
-pub fn slips(w: &[f64; 4]) -> [f64; 2] {
+pub(crate) fn slips(w: &[f64; 4]) -> [f64; 2] {
     [w[F] - w[C1], w[F] - w[C2]]
 }
 
@@ -300,7 +305,7 @@ impl GearShaft {
 
 /// Synchroniser torque (N·m) on the input shaft of a syncing selector, acting against the speed
 /// difference Δ = ω_c − k·ω_out; the output receives k times its opposite.
-pub fn sync_torque(p: &DrivelineParams, w_c: f64, k: f64, w_out: f64) -> f64 {
+pub(crate) fn sync_torque(p: &DrivelineParams, w_c: f64, k: f64, w_out: f64) -> f64 {
     -p.sync_torque_nm * ((w_c - k * w_out) / p.sync_smoothing_radps).tanh()
 }
 

@@ -41,10 +41,10 @@ pub const MAX_PARAMS: usize = 2;
 
 /// Reference pressure of `friction_pressure` (Pa): the pressure at which the paper's friction
 /// curve (Fig. 2) was measured.
-pub const FRICTION_P_REF_PA: f64 = 0.24e6;
+pub(crate) const FRICTION_P_REF_PA: f64 = 0.24e6;
 
 /// Longest dead time the plant's delay line holds (s); the upper bound of `delay_s`.
-pub const MAX_DEAD_TIME_S: f64 = 0.1;
+pub(crate) const MAX_DEAD_TIME_S: f64 = 0.1;
 
 /// Effect identifiers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -833,7 +833,7 @@ impl TorqueContext {
 
 /// Kiss-point shift of `kiss_point_wear` (mm) after `e_fric_j` joules.
 #[inline]
-pub fn wear_shift_mm(set: &EffectSet, e_fric_j: f64) -> f64 {
+pub(crate) fn wear_shift_mm(set: &EffectSet, e_fric_j: f64) -> f64 {
     match set.p0(EffectId::KissPointWear) {
         Some(k) if e_fric_j.is_finite() => k * e_fric_j * 1e-6,
         _ => 0.0,
@@ -842,7 +842,7 @@ pub fn wear_shift_mm(set: &EffectSet, e_fric_j: f64) -> f64 {
 
 /// Stiffness factor of `spring_stiffness_temp` at θ_c (≥ 0.05).
 #[inline]
-pub fn spring_factor(p: &ClutchParams, set: &EffectSet, theta_c: f64) -> f64 {
+pub(crate) fn spring_factor(p: &ClutchParams, set: &EffectSet, theta_c: f64) -> f64 {
     match set.p0(EffectId::SpringStiffnessTemp) {
         Some(k) => (1.0 + k * (theta_c - p.theta_a_c).max(0.0)).max(0.05),
         None => 1.0,
@@ -862,7 +862,7 @@ pub fn normal_force(p: &ClutchParams, set: &EffectSet, c: &TorqueContext) -> f64
 
 /// Pressure factor (p/p_ref)^(a−1) of `friction_pressure` at clamp force `f` (N).
 #[inline]
-pub fn pressure_factor(p: &ClutchParams, set: &EffectSet, f: f64) -> f64 {
+pub(crate) fn pressure_factor(p: &ClutchParams, set: &EffectSet, f: f64) -> f64 {
     match set.p0(EffectId::FrictionPressure) {
         Some(a) if a != 1.0 && f > 0.0 => {
             let area = std::f64::consts::PI * (p.r2_m * p.r2_m - p.r1_m * p.r1_m);
@@ -874,7 +874,7 @@ pub fn pressure_factor(p: &ClutchParams, set: &EffectSet, f: f64) -> f64 {
 
 /// Sliding-acceleration factor of `sliding_acceleration_friction`.
 #[inline]
-pub fn acceleration_factor(p: &ClutchParams, set: &EffectSet, c: &TorqueContext) -> f64 {
+pub(crate) fn acceleration_factor(p: &ClutchParams, set: &EffectSet, c: &TorqueContext) -> f64 {
     match set.p01(EffectId::SlidingAccelerationFriction) {
         Some((g, a_ref)) if c.slip_accel_radps2.is_finite() => {
             let r_m = 0.5 * (p.r1_m + p.r2_m);
@@ -887,7 +887,7 @@ pub fn acceleration_factor(p: &ClutchParams, set: &EffectSet, c: &TorqueContext)
 
 /// The two facing temperatures (plate side, central-disk side) that the friction sees.
 #[inline]
-pub fn facing_temperatures(set: &EffectSet, c: &TorqueContext) -> (f64, f64) {
+pub(crate) fn facing_temperatures(set: &EffectSet, c: &TorqueContext) -> (f64, f64) {
     let (mut t1, mut t2) = (c.theta_c, c.theta_c);
     if let Some(w) = set.p0(EffectId::FacingAsymmetry) {
         t1 += w * (c.theta_pp - c.theta_c);
@@ -1144,7 +1144,7 @@ pub fn thermal3_extra(set: &EffectSet, s: &Thermal3State, theta_h_c: f64) -> The
 /// the friction power and θ_c held): θ_s → θ_c + h P τ with time constant τ. Returns θ_c when
 /// the effect is off.
 #[inline]
-pub fn surface_temperature_step(
+pub(crate) fn surface_temperature_step(
     set: &EffectSet,
     theta_s: f64,
     theta_c: f64,
@@ -1178,7 +1178,7 @@ pub fn backlash(width_mm: f64, x_bearing_mm: f64, x_actuator_mm: f64) -> f64 {
 
 /// Bearing position with the set's `actuator_backlash` (identity when off).
 #[inline]
-pub fn bearing_position(set: &EffectSet, x_bearing_mm: f64, x_actuator_mm: f64) -> f64 {
+pub(crate) fn bearing_position(set: &EffectSet, x_bearing_mm: f64, x_actuator_mm: f64) -> f64 {
     match set.p0(EffectId::ActuatorBacklash) {
         Some(b) if b > 0.0 => backlash(b, x_bearing_mm, x_actuator_mm),
         _ => x_actuator_mm,
@@ -1198,17 +1198,17 @@ pub fn backlash_compensation(set: &EffectSet, x_bearing_target_mm: f64, dir: f64
 
 /// Dead time of `actuator_dead_time` (s; 0 when off).
 #[inline]
-pub fn dead_time_s(set: &EffectSet) -> f64 {
+pub(crate) fn dead_time_s(set: &EffectSet) -> f64 {
     set.p0(EffectId::ActuatorDeadTime).unwrap_or(0.0)
 }
 
 /// Capacity of [`DelayLine`] in samples.
-pub const DELAY_CAPACITY: usize = 256;
+pub(crate) const DELAY_CAPACITY: usize = 256;
 
 /// A fixed-capacity delay line of samples at a fixed step: `push` a sample, get the one `n`
 /// steps old (the oldest available while fewer have been pushed). No allocation.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DelayLine {
+pub(crate) struct DelayLine {
     buf: [f64; DELAY_CAPACITY],
     head: usize,
     filled: usize,
@@ -1236,7 +1236,7 @@ impl DelayLine {
 
 /// Delay in whole steps of `dt_s` for the set's dead time.
 #[inline]
-pub fn dead_time_steps(set: &EffectSet, dt_s: f64) -> usize {
+pub(crate) fn dead_time_steps(set: &EffectSet, dt_s: f64) -> usize {
     let d = dead_time_s(set);
     if d > 0.0 && dt_s > 0.0 {
         (d / dt_s).round() as usize
@@ -1247,7 +1247,7 @@ pub fn dead_time_steps(set: &EffectSet, dt_s: f64) -> usize {
 
 /// A sampled signal delayed by `delay_s` at sample `i` (linear interpolation between samples of
 /// step `dt_s`; before the first sample, the first sample). For fitting the dead time on logs.
-pub fn delayed_sample(samples: &[f64], i: usize, dt_s: f64, delay_s: f64) -> f64 {
+pub(crate) fn delayed_sample(samples: &[f64], i: usize, dt_s: f64, delay_s: f64) -> f64 {
     if samples.is_empty() {
         return f64::NAN;
     }
@@ -1268,7 +1268,7 @@ pub fn delayed_sample(samples: &[f64], i: usize, dt_s: f64, delay_s: f64) -> f64
 
 /// Torque the engine really delivers when its map gives `map_nm` (`engine_torque_error`).
 #[inline]
-pub fn engine_real_torque(set: &EffectSet, map_nm: f64) -> f64 {
+pub(crate) fn engine_real_torque(set: &EffectSet, map_nm: f64) -> f64 {
     match set.p0(EffectId::EngineTorqueError) {
         Some(e) => (1.0 + e) * map_nm,
         None => map_nm,

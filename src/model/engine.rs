@@ -28,7 +28,7 @@ pub struct EngineInputs {
 }
 
 /// Full-load (wide-open throttle) torque at engine speed `w` (rad/s), N·m.
-pub fn full_load(p: &EngineParams, w_radps: f64) -> f64 {
+pub(crate) fn full_load(p: &EngineParams, w_radps: f64) -> f64 {
     let n = w_radps / RPM;
     let t = if n <= p.peak_speed_rpm {
         let k = (1.0 - p.torque_at_idle_nm / p.peak_torque_nm)
@@ -47,7 +47,7 @@ pub fn full_load(p: &EngineParams, w_radps: f64) -> f64 {
 }
 
 /// Motoring drag torque (N·m, ≥ 0) at engine speed `w` (rad/s).
-pub fn drag(p: &EngineParams, w_radps: f64) -> f64 {
+pub(crate) fn drag(p: &EngineParams, w_radps: f64) -> f64 {
     let n = w_radps / RPM;
     let fade = (n / 100.0).clamp(0.0, 1.0);
     (p.drag0_nm + p.drag1_nm_per_krpm * n.max(0.0) / 1000.0) * fade
@@ -78,7 +78,7 @@ pub fn command(p: &EngineParams, w_radps: f64, idle_int_nm: f64, u: &EngineInput
 
 /// Lagged torque rate (N·m/s).
 #[inline]
-pub fn torque_rate(p: &EngineParams, t_e_nm: f64, t_cmd_nm: f64) -> f64 {
+pub(crate) fn torque_rate(p: &EngineParams, t_e_nm: f64, t_cmd_nm: f64) -> f64 {
     (t_cmd_nm - t_e_nm) / p.torque_lag_s
 }
 

@@ -22,7 +22,7 @@ pub enum Gear {
 }
 
 /// The forward gears, lowest first.
-pub const FORWARD: [Gear; 6] = [Gear::G1, Gear::G2, Gear::G3, Gear::G4, Gear::G5, Gear::G6];
+pub(crate) const FORWARD: [Gear; 6] = [Gear::G1, Gear::G2, Gear::G3, Gear::G4, Gear::G5, Gear::G6];
 
 impl Gear {
     /// Forward gear `n` (1–6); `None` for any other number.

@@ -18,13 +18,13 @@ pub trait OdeSystem {
 
 /// One classical RK4 step of length `h` with the inputs held constant.
 #[inline]
-pub fn rk4_step<S: OdeSystem>(sys: &S, x: &S::State, u: &S::Input, h: f64) -> S::State {
+pub(crate) fn rk4_step<S: OdeSystem>(sys: &S, x: &S::State, u: &S::Input, h: f64) -> S::State {
     rk4_step_with(x, h, |x| sys.derivative(x, u))
 }
 
 /// One classical RK4 step of length `h` of ẋ = f(x) (inputs captured by `f`).
 #[inline]
-pub fn rk4_step_with<X: OdeState>(x: &X, h: f64, f: impl Fn(&X) -> X) -> X {
+pub(crate) fn rk4_step_with<X: OdeState>(x: &X, h: f64, f: impl Fn(&X) -> X) -> X {
     let k1 = f(x);
     rk4_step_from(x, &k1, h, f)
 }
@@ -32,7 +32,7 @@ pub fn rk4_step_with<X: OdeState>(x: &X, h: f64, f: impl Fn(&X) -> X) -> X {
 /// One classical RK4 step of length `h` of ẋ = f(x) whose first stage k1 = f(x) the caller has
 /// already evaluated (for event detection, say): three more evaluations.
 #[inline]
-pub fn rk4_step_from<X: OdeState>(x: &X, k1: &X, h: f64, f: impl Fn(&X) -> X) -> X {
+pub(crate) fn rk4_step_from<X: OdeState>(x: &X, k1: &X, h: f64, f: impl Fn(&X) -> X) -> X {
     let k2 = f(&x.axpy(0.5 * h, k1));
     let k3 = f(&x.axpy(0.5 * h, &k2));
     let k4 = f(&x.axpy(h, &k3));

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 pub const DEFAULT_TOML: &str = include_str!("../../config/params.toml");
 
 /// Temperature range (°C) over which the torque characteristic must be well defined.
-pub const THETA_VALID_C: (f64, f64) = (-40.0, 400.0);
+pub(crate) const THETA_VALID_C: (f64, f64) = (-40.0, 400.0);
 
 /// Allowed range of one key.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -76,7 +76,7 @@ static TABLE: LazyLock<Table> = LazyLock::new(|| {
 /// local coordinate s = Y/H − k ∈ [0, 1] (the Hermite form of [`p`] expanded once: one 32-byte
 /// record per lookup, four multiply-adds), for the batch torque of
 /// [`super::clutch_batch`].
-pub type Cubic = [f64; 4];
+pub(crate) type Cubic = [f64; 4];
 
 static CUBICS: LazyLock<Box<[Cubic; N]>> = LazyLock::new(|| {
     let tab = &*TABLE;
@@ -96,12 +96,12 @@ static CUBICS: LazyLock<Box<[Cubic; N]>> = LazyLock::new(|| {
 
 /// The per-interval cubics of f (P(Y) = f(Y)·Y^{7/3}) for Y in [0, [`Y_SAT`]], interval k
 /// covering [k·H, (k+1)·H] with H = Y_SAT/[`N`].
-pub fn cubics() -> &'static [Cubic; N] {
+pub(crate) fn cubics() -> &'static [Cubic; N] {
     &CUBICS
 }
 
 /// P(Y_SAT) − Y_SAT²/2: beyond saturation P(Y) = this + Y²/2.
-pub fn p_sat_offset() -> f64 {
+pub(crate) fn p_sat_offset() -> f64 {
     TABLE.p_sat - 0.5 * Y_SAT * Y_SAT
 }
 

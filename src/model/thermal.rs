@@ -229,7 +229,7 @@ impl OdeSystem for Thermal3 {
 /// model at time `t_s`: 20 cycles of 60 s (a 2 s launch on clutch 1 with 20 kW falling to zero,
 /// locked driving, a 1 s shift to clutch 2 with 8 kW falling to zero, driving on clutch 2, 10 s
 /// stop with both clutches open), then 1800 s of cooling with both clutches open; housing 40 °C.
-pub fn reference_duty_cycle(t_s: f64) -> ThermalInputs {
+pub(crate) fn reference_duty_cycle(t_s: f64) -> ThermalInputs {
     let mut u = ThermalInputs {
         theta_h_c: 40.0,
         ..Default::default()

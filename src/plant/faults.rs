@@ -97,7 +97,7 @@ impl Fault {
 /// The `[[faults]]` table as written.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct FaultSpec {
+pub(crate) struct FaultSpec {
     /// Message name (e.g. "DCT_Sensors") or id (e.g. "0x130").
     pub message: String,
     pub kind: String,
@@ -297,7 +297,7 @@ impl FaultSpec {
 }
 
 /// Parses `[[faults]]` entries of a TOML document (a plant config or a faults file).
-pub fn parse_faults(
+pub(crate) fn parse_faults(
     path: &Path,
     doc: &toml::Table,
     sent: &[u16],

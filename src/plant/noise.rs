@@ -19,7 +19,7 @@ fn unit(h: u64) -> f64 {
 }
 
 /// Standard normal sample of channel `channel` in cycle `cycle` for `seed`.
-pub fn gauss(seed: u64, cycle: u64, channel: u32) -> f64 {
+pub(crate) fn gauss(seed: u64, cycle: u64, channel: u32) -> f64 {
     let base = mix(seed ^ mix(cycle.wrapping_mul(0x1000_0000_01B3) ^ u64::from(channel)));
     let u1 = unit(mix(base));
     let u2 = unit(mix(base ^ 0xD1B5_4A32_D192_ED03));

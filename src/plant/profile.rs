@@ -177,7 +177,8 @@ pub struct DriverSample {
 }
 
 /// The scenario compiled into the binary (`config/scenarios/driver_launch.toml`).
-pub const DEFAULT_SCENARIO_TOML: &str = include_str!("../../config/scenarios/driver_launch.toml");
+pub(crate) const DEFAULT_SCENARIO_TOML: &str =
+    include_str!("../../config/scenarios/driver_launch.toml");
 
 impl Scenario {
     /// Parses a scenario file's text (`path` names it in errors).
@@ -305,7 +306,7 @@ impl Scenario {
 /// ([`Scenario::constant_over`]) is sampled once; the samples are those of
 /// [`Scenario::sample`], bit for bit.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct CycleSampler {
+pub(crate) struct CycleSampler {
     /// The cycle (index) the held sample belongs to, and the sample when the cycle is constant.
     cycle: Option<(u64, Option<DriverSample>)>,
 }

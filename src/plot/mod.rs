@@ -15,7 +15,7 @@ pub mod paper;
 use std::fmt::Write as _;
 
 /// Categorical palette (colour-blind friendly, Okabe–Ito).
-pub const PALETTE: [&str; 8] = [
+pub(crate) const PALETTE: [&str; 8] = [
     "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",
 ];
 
@@ -51,7 +51,7 @@ pub enum LegendPos {
 
 /// Line style of a series.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Style {
+pub(crate) enum Style {
     #[default]
     Solid,
     Dashed,
@@ -62,7 +62,7 @@ pub enum Style {
 
 /// One data series.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Series {
+pub(crate) struct Series {
     pub name: String,
     pub points: Vec<(f64, f64)>,
     /// CSS colour; `None` takes the palette colour of its index.
@@ -110,7 +110,7 @@ impl Series {
 
 /// One set of axes.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Panel {
+pub(crate) struct Panel {
     pub title: String,
     /// Axis labels, with units, e.g. "x_to (mm)".
     pub x_label: String,
@@ -183,7 +183,7 @@ impl Panel {
 
 /// A figure: panels laid out on a grid with `cols` columns.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Figure {
+pub(crate) struct Figure {
     pub title: String,
     pub cols: usize,
     pub panels: Vec<Panel>,
@@ -258,7 +258,7 @@ fn esc(t: &str) -> String {
 }
 
 /// "Nice" tick step for a range and a target count.
-pub fn nice_step(span: f64, target: usize) -> f64 {
+pub(crate) fn nice_step(span: f64, target: usize) -> f64 {
     if !(span.is_finite() && span > 0.0) {
         return 1.0;
     }
@@ -278,7 +278,7 @@ pub fn nice_step(span: f64, target: usize) -> f64 {
 }
 
 /// Ticks covering `[lo, hi]` with a nice step.
-pub fn ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
+pub(crate) fn ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
     let step = nice_step(hi - lo, target);
     let start = (lo / step - 1e-9).ceil() * step;
     let mut v = Vec::new();

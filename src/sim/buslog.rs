@@ -73,7 +73,7 @@ pub fn on_bus_time(frames: &[(Duration, CanFrame)]) -> Vec<(Duration, CanFrame)>
 }
 
 /// The recording on `axis` (a copy on bus time, the recording itself on receive time).
-pub fn on_axis(
+pub(crate) fn on_axis(
     frames: &[(Duration, CanFrame)],
     axis: TimeAxis,
 ) -> std::borrow::Cow<'_, [(Duration, CanFrame)]> {
@@ -132,7 +132,7 @@ pub fn latency(frames: &[(Duration, CanFrame)], cause: u16, effect: u16) -> (Spr
 
 /// Cycle of a message: the intervals between consecutive frames (µs) and their deviation from
 /// `nominal` (|interval − nominal|, µs).
-pub fn cycle_jitter(
+pub(crate) fn cycle_jitter(
     frames: &[(Duration, CanFrame)],
     id: u16,
     nominal: Duration,

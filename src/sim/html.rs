@@ -13,7 +13,7 @@ pub struct Table {
 }
 
 /// Escapes text for HTML.
-pub fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut o = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -51,7 +51,7 @@ fn table_html(t: &Table) -> String {
 }
 
 /// The verdict as a table (check, result, limit, measured).
-pub fn verdict_table(checks: &[Check]) -> Table {
+pub(crate) fn verdict_table(checks: &[Check]) -> Table {
     Table {
         caption: "Verdict (the scenario's [limits])".into(),
         head: ["check", "result", "limit", "measured"]

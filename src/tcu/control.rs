@@ -133,7 +133,7 @@ impl ClutchModel {
 /// integration (the integral is frozen while the output it produces is saturated in the direction
 /// the error pushes) and an integral clamp.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Pi {
+pub(crate) struct Pi {
     pub kp: f64,
     pub ki: f64,
     pub integral: f64,
@@ -223,19 +223,19 @@ impl Reduced {
 
 /// The TCU's road-load estimate T̂_Load (19) at the wheels from the measured output speed (no
 /// grade: the clutch-speed integral absorbs it).
-pub fn load_estimate(d: &DrivelineParams, w_out_radps: f64) -> f64 {
+pub(crate) fn load_estimate(d: &DrivelineParams, w_out_radps: f64) -> f64 {
     driveline::load_torque(d, w_out_radps, 0.0, 0.0)
 }
 
 /// Engine torque range the engine ECU honours at speed `w`: [−drag, full load] (N·m).
-pub fn engine_range(e: &EngineParams, w_radps: f64) -> (f64, f64) {
+pub(crate) fn engine_range(e: &EngineParams, w_radps: f64) -> (f64, f64) {
     use crate::model::engine;
     (-engine::drag(e, w_radps), engine::full_load(e, w_radps))
 }
 
 /// The driver's torque demand the engine delivers without a TCU request (the engine ECU's pedal
 /// map): p·T_full − (1 − p)·T_drag, p in 0..1.
-pub fn driver_demand(e: &EngineParams, pedal: f64, w_radps: f64) -> f64 {
+pub(crate) fn driver_demand(e: &EngineParams, pedal: f64, w_radps: f64) -> f64 {
     use crate::model::engine;
     let p = if pedal.is_finite() {
         pedal.clamp(0.0, 1.0)
@@ -246,7 +246,7 @@ pub fn driver_demand(e: &EngineParams, pedal: f64, w_radps: f64) -> f64 {
 }
 
 /// Moves `x` toward `target` by at most `rate·dt`.
-pub fn approach(x: f64, target: f64, rate: f64, dt: f64) -> f64 {
+pub(crate) fn approach(x: f64, target: f64, rate: f64, dt: f64) -> f64 {
     let step = (rate * dt).abs();
     if !x.is_finite() {
         return target;

@@ -16,7 +16,7 @@ use crate::model::thermal::{Thermal3, Thermal3State, ThermalInputs};
 
 /// Inputs of one estimator update (measured values).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct EstimatorInputs {
+pub(crate) struct EstimatorInputs {
     /// Measured bearing positions (mm).
     pub x_mm: [f64; 2],
     /// Measured slips ω_e − ω_ci (rad/s).
@@ -27,7 +27,7 @@ pub struct EstimatorInputs {
 
 /// The estimator's state and its last inputs.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ThermalEstimator {
+pub(crate) struct ThermalEstimator {
     model: Thermal3,
     state: Option<Thermal3State>,
     /// Friction power estimates of the last update (W).

@@ -39,7 +39,7 @@ pub struct TimedFrame {
 }
 
 /// The monitored input messages, in the priority order of their fault codes.
-pub const INPUTS: [Input; 4] = [
+pub(crate) const INPUTS: [Input; 4] = [
     Input::EngStatus,
     Input::Sensors,
     Input::Actuators,

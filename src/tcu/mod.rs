@@ -49,7 +49,7 @@ pub use config::{TcuConfig, TcuConfigError};
 
 /// A DCT_Sensors frame: the plant's sensor message, which marks each of its cycles (a lockstep
 /// bench counts bus time in them, whatever their content).
-pub fn is_cycle_frame(f: &CanFrame) -> bool {
+pub(crate) fn is_cycle_frame(f: &CanFrame) -> bool {
     f.standard_id() == Some(ids::DCT_SENSORS)
 }
 
@@ -57,7 +57,7 @@ pub fn is_cycle_frame(f: &CanFrame) -> bool {
 /// sync). A frame whose CRC is wrong (corrupted, or a flood of garbage on that id) triggers
 /// nothing: it is checked and counted by the inputs at the next computation, so a bad-CRC flood
 /// cannot drive the TCU at the flood's rate.
-pub fn is_sync_frame(f: &CanFrame) -> bool {
+pub(crate) fn is_sync_frame(f: &CanFrame) -> bool {
     is_cycle_frame(f) && crate::can::e2e::crc_ok(ids::DCT_SENSORS, f.bytes())
 }
 

@@ -160,7 +160,7 @@ pub fn check(cfg: &TcuConfig, m: &Measurements, healthy: bool) -> Result<(), Con
 /// What a running routine commands this cycle: the clutch's position request (mm); its shaft in
 /// neutral and the other clutch open are the caller's.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RoutineCommand {
+pub(crate) struct RoutineCommand {
     pub clutch: usize,
     pub x_ref_mm: f64,
     /// Short name of the phase, for traces.
@@ -169,7 +169,7 @@ pub struct RoutineCommand {
 
 /// One cycle's inputs of a running routine.
 #[derive(Debug, Clone, Copy)]
-pub struct RoutineInputs<'a> {
+pub(crate) struct RoutineInputs<'a> {
     pub cfg: &'a TcuConfig,
     pub m: &'a Measurements,
     /// Time of the step (s, the TCU's time base).
@@ -243,7 +243,7 @@ struct Run {
 
 /// The routine: its state, the running routine's data and the learned kiss points.
 #[derive(Debug, Clone, Default)]
-pub struct KissRoutine {
+pub(crate) struct KissRoutine {
     state: RoutineState,
     run: Option<Run>,
     learned: [Option<f64>; 2],

@@ -40,7 +40,7 @@ enum Kind {
 
 /// The frames of one id over the last window, each with how it passed the E2E check.
 #[derive(Debug, Clone, Default)]
-pub struct SenderMonitor {
+pub(crate) struct SenderMonitor {
     frames: VecDeque<(Duration, Kind)>,
 }
 
@@ -107,7 +107,7 @@ impl SenderMonitor {
 
 /// The frames of an id within the window, by how they passed the E2E check.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Window {
+pub(crate) struct Window {
     valid: usize,
     counter_errors: usize,
     bad_crc: usize,

@@ -156,7 +156,7 @@ impl Ctx<'_> {
 }
 
 /// The start gear of a lever position: 1st (odd shaft) for D, reverse (even shaft) for R.
-pub fn start_gear(lever: GearLever) -> Option<Gear> {
+pub(crate) fn start_gear(lever: GearLever) -> Option<Gear> {
     match lever {
         GearLever::D => Some(Gear::G1),
         GearLever::R => Some(Gear::R),
@@ -222,7 +222,7 @@ fn shaft(gear: Gear) -> usize {
 
 /// Shift schedule: the gear the tables want from gear `g` at speed `v_kmh` and pedal `p` (0..1);
 /// one step at a time.
-pub fn scheduled_gear(cfg: &TcuConfig, g: Gear, v_kmh: f64, p: f64) -> Gear {
+pub(crate) fn scheduled_gear(cfg: &TcuConfig, g: Gear, v_kmh: f64, p: f64) -> Gear {
     let Some(n) = g.number() else {
         return g;
     };

@@ -14,13 +14,13 @@ pub fn is_mdf(head: &[u8]) -> bool {
 }
 
 /// Size of the identification block at the start of every MDF file.
-pub const ID_BLOCK_LEN: u64 = 64;
+pub(crate) const ID_BLOCK_LEN: u64 = 64;
 /// Size of a block header: `##XX`, 4 reserved bytes, the length and the link count.
-pub const HEADER_LEN: usize = 24;
+pub(crate) const HEADER_LEN: usize = 24;
 
 /// One block read from the file: its type (`HD`, `DG`, …), links and data section.
 #[derive(Debug, Clone)]
-pub struct Block<'a> {
+pub(crate) struct Block<'a> {
     pub kind: [u8; 2],
     pub links: Vec<u64>,
     pub data: &'a [u8],
@@ -69,7 +69,7 @@ impl Block<'_> {
 }
 
 /// A block type as text for messages.
-pub fn kind_text(kind: [u8; 2]) -> String {
+pub(crate) fn kind_text(kind: [u8; 2]) -> String {
     String::from_utf8_lossy(&kind).into_owned()
 }
 
@@ -181,7 +181,7 @@ impl Builder {
 }
 
 /// The header of a block with `links` links and `data_len` bytes of data.
-pub fn block_header(kind: &[u8; 2], links: usize, data_len: u64) -> [u8; HEADER_LEN] {
+pub(crate) fn block_header(kind: &[u8; 2], links: usize, data_len: u64) -> [u8; HEADER_LEN] {
     let mut h = [0u8; HEADER_LEN];
     h[..2].copy_from_slice(b"##");
     h[2..4].copy_from_slice(kind);

@@ -5,7 +5,7 @@
 
 /// Which frames a channel group holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum FrameKind {
+pub(crate) enum FrameKind {
     Data,
     Remote,
 }
@@ -38,16 +38,16 @@ impl FrameKind {
 }
 
 /// MDF channel data types used here (cn_data_type).
-pub const DT_UINT_LE: u8 = 0;
-pub const DT_FLOAT_LE: u8 = 4;
-pub const DT_BYTES: u8 = 10;
+pub(crate) const DT_UINT_LE: u8 = 0;
+pub(crate) const DT_FLOAT_LE: u8 = 4;
+pub(crate) const DT_BYTES: u8 = 10;
 
 /// The time master: f64 little endian at offset 0.
-pub const TIME_BYTES: usize = 8;
+pub(crate) const TIME_BYTES: usize = 8;
 
 /// One member of the composed frame channel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Member {
+pub(crate) struct Member {
     /// The part after `CAN_DataFrame.`.
     pub name: &'static str,
     pub byte_offset: usize,
@@ -69,27 +69,27 @@ const fn member(name: &'static str, byte_offset: usize, bytes: usize, bits: u32)
 }
 
 /// The members every frame kind has, at the same offsets.
-pub const BUS_CHANNEL: Member = member("BusChannel", 8, 1, 8);
+pub(crate) const BUS_CHANNEL: Member = member("BusChannel", 8, 1, 8);
 /// 29 bits of identifier; bit 31 repeats the IDE flag (CANedge's convention, which asammdf
 /// falls back on when `IDE` is absent).
-pub const ID: Member = member("ID", 9, 4, 32);
-pub const IDE: Member = member("IDE", 13, 1, 1);
-pub const DLC: Member = member("DLC", 14, 1, 4);
-pub const DATA_LENGTH: Member = member("DataLength", 15, 1, 8);
-pub const DATA_BYTES: Member = Member {
+pub(crate) const ID: Member = member("ID", 9, 4, 32);
+pub(crate) const IDE: Member = member("IDE", 13, 1, 1);
+pub(crate) const DLC: Member = member("DLC", 14, 1, 4);
+pub(crate) const DATA_LENGTH: Member = member("DataLength", 15, 1, 8);
+pub(crate) const DATA_BYTES: Member = Member {
     name: "DataBytes",
     byte_offset: 16,
     bytes: 8,
     bits: 64,
     data_type: DT_BYTES,
 };
-pub const DATA_DIR: Member = member("Dir", 24, 1, 1);
-pub const REMOTE_DIR: Member = member("Dir", 16, 1, 1);
+pub(crate) const DATA_DIR: Member = member("Dir", 24, 1, 1);
+pub(crate) const REMOTE_DIR: Member = member("Dir", 16, 1, 1);
 
 const DATA_MEMBERS: &[Member] = &[BUS_CHANNEL, ID, IDE, DLC, DATA_LENGTH, DATA_BYTES, DATA_DIR];
 const REMOTE_MEMBERS: &[Member] = &[BUS_CHANNEL, ID, IDE, DLC, DATA_LENGTH, REMOTE_DIR];
 
 /// Bit 31 of the `ID` member: the frame has an extended identifier.
-pub const ID_IDE_BIT: u32 = 1 << 31;
+pub(crate) const ID_IDE_BIT: u32 = 1 << 31;
 /// The identifier bits of the `ID` member.
-pub const ID_MASK: u32 = 0x1FFF_FFFF;
+pub(crate) const ID_MASK: u32 = 0x1FFF_FFFF;

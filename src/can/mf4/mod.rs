@@ -29,11 +29,11 @@ pub use write::Mf4Writer;
 
 /// Offset of the header's start time (ns since the epoch, u64): the HD block follows the
 /// 64-byte identification block, its 24-byte header and 6 links.
-pub const START_TIME_AT: usize = 64 + 24 + 6 * 8;
+pub(crate) const START_TIME_AT: usize = 64 + 24 + 6 * 8;
 
 /// The header's start time (ns since the epoch) from the first [`START_TIME_AT`] + 8 bytes of
 /// a file, if they are an MDF 4 identification block and header block.
-pub fn start_time_ns(head: &[u8]) -> Option<u64> {
+pub(crate) fn start_time_ns(head: &[u8]) -> Option<u64> {
     let version = u16::from_le_bytes(head.get(28..30)?.try_into().ok()?);
     let hd = head.get(64..68)?;
     if !is_mdf(head) || !(400..500).contains(&version) || hd != b"##HD" {

@@ -32,7 +32,7 @@ pub enum Did {
 }
 
 /// Length of an identification string on the bus.
-pub const IDENTIFICATION_LEN: usize = 16;
+pub(crate) const IDENTIFICATION_LEN: usize = 16;
 
 const MEASUREMENT_BASE: u16 = 0x0100;
 const TCU_TIME: u16 = 0x0120;
@@ -98,13 +98,13 @@ impl Did {
 }
 
 /// A value as the 4 bytes of a big-endian `f32` (NaN stays NaN).
-pub fn f32_be(v: f64) -> [u8; 4] {
+pub(crate) fn f32_be(v: f64) -> [u8; 4] {
     (v as f32).to_be_bytes()
 }
 
 /// A string as [`IDENTIFICATION_LEN`] ASCII bytes: truncated, padded with spaces, a non-ASCII
 /// or control character replaced by `?`.
-pub fn ascii16(s: &str) -> [u8; IDENTIFICATION_LEN] {
+pub(crate) fn ascii16(s: &str) -> [u8; IDENTIFICATION_LEN] {
     let mut out = [b' '; IDENTIFICATION_LEN];
     for (o, c) in out.iter_mut().zip(s.chars()) {
         *o = if c.is_ascii() && !c.is_ascii_control() {

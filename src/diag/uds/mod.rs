@@ -39,11 +39,11 @@ use data::{read_data, write_data};
 use request::Request;
 
 /// S3: a non-default session without requests falls back to the default session after this.
-pub const S3: Duration = Duration::from_secs(5);
+pub(crate) const S3: Duration = Duration::from_secs(5);
 /// P2 announced in the DiagnosticSessionControl response (ms).
-pub const P2_MS: u16 = 50;
+pub(crate) const P2_MS: u16 = 50;
 /// P2* announced in the DiagnosticSessionControl response (ms; sent in units of 10 ms).
-pub const P2_STAR_MS: u16 = 5000;
+pub(crate) const P2_STAR_MS: u16 = 5000;
 
 /// The suppress-positive-response bit of a sub-function byte.
 const SUPPRESS: u8 = 0x80;

@@ -9,7 +9,7 @@ use super::ecu::{RoutineState, UdsEcu};
 use super::{Nrc, Request, UdsServer};
 
 /// The kiss-point adaptation routine.
-pub const KISS_POINT_ROUTINE: u16 = 0x0201;
+pub(crate) const KISS_POINT_ROUTINE: u16 = 0x0201;
 
 impl UdsServer {
     /// 0x31.

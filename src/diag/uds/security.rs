@@ -7,11 +7,11 @@ use std::time::Duration;
 use super::nrc::Nrc;
 
 /// The constant XORed into the seed ("DDTC").
-pub const KEY_CONSTANT: u32 = 0x4444_5443;
+pub(crate) const KEY_CONSTANT: u32 = 0x4444_5443;
 /// Wrong keys in a row that lock the level.
-pub const MAX_ATTEMPTS: u8 = 3;
+pub(crate) const MAX_ATTEMPTS: u8 = 3;
 /// How long the level stays locked after [`MAX_ATTEMPTS`] wrong keys.
-pub const DELAY: Duration = Duration::from_secs(10);
+pub(crate) const DELAY: Duration = Duration::from_secs(10);
 
 /// The key of a seed.
 pub fn key(seed: u32) -> u32 {

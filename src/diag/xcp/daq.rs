@@ -37,18 +37,18 @@ pub const MAX_ENTRIES_PER_ODT: u8 = 7;
 /// Most entries in all ODTs.
 pub const MAX_ENTRIES: usize = 256;
 /// Largest ODT entry (bytes): a whole DTO after the PID.
-pub const MAX_ODT_ENTRY_SIZE: u8 = 7;
+pub(crate) const MAX_ODT_ENTRY_SIZE: u8 = 7;
 /// Bytes of a DTO (MAX_DTO).
-pub const MAX_DTO: usize = 8;
+pub(crate) const MAX_DTO: usize = 8;
 /// Bytes of the DAQ timestamp.
-pub const TIMESTAMP_SIZE: usize = 4;
+pub(crate) const TIMESTAMP_SIZE: usize = 4;
 
 /// SET_DAQ_LIST_MODE / GET_DAQ_LIST_MODE bits.
-pub const MODE_SELECTED: u8 = 0x01;
+pub(crate) const MODE_SELECTED: u8 = 0x01;
 pub const MODE_DIRECTION_STIM: u8 = 0x02;
-pub const MODE_TIMESTAMP: u8 = 0x10;
+pub(crate) const MODE_TIMESTAMP: u8 = 0x10;
 pub const MODE_PID_OFF: u8 = 0x20;
-pub const MODE_RUNNING: u8 = 0x40;
+pub(crate) const MODE_RUNNING: u8 = 0x40;
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 struct Entry {
@@ -89,7 +89,7 @@ struct Ptr {
 
 /// The lists of the dynamic DAQ configuration.
 #[derive(Debug, Clone)]
-pub struct DaqTables {
+pub(crate) struct DaqTables {
     lists: Vec<DaqList>,
     stage: Stage,
     ptr: Option<Ptr>,

@@ -5,7 +5,7 @@ use crate::diag::values::{Calibration, Snapshot};
 
 /// A fake ECU: calibrations in an array, range-checked against the table's limits.
 #[derive(Debug, Clone)]
-pub struct FakeEcu {
+pub(crate) struct FakeEcu {
     pub cals: [f64; 8],
     pub snap: Option<Snapshot>,
 }

@@ -22,11 +22,11 @@ use crate::diag::values::{Calibration, Measurement, Snapshot, CALIBRATION_BASE};
 pub const TEXT_BASE: u32 = 0x0003_0000;
 
 /// Name of event channel 0 (the TCU's 10 ms cycle).
-pub const EVENT_NAME: &str = "10ms";
+pub(crate) const EVENT_NAME: &str = "10ms";
 /// GET_ID type 0 (ASCII text identifying the slave).
-pub const ID_ASCII: &str = "ddct virtual TCU";
+pub(crate) const ID_ASCII: &str = "ddct virtual TCU";
 /// GET_ID type 1 (the ASAM MC2 file name without path and extension: `ddct.a2l`).
-pub const ID_A2L_NAME: &str = "ddct";
+pub(crate) const ID_A2L_NAME: &str = "ddct";
 
 /// The texts of the text area, each at its address.
 const TEXTS: [(u32, &str); 3] = [
@@ -37,7 +37,7 @@ const TEXTS: [(u32, &str); 3] = [
 
 /// The address of the text for GET_ID type `id_type`, with its length; `None` for a type the
 /// slave has no text for.
-pub fn id_text(id_type: u8) -> Option<(u32, u32)> {
+pub(crate) fn id_text(id_type: u8) -> Option<(u32, u32)> {
     let (addr, text) = match id_type {
         0 => TEXTS[1],
         1 => TEXTS[2],
@@ -47,17 +47,17 @@ pub fn id_text(id_type: u8) -> Option<(u32, u32)> {
 }
 
 /// The address and length of an event channel's name.
-pub fn event_name(event: u16) -> Option<(u32, u32)> {
+pub(crate) fn event_name(event: u16) -> Option<(u32, u32)> {
     (event == 0).then_some((TEXTS[0].0, EVENT_NAME.len() as u32))
 }
 
 /// Bytes of the measurement area.
-pub fn measurement_area_len() -> u32 {
+pub(crate) fn measurement_area_len() -> u32 {
     4 * Measurement::ALL.len() as u32
 }
 
 /// Bytes of the calibration area.
-pub fn calibration_area_len() -> u32 {
+pub(crate) fn calibration_area_len() -> u32 {
     4 * Calibration::ALL.len() as u32
 }
 
@@ -95,7 +95,7 @@ pub fn read(
 }
 
 /// Whether `len` bytes from `addr` are all readable (the check of WRITE_DAQ).
-pub fn readable(addr: u32, len: u8, ecu: &impl XcpEcu) -> bool {
+pub(crate) fn readable(addr: u32, len: u8, ecu: &impl XcpEcu) -> bool {
     read(addr, len, None, ecu).is_ok()
 }
 

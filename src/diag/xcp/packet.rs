@@ -40,9 +40,9 @@
 //! Any other code (the other optional commands of the standard included) is `ERR_CMD_UNKNOWN`.
 
 /// Packet identifier of a positive response.
-pub const PID_RES: u8 = 0xFF;
+pub(crate) const PID_RES: u8 = 0xFF;
 /// Packet identifier of an error packet.
-pub const PID_ERR: u8 = 0xFE;
+pub(crate) const PID_ERR: u8 = 0xFE;
 
 /// The commands this slave implements, by their code (the packet identifier of a CRO).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

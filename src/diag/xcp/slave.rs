@@ -36,16 +36,16 @@ use super::packet::{self, ErrorCode, Request};
 use crate::diag::values::Snapshot;
 
 /// Bytes of a CTO (MAX_CTO).
-pub const MAX_CTO: usize = 8;
+pub(crate) const MAX_CTO: usize = 8;
 /// CONNECT: the resources (bit 0 CAL/PAG, bit 2 DAQ).
-pub const RESOURCE: u8 = 0x05;
+pub(crate) const RESOURCE: u8 = 0x05;
 /// CONNECT: COMM_MODE_BASIC (bit 7 OPTIONAL; byte order Intel, granularity BYTE: 0).
-pub const COMM_MODE_BASIC: u8 = 0x80;
+pub(crate) const COMM_MODE_BASIC: u8 = 0x80;
 /// XCP protocol layer version (major of 1.x) and transport layer version (XCP on CAN 1.x).
-pub const PROTOCOL_LAYER_VERSION: u8 = 0x01;
-pub const TRANSPORT_LAYER_VERSION: u8 = 0x01;
+pub(crate) const PROTOCOL_LAYER_VERSION: u8 = 0x01;
+pub(crate) const TRANSPORT_LAYER_VERSION: u8 = 0x01;
 /// Cycle of event channel 0 (ms).
-pub const EVENT_CYCLE_MS: u8 = 10;
+pub(crate) const EVENT_CYCLE_MS: u8 = 10;
 
 /// The XCP slave.
 #[derive(Debug, Clone, Default)]

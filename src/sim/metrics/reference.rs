@@ -12,7 +12,7 @@ use crate::tcu::TcuConfig;
 
 /// Bit for bit: `Debug` prints every `f64` in its shortest round-trip form (−0.0 and NaN
 /// included), where `PartialEq` would take −0.0 for 0.0.
-pub fn assert_same(a: &Metrics, b: &Metrics, what: &str) {
+pub(crate) fn assert_same(a: &Metrics, b: &Metrics, what: &str) {
     assert_eq!(format!("{a:#?}"), format!("{b:#?}"), "{what}");
 }
 

@@ -4,10 +4,11 @@
 //! the order they came. When the writer falls behind, this thread writes a block's rows itself
 //! and hands the writer the text: both threads share the formatting, the heavier half.
 
-use super::decoding::Decoding;
-use ddct::can::candump::LogReader;
-use ddct::can::decode::LogDecoder;
-use ddct::can::decode_csv::{CsvRows, DecodedBlock, CSV_HEADER};
+use super::error::DecodeError;
+use super::tally::Tally;
+use crate::can::candump::LogReader;
+use crate::can::decode::LogDecoder;
+use crate::can::decode_csv::{CsvRows, DecodedBlock, CSV_HEADER};
 use std::io::{Read, Write};
 use std::sync::mpsc::{self, Receiver, Sender, SyncSender, TrySendError};
 
@@ -26,12 +27,12 @@ enum Block {
 }
 
 /// Decodes the log of `reader` and writes its CSV (header included) to `out`.
-pub(super) fn csv_builtin<R: Read>(
+pub(crate) fn csv_builtin<R: Read>(
     reader: &mut LogReader<R>,
     dec: &mut LogDecoder,
-    run: &mut Decoding<'_>,
+    run: &mut Tally<'_>,
     out: &mut (impl Write + Send),
-) -> anyhow::Result<()> {
+) -> Result<(), DecodeError> {
     out.write_all(CSV_HEADER.as_bytes())?;
     let frames_per_block = if run.per_frame {
         BLOCK_FRAMES_STDIN
@@ -66,10 +67,10 @@ pub(super) fn csv_builtin<R: Read>(
 fn decode_blocks<R: Read>(
     reader: &mut LogReader<R>,
     dec: &mut LogDecoder,
-    run: &mut Decoding<'_>,
+    run: &mut Tally<'_>,
     frames_per_block: usize,
     blocks: &mut BlockSender,
-) -> anyhow::Result<()> {
+) -> Result<(), DecodeError> {
     let mut block = DecodedBlock::default();
     while let Some(item) = reader.next_ref() {
         let Some(rec) = run.record(item)? else {
