@@ -66,7 +66,7 @@ fn no_panic_on_any_short_request() {
     for sid in 0..=255u8 {
         for len in 0..8usize {
             let mut req = vec![sid];
-            req.extend((0..len).map(|i| i as u8 * 0x35));
+            req.extend((0..len).map(|i| (i as u8).wrapping_mul(0x35)));
             let _ = r.req(&req);
             let _ = r.func(&req);
         }
