@@ -695,15 +695,16 @@ fn run_blind(a: BlindArgs) -> anyhow::Result<ExitCode> {
         .iter()
         .map(serde_json::to_value)
         .collect::<Result<Vec<_>, _>>()?;
+    let mut extra = serde_json::json!({ "threads": threads, "first": a.first });
+    if let Some(c) = a.class {
+        // Only a run of one class says so: a campaign's report stays as it was.
+        extra["class"] = c.as_str().into();
+    }
     let run = BlindRun {
         seed: a.seed,
         seconds: started.elapsed().as_secs_f64(),
         how: format!("on {threads} thread(s)"),
-        extra: serde_json::json!({
-            "threads": threads,
-            "first": a.first,
-            "class": a.class.map(|c| c.as_str()),
-        }),
+        extra,
     };
     write_blind(&a, &run, trials)
 }
