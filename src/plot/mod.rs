@@ -51,7 +51,7 @@ pub enum LegendPos {
 
 /// Line style of a series.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub(crate) enum Style {
+pub enum Style {
     #[default]
     Solid,
     Dashed,
@@ -62,7 +62,7 @@ pub(crate) enum Style {
 
 /// One data series.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Series {
+pub struct Series {
     pub name: String,
     pub points: Vec<(f64, f64)>,
     /// CSS colour; `None` takes the palette colour of its index.
@@ -110,7 +110,7 @@ impl Series {
 
 /// One set of axes.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Panel {
+pub struct Panel {
     pub title: String,
     /// Axis labels, with units, e.g. "x_to (mm)".
     pub x_label: String,
@@ -183,7 +183,7 @@ impl Panel {
 
 /// A figure: panels laid out on a grid with `cols` columns.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Figure {
+pub struct Figure {
     pub title: String,
     pub cols: usize,
     pub panels: Vec<Panel>,
