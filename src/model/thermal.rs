@@ -128,6 +128,21 @@ impl Thermal5 {
     }
 }
 
+/// A clutch disk's equation (16c)/(16d) with the plate, central-disk and housing temperatures
+/// and the friction power given (as a replay of measured records takes them), written
+/// θ̇_c = −λ·θ_c + g: `(λ, g)` for contact flag `b`, plate `pp`, central disk `cd`, housing `th`
+/// (°C) and friction power `pw` (W). The disk replays of the diagnosis integrate it exactly
+/// over a step.
+#[inline(always)]
+pub fn disk_rate(a: &ThermalParams5, b: f64, pp: f64, cd: f64, th: f64, pw: f64) -> (f64, f64) {
+    let lam = a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
+    let g = a.alpha4_per_s * b * pp
+        + a.alpha5_per_s * b * cd
+        + a.alpha6_per_s * (1.0 - b) * th
+        + a.alpha7_k_per_j * pw;
+    (lam, g)
+}
+
 /// State of the 3-state model (°C).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Thermal3State {
@@ -280,6 +295,33 @@ pub fn lumping_cost(p5: &ThermalParams5, p3: &ThermalParams3, dt: f64) -> (f64, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// (16c)/(16d) as −λ·θ_c + g is the derivative's disk row, engaged or open.
+    #[test]
+    fn the_disk_rate_is_the_derivatives_disk_row() {
+        let a = Params::default().thermal5;
+        let m = Thermal5::new(a);
+        for b in [0.0, 1.0] {
+            let s = Thermal5State {
+                pp1: 140.0,
+                pp2: 90.0,
+                c1: 170.0,
+                c2: 60.0,
+                cd: 110.0,
+            };
+            let u = ThermalInputs {
+                p_fric1_w: 9000.0,
+                p_fric2_w: 0.0,
+                beta1: b,
+                beta2: b,
+                theta_h_c: 45.0,
+                w_f_radps: 200.0,
+            };
+            let d = m.derivative(&s, &u);
+            let (lam, g) = disk_rate(&a, b, s.pp1, s.cd, u.theta_h_c, u.p_fric1_w);
+            assert!((g - lam * s.c1 - d.c1).abs() < 1e-9 * d.c1.abs().max(1.0));
+        }
+    }
     use crate::model::params::Params;
 
     #[test]

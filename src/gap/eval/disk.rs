@@ -16,7 +16,7 @@ pub use crate::gap::eval::set_hooks::Heat;
 use crate::gap::record::measured::Measured;
 use crate::model::params::{Params, ThermalParams5};
 use crate::model::powertrain::Hooks;
-use crate::model::thermal::{Thermal5State, ThermalInputs};
+use crate::model::thermal::{disk_rate, Thermal5State, ThermalInputs};
 
 /// A disk replay: the temperatures at every sample and the β each step used.
 #[derive(Debug, Clone, PartialEq)]
@@ -163,23 +163,14 @@ fn extend<H: Hooks + ?Sized>(
         let extra = h.extra_heat(&state, &tin);
         for i in 0..2 {
             let b = beta[i];
-            // θ̇ = −λθ + g
-            let lam = a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
-            let ex = if i == 0 { extra.c1 } else { extra.c2 };
-            let g = a.alpha4_per_s * b * pp_m[i]
-                + a.alpha5_per_s * b * cd_m
-                + a.alpha6_per_s * (1.0 - b) * th_m
-                + a.alpha7_k_per_j * pw_m[i]
-                + ex;
-            c[i] = if lam * m.dt > 1e-9 {
+            let (lam, g) = disk_rate(a, b, pp_m[i], cd_m, th_m, pw_m[i]);
+            let g = g + if i == 0 { extra.c1 } else { extra.c2 };
+            c[i] = exact_step(c[i], lam, g, m.dt, || {
                 if decay[i].0 != lam {
                     decay[i] = (lam, (-lam * m.dt).exp());
                 }
-                let inf = g / lam;
-                inf + (c[i] - inf) * decay[i].1
-            } else {
-                c[i] + (g - lam * c[i]) * m.dt
-            };
+                decay[i].1
+            });
             theta[i].push(c[i]);
             beta_out[i].push(b);
         }
@@ -207,24 +198,7 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
         return;
     };
     let c = [theta[0][k0], theta[1][k0]];
-    let lam_of = |b: f64| a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
-    // [`extend`]'s g with the extra heat 0.0 (what the hooks' extra heat is).
-    let g_of = |b: f64, pp: f64, cd: f64, th: f64, pw: f64| {
-        a.alpha4_per_s * b * pp
-            + a.alpha5_per_s * b * cd
-            + a.alpha6_per_s * (1.0 - b) * th
-            + a.alpha7_k_per_j * pw
-            + 0.0
-    };
-    let step = |c: f64, b: f64, g: f64| {
-        let lam = lam_of(b);
-        if lam * m.dt > 1e-9 {
-            let inf = g / lam;
-            inf + (c - inf) * (-lam * m.dt).exp()
-        } else {
-            c + (g - lam * c) * m.dt
-        }
-    };
+    let lam_of = |b: f64| disk_rate(a, b, 0.0, 0.0, 0.0, 0.0).0;
     let lam = [lam_of(B[0]), lam_of(B[1])];
     let decay = [(-lam[0] * m.dt).exp(), (-lam[1] * m.dt).exp()];
     let exact = [lam[0] * m.dt > 1e-9, lam[1] * m.dt > 1e-9];
@@ -248,14 +222,27 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
                 j = beta_index(b);
             }
             c = if j < 2 && exact[j] {
-                let inf = g_of(B[j], pp_m, cd_m, th_m, pw_m) / lam[j];
+                let inf = disk_rate(a, B[j], pp_m, cd_m, th_m, pw_m).1 / lam[j];
                 inf + (c - inf) * decay[j]
             } else {
-                step(c, b, g_of(b, pp_m, cd_m, th_m, pw_m))
+                let (lam, g) = disk_rate(a, b, pp_m, cd_m, th_m, pw_m);
+                exact_step(c, lam, g, m.dt, || (-lam * m.dt).exp())
             };
             theta.push(c);
             beta_out.push(b);
         }
+    }
+}
+
+/// θ after a step `dt` of θ̇ = −λθ + g from `c`: exact with the decay e^{−λ·dt} (`decay`, asked
+/// only then), Euler where λ·dt is too small for the exponential form.
+#[inline(always)]
+fn exact_step(c: f64, lam: f64, g: f64, dt: f64, decay: impl FnOnce() -> f64) -> f64 {
+    if lam * dt > 1e-9 {
+        let inf = g / lam;
+        inf + (c - inf) * decay()
+    } else {
+        c + (g - lam * c) * dt
     }
 }
 
