@@ -130,17 +130,42 @@ impl Thermal5 {
 
 /// A clutch disk's equation (16c)/(16d) with the plate, central-disk and housing temperatures
 /// and the friction power given (as a replay of measured records takes them), written
-/// θ̇_c = −λ·θ_c + g: `(λ, g)` for contact flag `b`, plate `pp`, central disk `cd`, housing `th`
-/// (°C) and friction power `pw` (W). The disk replays of the diagnosis integrate it exactly
-/// over a step.
-#[inline(always)]
-pub fn disk_rate(a: &ThermalParams5, b: f64, pp: f64, cd: f64, th: f64, pw: f64) -> (f64, f64) {
-    let lam = a.alpha4_per_s * b + a.alpha5_per_s * b + a.alpha6_per_s * (1.0 - b);
-    let g = a.alpha4_per_s * b * pp
-        + a.alpha5_per_s * b * cd
-        + a.alpha6_per_s * (1.0 - b) * th
-        + a.alpha7_k_per_j * pw;
-    (lam, g)
+/// θ̇_c = −λ·θ_c + g(θ_pp, θ_cd, θ_h, P): λ and the coefficients of g for contact flag β.
+/// The disk replays of the diagnosis integrate it exactly over a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiskRate {
+    /// λ = α4·β + α5·β + α6·(1 − β) (1/s).
+    pub lam: f64,
+    /// g's coefficients of θ_pp (α4·β), θ_cd (α5·β), θ_h (α6·(1 − β)) and P (α7).
+    pub k_pp: f64,
+    pub k_cd: f64,
+    pub k_th: f64,
+    pub k_p: f64,
+}
+
+impl DiskRate {
+    /// The disk equation of parameters `a` at contact flag `b`.
+    #[inline(always)]
+    pub fn new(a: &ThermalParams5, b: f64) -> Self {
+        let (k_pp, k_cd, k_th) = (
+            a.alpha4_per_s * b,
+            a.alpha5_per_s * b,
+            a.alpha6_per_s * (1.0 - b),
+        );
+        DiskRate {
+            lam: k_pp + k_cd + k_th,
+            k_pp,
+            k_cd,
+            k_th,
+            k_p: a.alpha7_k_per_j,
+        }
+    }
+
+    /// g for plate `pp`, central disk `cd`, housing `th` (°C) and friction power `pw` (W).
+    #[inline(always)]
+    pub fn g(&self, pp: f64, cd: f64, th: f64, pw: f64) -> f64 {
+        self.k_pp * pp + self.k_cd * cd + self.k_th * th + self.k_p * pw
+    }
 }
 
 /// State of the 3-state model (°C).
@@ -318,8 +343,9 @@ mod tests {
                 w_f_radps: 200.0,
             };
             let d = m.derivative(&s, &u);
-            let (lam, g) = disk_rate(&a, b, s.pp1, s.cd, u.theta_h_c, u.p_fric1_w);
-            assert!((g - lam * s.c1 - d.c1).abs() < 1e-9 * d.c1.abs().max(1.0));
+            let r = DiskRate::new(&a, b);
+            let g = r.g(s.pp1, s.cd, u.theta_h_c, u.p_fric1_w);
+            assert!((g - r.lam * s.c1 - d.c1).abs() < 1e-9 * d.c1.abs().max(1.0));
         }
     }
     use crate::model::params::Params;

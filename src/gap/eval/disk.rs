@@ -16,7 +16,7 @@ pub use crate::gap::eval::set_hooks::Heat;
 use crate::gap::record::measured::Measured;
 use crate::model::params::{Params, ThermalParams5};
 use crate::model::powertrain::Hooks;
-use crate::model::thermal::{disk_rate, Thermal5State, ThermalInputs};
+use crate::model::thermal::{DiskRate, Thermal5State, ThermalInputs};
 
 /// A disk replay: the temperatures at every sample and the β each step used.
 #[derive(Debug, Clone, PartialEq)]
@@ -163,8 +163,9 @@ fn extend<H: Hooks + ?Sized>(
         let extra = h.extra_heat(&state, &tin);
         for i in 0..2 {
             let b = beta[i];
-            let (lam, g) = disk_rate(a, b, pp_m[i], cd_m, th_m, pw_m[i]);
-            let g = g + if i == 0 { extra.c1 } else { extra.c2 };
+            let r = DiskRate::new(a, b);
+            let lam = r.lam;
+            let g = r.g(pp_m[i], cd_m, th_m, pw_m[i]) + if i == 0 { extra.c1 } else { extra.c2 };
             c[i] = exact_step(c[i], lam, g, m.dt, || {
                 if decay[i].0 != lam {
                     decay[i] = (lam, (-lam * m.dt).exp());
@@ -198,8 +199,8 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
         return;
     };
     let c = [theta[0][k0], theta[1][k0]];
-    let lam_of = |b: f64| disk_rate(a, b, 0.0, 0.0, 0.0, 0.0).0;
-    let lam = [lam_of(B[0]), lam_of(B[1])];
+    let rate = [DiskRate::new(a, B[0]), DiskRate::new(a, B[1])];
+    let lam = [rate[0].lam, rate[1].lam];
     let decay = [(-lam[0] * m.dt).exp(), (-lam[1] * m.dt).exp()];
     let exact = [lam[0] * m.dt > 1e-9, lam[1] * m.dt > 1e-9];
     // The index in B of each clutch's β at the step before (2: none yet, or another value).
@@ -222,11 +223,13 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
                 j = beta_index(b);
             }
             c = if j < 2 && exact[j] {
-                let inf = disk_rate(a, B[j], pp_m, cd_m, th_m, pw_m).1 / lam[j];
+                let inf = rate[j].g(pp_m, cd_m, th_m, pw_m) / lam[j];
                 inf + (c - inf) * decay[j]
             } else {
-                let (lam, g) = disk_rate(a, b, pp_m, cd_m, th_m, pw_m);
-                exact_step(c, lam, g, m.dt, || (-lam * m.dt).exp())
+                let r = DiskRate::new(a, b);
+                exact_step(c, r.lam, r.g(pp_m, cd_m, th_m, pw_m), m.dt, || {
+                    (-r.lam * m.dt).exp()
+                })
             };
             theta.push(c);
             beta_out.push(b);
