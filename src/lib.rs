@@ -3,9 +3,9 @@
 //!
 //! Layout: `can` (bus contract, buses, logs), `model` (pure physics), `plant` and `tcu` (pure
 //! cores stepped with `now` as an argument), `records` (bench records: schema, readers,
-//! events), `experiment` (bench experiments on the plant that produce records), `gap`
-//! (diagnosis), `truth` (an independent truth generator) and `blind` (the diagnosis's blind test
-//! against it).
+//! events), `experiment` (bench experiments on the plant that produce records), `identify` (the
+//! paper's parameter identification, `ddct identify`), `gap` (diagnosis), `truth` (an
+//! independent truth generator) and `blind` (the diagnosis's blind test against it).
 
 pub mod bench;
 pub mod blind;
@@ -15,6 +15,7 @@ pub mod diag;
 pub mod error_chain;
 pub mod experiment;
 pub mod gap;
+pub mod identify;
 pub mod io_error;
 pub mod model;
 pub mod num_text;

@@ -3,7 +3,7 @@
 //! against the independent truth generator is in `tests/truth.rs`).
 
 use ddct::experiment::synth::{rig_dataset, RigExperiment, SensorNoise};
-use ddct::gap::method::identify::{identify, IdentifyOptions};
+use ddct::identify::{identify, IdentifyOptions};
 use ddct::model::params::Params;
 use ddct::model::powertrain::Nominal;
 
