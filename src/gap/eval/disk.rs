@@ -200,9 +200,8 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
     };
     let c = [theta[0][k0], theta[1][k0]];
     let rate = [DiskRate::new(a, B[0]), DiskRate::new(a, B[1])];
-    let lam = [rate[0].lam, rate[1].lam];
-    let decay = [(-lam[0] * m.dt).exp(), (-lam[1] * m.dt).exp()];
-    let exact = [lam[0] * m.dt > 1e-9, lam[1] * m.dt > 1e-9];
+    let decay = rate.map(|r| (-r.lam * m.dt).exp());
+    let exact = rate.map(|r| r.lam * m.dt > 1e-9);
     // The index in B of each clutch's β at the step before (2: none yet, or another value).
     let j = [2usize; 2];
     let span = m.span(0, n);
@@ -223,7 +222,7 @@ fn extend_zero_heat<H: Hooks + ?Sized>(
                 j = beta_index(b);
             }
             c = if j < 2 && exact[j] {
-                let inf = rate[j].g(pp_m, cd_m, th_m, pw_m) / lam[j];
+                let inf = rate[j].g(pp_m, cd_m, th_m, pw_m) / rate[j].lam;
                 inf + (c - inf) * decay[j]
             } else {
                 let r = DiskRate::new(a, b);
