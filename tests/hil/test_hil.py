@@ -22,6 +22,8 @@ from __future__ import annotations
 import json
 import threading
 import time
+import tomllib
+from pathlib import Path
 
 import launch as hil
 
@@ -33,6 +35,9 @@ DETECT_MS = 3 * CYCLE_MS
 RECOVER_MS = 100.0
 # A real-time run is judged only when the TCU daemon was stalled for less than this share of it.
 MAX_STALL_SHARE = 0.10
+# The plant's input timeout (config/plant.toml inputs.timeout_cycles, in 10 ms cycles).
+PLANT_INPUT_TIMEOUT_MS = CYCLE_MS * tomllib.loads(
+    (Path(__file__).resolve().parents[2] / "config" / "plant.toml").read_text())["inputs"]["timeout_cycles"]
 
 
 def starved(tcu_report: dict, plant_report: dict | None) -> str | None:
@@ -225,8 +230,17 @@ def test_a_clock_step_during_a_timeout_changes_nothing(ddct, out_dir, step_s):
     in_safe = [k for k, st, _ in states if st == safe]
     assert in_safe and in_safe[0] < k_step <= in_safe[-1], "the step did not fall inside the stop"
     # The plant applied the TCU's commands throughout (a wall-clock plant held them back for the
-    # 3 s of a forward step: an input timeout).
-    assert p["plant"]["input_timeouts"].get("TCU_ClutchCmd", 0) == 0, p["plant"]["input_timeouts"]
+    # 3 s of a forward step: an input timeout). The plant rightly times the TCU out when the guest
+    # descheduled the TCU alone for its input timeout (less the cycle the last frame may lead the
+    # stall by): the TCU logs each such stall, and only those may account for a timeout.
+    long_stalls = [s for _, s in r["stall_log"] if s * 1000.0 >= PLANT_INPUT_TIMEOUT_MS - CYCLE_MS]
+    timeouts = p["plant"]["input_timeouts"]
+    for m in ("TCU_ClutchCmd", "TCU_EngineReq", "TCU_GearCmd"):
+        assert timeouts.get(m, 0) <= len(long_stalls), (
+            f"{m} timed out at the plant {timeouts.get(m, 0)} time(s), but the TCU stalled long enough "
+            f"only {len(long_stalls)} time(s) ({r['stall_log']})")
+    if long_stalls:
+        print(f"TCU stalls of {PLANT_INPUT_TIMEOUT_MS - CYCLE_MS:.0f} ms or more: {long_stalls}; plant input timeouts {timeouts}")
 
 
 def test_real_time_launch_over_vcan(ddct, out_dir):
