@@ -82,6 +82,11 @@ pub struct DiagnoseArgs {
     /// cores; 1 where a scheduler such as `ddct-fleet` runs one diagnosis per core).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
+    /// Leave this class out of the diagnosis (repeatable), e.g. `sensor_speed` for speed
+    /// channels calibrated on the bench: it is not fitted and the report lists it among the
+    /// classes not checked.
+    #[arg(long, value_name = "CLASS", value_parser = parse_class)]
+    exclude_class: Vec<ClassId>,
     /// Append one row per finding to this Parquet table (created if missing): unit, log, start
     /// time, operating hours, kind, class, subsystem, variable, magnitude with its 95 %
     /// interval, share of the gap, gap closed, the finding as JSON, ddct version and a hash of
@@ -547,6 +552,7 @@ fn diagnose_and_report(a: &DiagnoseArgs) -> anyhow::Result<Diagnosis> {
         bootstrap: a.bootstrap,
         seed: a.seed,
         threads,
+        excluded: a.exclude_class.clone(),
         ..DiagnoseOptions::default()
     };
     let pb = super::spinner("diagnosing: recalibration, class fits, selection");

@@ -78,6 +78,9 @@ pub struct DiagnoseOptions {
     /// Worker threads for the class fits (0 counts as 1). The caller chooses: the diagnosis
     /// reads no machine state (the CLI and the blind harness give the available cores).
     pub threads: usize,
+    /// Classes the caller rules out (e.g. a sensor calibrated on the bench): not fitted, listed
+    /// among the classes not checked with why.
+    pub excluded: Vec<ClassId>,
 }
 
 impl Default for DiagnoseOptions {
@@ -96,6 +99,7 @@ impl Default for DiagnoseOptions {
             max_fit_samples: 8_000,
             max_classes: 3,
             threads: 1,
+            excluded: Vec::new(),
         }
     }
 }
@@ -1060,7 +1064,7 @@ pub fn diagnose(
 
     // Classes this record set can check.
     let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
-    let (classes, not_checkable) = checkable_classes(&kn, &needs(&all_files, &chans));
+    let (classes, not_checkable) = checkable_classes(&kn, &needs(&all_files, &chans), &o.excluded);
 
     // Phases 3–6: forward selection, recalibrations out of range, what is left above the
     // floor, the verdict.
@@ -1373,11 +1377,17 @@ fn recalibration_table(nominal: &Params, recal: &Params) -> Vec<(ParamKey, f64, 
 fn checkable_classes(
     kn: &Knots,
     has: &impl Fn(Needs) -> bool,
+    excluded: &[ClassId],
 ) -> (Vec<ClassId>, Vec<NotCheckable>) {
     let mut classes = Vec::new();
     let mut not_checkable = Vec::new();
     for c in ClassId::ALL {
-        match c.fit().not_checkable(kn, has) {
+        let why = if excluded.contains(c) {
+            Some("excluded by the caller (--exclude-class)".to_string())
+        } else {
+            c.fit().not_checkable(kn, has)
+        };
+        match why {
             None => classes.push(*c),
             Some(why) => not_checkable.push(NotCheckable { class: *c, why }),
         }
@@ -1649,4 +1659,27 @@ fn replay_gaps(nominal: &Model, after: &Model, files: &[File]) -> Vec<ReplayGap>
             rmse_after: (se[1][q] / n[q] as f64).sqrt(),
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_excluded_class_is_not_fitted_and_says_why() {
+        let kn = Knots(BTreeMap::new());
+        let all = |_: Needs| true;
+        let (classes, _) = checkable_classes(&kn, &all, &[]);
+        assert!(classes.contains(&ClassId::SensorSpeed));
+        let (classes, not) = checkable_classes(&kn, &all, &[ClassId::SensorSpeed]);
+        assert!(!classes.contains(&ClassId::SensorSpeed));
+        let why = not
+            .iter()
+            .find(|n| n.class == ClassId::SensorSpeed)
+            .map(|n| &n.why);
+        assert_eq!(
+            why.map(String::as_str),
+            Some("excluded by the caller (--exclude-class)")
+        );
+    }
 }
