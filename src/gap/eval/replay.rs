@@ -9,9 +9,8 @@
 //!   power and housing temperature ([`thermal_replay`]), compared with the measured θ_pp, θ_cd;
 //! - actuator: the bearing position simulated from the position request through the nominal
 //!   first-order lag with rate limit ([`actuator_replay`]);
-//! - engine/driveline: the flywheel balance J_eq·ω̇_f = T_e − T_c1 − T_c2 (18a) with measured
-//!   torques ([`engine_balance`]), the output balance when gears and ω_out are logged
-//!   ([`driveline_balance`]);
+//! - engine: the flywheel balance J_eq·ω̇_f = T_e − T_c1 − T_c2 (18a) with measured torques, as
+//!   window means ([`crate::gap::eval::predict`]);
 //! - and the free-running replay of the whole rig model ([`full_replay`]): torque and
 //!   temperatures simulated from the measured inputs only (x_to, speeds, θ_h), the model's own
 //!   torque heating its own thermal state — the "replay error" beside the equation error.
@@ -19,7 +18,7 @@
 //! Reality effects enter through the powertrain's [`Hooks`], exactly as in the plant.
 
 use crate::gap::record::measured::Measured;
-use crate::gap::record::series::{derivative, window_mean};
+use crate::gap::record::series::window_mean;
 use crate::model::actuator;
 use crate::model::integrator::rk4_step_with;
 use crate::model::params::{ActuatorParams, Params};
@@ -279,59 +278,6 @@ fn lag_substeps(a: &ActuatorParams, mut x: f64, r: f64, h: f64, n: usize) -> f64
         x += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
     }
     x
-}
-
-/// Flywheel balance residual of (18a): T_e − T_c1 − T_c2 − J_eq·ω̇_f (N·m); `None` without T_e.
-pub fn engine_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
-    let te = m.t_e.as_ref()?;
-    let acc = derivative(&m.w_f, m.dt, 2);
-    Some(
-        (0..m.n)
-            .map(|k| te[k] - m.torque[0][k] - m.torque[1][k] - p.driveline.j_eq_kgm2 * acc[k])
-            .collect(),
-    )
-}
-
-/// Output-side balance with the logged gears: k_odd·T_c1 + k_even·T_c2 − T_load(ω_out) −
-/// J_out·ω̇_out (N·m at the wheels), where the clutch-side inertias are lumped through the engaged
-/// ratios; samples without an engaged gear on a transmitting clutch are NaN. `None` without
-/// ω_out or gears.
-pub fn driveline_balance(p: &Params, m: &Measured) -> Option<Vec<f64>> {
-    let w_out = m.w_out.as_ref()?;
-    let gears = m.gears.as_ref()?;
-    let dl = &p.driveline;
-    let acc = derivative(w_out, m.dt, 2);
-    let j = crate::model::driveline::inertias(dl);
-    Some(
-        (0..m.n)
-            .map(|k| {
-                let ratio = |code: f64| {
-                    let g = crate::model::gear::Gear::from_code(code.round()).ok()?;
-                    crate::model::driveline::overall_ratio(dl, g)
-                };
-                let (k_odd, k_even) = (ratio(gears[0][k]), ratio(gears[1][k]));
-                let t1 = m.torque[0][k];
-                let t2 = m.torque[1][k];
-                let mut tw = 0.0;
-                let mut jj = j[3];
-                let mut any = false;
-                if let Some(ko) = k_odd {
-                    tw += ko * t1;
-                    jj += j[1] * ko * ko;
-                    any |= t1.abs() > 3.0;
-                }
-                if let Some(ke) = k_even {
-                    tw += ke * t2;
-                    jj += j[2] * ke * ke;
-                    any |= t2.abs() > 3.0;
-                }
-                if !any {
-                    return f64::NAN;
-                }
-                tw - crate::model::driveline::load_torque(dl, w_out[k], 0.0, 0.0) - jj * acc[k]
-            })
-            .collect(),
-    )
 }
 
 #[cfg(test)]

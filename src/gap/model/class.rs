@@ -216,10 +216,6 @@ impl ClassId {
             .copied()
             .find(|c| c.member() == Some(id))
     }
-
-    pub fn is_sensor(self) -> bool {
-        self.kind() == Kind::Sensor
-    }
 }
 
 impl fmt::Display for ClassId {
