@@ -547,7 +547,7 @@ pub enum EffectError {
 /// An inactive effect's parameters are zeros, not undefined: the optimiser computes an effect's
 /// term from its parameter before it selects on whether the effect is active, and an `Option`'s
 /// undefined payload once held a subnormal number there, a floating-point microcode assist on
-/// every sample of the disk replay (the 30-minute diagnosis took 1.2× as long).
+/// every sample of the disk replay (the 30-minute diagnosis took 1.34× as long).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct EffectSet {
     params: [[f64; MAX_PARAMS]; EffectId::COUNT],
