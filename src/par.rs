@@ -65,15 +65,13 @@ fn run<T: Sync, S, R: Send>(
             .map(|_| {
                 let (next, init, f) = (&next, &init, &f);
                 sc.spawn(move || {
-                    below_reserve(|| {
-                        let (mut mine, mut state) = (Vec::new(), init());
-                        loop {
-                            let q = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            let Some(&i) = order.get(q) else { break };
-                            mine.push((i, f(&mut state, i, &items[i])));
-                        }
-                        mine
-                    })
+                    let (mut mine, mut state) = (Vec::new(), init());
+                    loop {
+                        let q = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&i) = order.get(q) else { break };
+                        mine.push((i, f(&mut state, i, &items[i])));
+                    }
+                    mine
                 })
             })
             .collect();
@@ -84,25 +82,6 @@ fn run<T: Sync, S, R: Send>(
     });
     done.sort_by_key(|(i, _)| *i);
     done.into_iter().map(|(_, r)| r).collect()
-}
-
-/// Bytes a worker thread leaves unused at the top of its stack before its work.
-const STACK_RESERVE: usize = 4096;
-
-/// Runs `f` in a frame [`STACK_RESERVE`] bytes below the caller's: a worker's hot loops then do
-/// not sit in the top page of a fresh thread stack. Measured on the 2-core machine with the
-/// 30-minute diagnosis, the same source ran 4.4–4.7 s or 6.4–6.9 s from one build to the next
-/// (the disk replay at half speed, identical results), and with one binary the time moved with
-/// the depth at which the workers' frames started; with the frames started below a reserve of
-/// 128 B to 16 KiB no build tried was slow. The cause was not pinned down (the VM exposes no
-/// hardware counters); the reserve costs one untouched stack page per worker.
-#[inline(never)]
-fn below_reserve<R>(f: impl FnOnce() -> R) -> R {
-    let reserve = [0u8; STACK_RESERVE];
-    std::hint::black_box(&reserve);
-    let r = std::hint::black_box(f)();
-    std::hint::black_box(&reserve);
-    r
 }
 
 #[cfg(test)]
