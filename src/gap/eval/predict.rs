@@ -326,20 +326,20 @@ fn corrected_inputs(t: &Terms, m: &Measured) -> Option<Measured> {
         c.cd = unlag(&c.cd);
     }
     if let Some(sp) = &t.speed_sensor {
-        let speeds = |v: &Shared| -> Shared { sp.true_speeds(v, m.dt).into() };
+        let speeds = |v: &Shared| -> Shared { sp.true_speeds(v, m.dt) };
         c = c.with_speeds([speeds(&m.slip[0]), speeds(&m.slip[1])], speeds(&m.w_f));
     }
     if t.torque_sensor.is_some() || t.speed_sensor.is_some() {
         let mut e_cum = m.e_cum.clone();
         let power = [0, 1].map(|i| {
-            let torque = |k: usize| match &t.torque_sensor {
-                Some(g) => g.invert(m.torque[i][k], 0.0),
-                None => m.torque[i][k],
+            let measured = m.torque[i].iter().zip(&c.slip[i][..]);
+            let power: Shared = match &t.torque_sensor {
+                Some(g) => measured.map(|(tq, w)| g.invert(*tq, 0.0) * w).collect(),
+                None => measured.map(|(tq, w)| tq * w).collect(),
             };
-            let power: Vec<f64> = (0..m.n).map(|k| torque(k) * c.slip[i][k]).collect();
             let e0 = m.e_cum[i].first().copied().unwrap_or(0.0);
-            e_cum[i] = series::cumulative_energy(&power, e0, m.dt).into();
-            Shared::from(power)
+            e_cum[i] = series::cumulative_energy(&power, e0, m.dt);
+            power
         });
         c = c.with_power(power, e_cum);
     }
@@ -963,9 +963,8 @@ mod tests {
             .with_speeds([read(&m.slip[0]), read(&m.slip[1])], read(&m.w_f));
         let power: [Shared; 2] = [0, 1]
             .map(|i| -> Shared { (0..m.n).map(|k| m.torque[i][k] * high.slip[i][k]).collect() });
-        let e_cum = [0, 1].map(|i| -> Shared {
-            series::cumulative_energy(&power[i], m.e_cum[i][0], m.dt).into()
-        });
+        let e_cum =
+            [0, 1].map(|i| -> Shared { series::cumulative_energy(&power[i], m.e_cum[i][0], m.dt) });
         let high = high.with_power(power, e_cum);
         let s = Samples::new(&m, 1, 10);
         let chans = Channel::ALL;

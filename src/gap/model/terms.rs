@@ -291,13 +291,14 @@ pub struct SpeedSensor {
 impl SpeedSensor {
     /// The true speed of a measured series sampled every `dt` s: read `skew_s` ahead
     /// (interpolated, held at the ends), divided by the gain.
-    pub fn true_speeds(&self, measured: &[f64], dt: f64) -> Vec<f64> {
+    pub fn true_speeds<C: FromIterator<f64>>(&self, measured: &[f64], dt: f64) -> C {
         let shift = self.skew_s / dt;
         let last = measured.len().saturating_sub(1);
         (0..measured.len())
             .map(|k| {
+                // Clamped to ≥ 0, so the truncation is the floor.
                 let pos = (k as f64 + shift).clamp(0.0, last as f64);
-                let a = pos.floor() as usize;
+                let a = pos as usize;
                 let f = pos - a as f64;
                 let v = if a < last {
                     measured[a] * (1.0 - f) + measured[a + 1] * f

@@ -16,7 +16,7 @@ use crate::gap::record::memo::Memo;
 use crate::gap::record::power_sites::PowerSites;
 use crate::gap::record::series;
 use crate::gap::record::slip_shapes::SlipShapes;
-use crate::gap::record::windows::{PowerMeans, WindowSeries, Windows};
+use crate::gap::record::windows::{PowerMeans, WindowSeries, Windows, XOrder};
 use crate::model::clutch;
 use crate::model::params::{ClutchParams, Params};
 use crate::model::powertrain::ClutchContext;
@@ -260,11 +260,14 @@ impl Measured {
 }
 
 /// The model-free series of one record kept by value ([`Measured`]'s memos): the slip shapes of
-/// each clutch geometry asked for and the replay's windows of each stride.
+/// each clutch geometry asked for, the replay's windows of each stride and their order by
+/// position.
 #[derive(Debug, Clone, Default)]
 struct InputsMemo {
     slip_shapes: Memo<[u64; 3], SlipShapes>,
     windows: Memo<usize, Windows>,
+    /// Of the positions alone: a speed correction keeps it.
+    x_order: Memo<usize, XOrder>,
 }
 
 /// The model-free series of one record's friction power: its window means of each stride, its
@@ -277,10 +280,12 @@ struct PowerMemo {
 
 impl Measured {
     /// The record with the friction power and energy `power`, `e_cum` in place of its own (a
-    /// torque-sensor correction): what was kept of the old power is not carried over.
+    /// torque-sensor correction): what was kept of the old power, and the windows (which read
+    /// the energy at their ends), are not carried over.
     pub fn with_power(mut self, power: [Shared; 2], e_cum: [Shared; 2]) -> Measured {
         self.power = power;
         self.e_cum = e_cum;
+        self.inputs_memo.windows = Memo::default();
         self.power_memo = PowerMemo::default();
         self
     }
@@ -293,7 +298,10 @@ impl Measured {
         self.slides = Arc::new([0, 1].map(|i| series::slide_acceleration(&slip[i], self.dt)));
         self.slip = slip;
         self.w_f = w_f;
-        self.inputs_memo = InputsMemo::default();
+        self.inputs_memo = InputsMemo {
+            x_order: self.inputs_memo.x_order,
+            ..InputsMemo::default()
+        };
         self.power_memo = PowerMemo::default();
         self
     }
@@ -311,16 +319,19 @@ impl Measured {
     /// The replay's windows of `stride` samples ([`Windows`]), made on first use.
     pub fn windows(&self, stride: usize) -> Arc<Windows> {
         self.inputs_memo.windows.get(stride, || {
-            Windows::new(
-                &WindowSeries {
-                    x: [&self.x[0], &self.x[1]],
-                    slip: [&self.slip[0], &self.slip[1]],
-                    e_cum: [&self.e_cum[0], &self.e_cum[1]],
-                    th: &self.th,
-                    w_f: &self.w_f,
-                },
-                stride,
-            )
+            let x = [&self.x[0][..], &self.x[1][..]];
+            let order = self
+                .inputs_memo
+                .x_order
+                .get(stride, || XOrder::new(x, stride));
+            let series = WindowSeries {
+                x,
+                slip: [&self.slip[0], &self.slip[1]],
+                e_cum: [&self.e_cum[0], &self.e_cum[1]],
+                th: &self.th,
+                w_f: &self.w_f,
+            };
+            Windows::new(&series, order)
         })
     }
 

@@ -5,16 +5,13 @@
 
 /// Friction energy dissipated up to each sample (J), from `e0` at the first, by the trapezoid
 /// rule over the friction power `power` (W) sampled every `dt` s.
-pub fn cumulative_energy(power: &[f64], e0: f64, dt: f64) -> Vec<f64> {
+pub fn cumulative_energy<C: FromIterator<f64>>(power: &[f64], e0: f64, dt: f64) -> C {
     let mut e = e0;
-    let mut v = Vec::with_capacity(power.len());
-    for (k, p) in power.iter().enumerate() {
-        v.push(e);
-        if let Some(next) = power.get(k + 1) {
-            e += 0.5 * (p + next) * dt;
-        }
-    }
-    v
+    let steps = power.windows(2).map(move |w| {
+        e += 0.5 * (w[0] + w[1]) * dt;
+        e
+    });
+    std::iter::once(e0).chain(steps).take(power.len()).collect()
 }
 
 /// Smoothed derivative by a centred difference over ±`half` samples.

@@ -109,7 +109,7 @@ mod tests {
             gain: 1.03,
             skew_s: 0.02,
         };
-        let back = s.true_speeds(&measured, dt);
+        let back: Vec<f64> = s.true_speeds(&measured, dt);
         for k in 2..48 {
             assert!((back[k] - truth[k]).abs() < 1e-12, "sample {k}");
         }
@@ -119,6 +119,6 @@ mod tests {
             gain: 1.0,
             skew_s: 0.005,
         };
-        assert!((half.true_speeds(&truth, dt)[10] - 10.0 * 0.105).abs() < 1e-12);
+        assert!((half.true_speeds::<Vec<f64>>(&truth, dt)[10] - 10.0 * 0.105).abs() < 1e-12);
     }
 }
