@@ -32,6 +32,7 @@ use crate::gap::method::finding::{
     ClassFinding, Effect, Finding, OutsideFinding, RecalibrationFinding,
 };
 use crate::gap::method::form_error;
+use crate::gap::method::identifiable::{self, Undetermined};
 use crate::gap::method::select::{self, Job, Round, Setup};
 use crate::gap::method::where_::{self, Where};
 use crate::gap::model::candidate::{Channel, Model};
@@ -253,6 +254,8 @@ pub struct Diagnosis {
     pub how_far: HowFar,
     /// Plain recalibration: (key, nominal, recalibrated).
     pub recalibration: Vec<(ParamKey, f64, f64)>,
+    /// Recalibration parameters the training records do not determine (kept nominal).
+    pub undetermined: Vec<Undetermined>,
     pub blackbox: Option<BlackBoxResult>,
     pub notes: Vec<String>,
     /// The calibrated model (recalibrated parameters + the diagnosed effect).
@@ -596,7 +599,7 @@ fn recalibration_findings(
         Subsystem::TorqueCharacteristic,
         Subsystem::Actuator,
     ] {
-        let keys_ = select::recal_keys(sub);
+        let keys_ = s.recal_keys(sub);
         let at_bound: Vec<ParamKey> = keys_
             .iter()
             .copied()
@@ -642,6 +645,12 @@ fn recalibration_findings(
                 let v = k.get(&m2.p);
                 let (lo, hi) = select::plausible(k, s.nominal);
                 if v >= lo && v <= hi {
+                    continue;
+                }
+                // A move the records do not determine at the refit is not a finding.
+                if identifiable::delta_chi2(&m2, s.nominal, k, s.train, &ch)
+                    < identifiable::MIN_DELTA_CHI2
+                {
                     continue;
                 }
                 out.push(RecalibrationFinding {
@@ -928,7 +937,7 @@ fn calibration(s: &Setup, model: &Model, findings: &[Finding]) -> (Params, Effec
         let job = Job {
             classes: vec![member],
             form: classes::Form::Member,
-            recal: select::recal_keys(group),
+            recal: s.recal_keys(group),
             chans,
             wide: false,
             cached_disk: group == Subsystem::TorqueCharacteristic,
@@ -1058,9 +1067,10 @@ pub fn diagnose(
     let mut rng = Rng::new(o.seed);
 
     // Phase 1–2: recalibration, noise floors, knots.
-    let (recal, sigma, kn) =
+    let (recal, sigma, kn, undetermined) =
         recalibrate_with_floors(&nominal_model, &chans, &mut tr, &mut va, threads);
     let recalibration = recalibration_table(nominal, &recal.p);
+    let fixed: Vec<ParamKey> = undetermined.iter().map(|u| u.key).collect();
 
     // Classes this record set can check.
     let all_files: Vec<&File> = tr.iter().chain(va.iter()).collect();
@@ -1068,7 +1078,7 @@ pub fn diagnose(
 
     // Phases 3–6: forward selection, recalibrations out of range, what is left above the
     // floor, the verdict.
-    let setup = setup(&tr, &va, nominal, &kn, &chans, threads, o);
+    let setup = setup(&tr, &va, nominal, &kn, &chans, &fixed, threads, o);
     let sc_nom_v = Scores::of(&nominal_model, &va, &chans, nunits_v);
     let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
     let ex_rec_all = excesses(&sc_rec_v, &chans, o);
@@ -1115,6 +1125,7 @@ pub fn diagnose(
         verdict,
         how_far,
         recalibration,
+        undetermined,
         blackbox: w.blackbox,
         notes: w.notes,
         calibrated,
@@ -1173,23 +1184,37 @@ fn prepare_files(
 /// Phases 1–2: the recalibrated model, with the noise floors of the training records (set
 /// from the nominal model, then from the recalibrated one) and of the validation records
 /// (returned, per channel), the training records' disk estimates and the class variables'
-/// knots.
+/// knots; the recalibration parameters the training records do not determine are set back to
+/// nominal and returned ([`identifiable`]).
 fn recalibrate_with_floors(
     nominal_model: &Model,
     chans: &[Channel],
     tr: &mut [File],
     va: &mut [File],
     threads: usize,
-) -> (Model, Vec<f64>, Knots) {
+) -> (Model, Vec<f64>, Knots, Vec<Undetermined>) {
     context::set_noise(nominal_model, tr);
     let no_knots = Knots::default();
-    let recal = recalibrate(&nominal_model.p, chans, tr, &no_knots, false, threads);
+    let mut recal = recalibrate(&nominal_model.p, chans, tr, &no_knots, false, threads);
+    let fitted: Vec<ParamKey> = select::RECAL
+        .iter()
+        .copied()
+        .filter(|k| {
+            group_channels(k.subsystem())
+                .iter()
+                .any(|c| chans.contains(c))
+        })
+        .collect();
+    let undetermined = identifiable::undetermined(&recal, &nominal_model.p, &fitted, tr, chans);
+    for u in &undetermined {
+        u.key.set(&mut recal.p, u.nominal);
+    }
     context::set_noise(&recal, tr);
     let sigma = context::set_noise(&recal, va);
     context::cache_disk(&recal, tr);
     let kn = knots(&recal, tr);
     phase_done("recalibration");
-    (recal, sigma, kn)
+    (recal, sigma, kn, undetermined)
 }
 
 /// What phases 3–6 find on the recalibrated model.
@@ -1248,6 +1273,7 @@ fn setup<'a>(
     nominal: &'a Params,
     kn: &'a Knots,
     chans: &'a [Channel],
+    fixed: &'a [ParamKey],
     threads: usize,
     o: &DiagnoseOptions,
 ) -> Setup<'a> {
@@ -1262,6 +1288,7 @@ fn setup<'a>(
         threads,
         bic_threshold: o.bic_threshold,
         min_gain: o.min_gain,
+        fixed,
     }
 }
 

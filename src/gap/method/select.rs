@@ -365,6 +365,18 @@ pub struct Setup<'a> {
     pub threads: usize,
     pub bic_threshold: f64,
     pub min_gain: f64,
+    /// Recalibration parameters the records do not determine: kept nominal, never refitted
+    /// ([`crate::gap::method::identifiable`]).
+    pub fixed: &'a [ParamKey],
+}
+
+impl Setup<'_> {
+    /// The recalibration keys of a subsystem the records determine.
+    pub fn recal_keys(&self, sub: Subsystem) -> Vec<ParamKey> {
+        let mut keys = recal_keys(sub);
+        keys.retain(|k| !self.fixed.contains(k));
+        keys
+    }
 }
 
 /// A class fitted on top of a model and scored.
@@ -432,9 +444,9 @@ fn job_for(s: &Setup, classes: &[ClassId]) -> Option<Job> {
     };
     for &class in classes {
         let fit = class.fit();
-        recal.extend(recal_keys(fit.group()));
+        recal.extend(s.recal_keys(fit.group()));
         for &g in fit.recalibrates_also() {
-            recal.extend(recal_keys(g));
+            recal.extend(s.recal_keys(g));
         }
         let own: Vec<Channel> = fit
             .channels()
@@ -495,7 +507,7 @@ fn fit_classes(s: &Setup, base: &Model, classes: &[ClassId]) -> Option<(Model, F
         let job = Job {
             classes: vec![],
             form: classes::Form::Flexible,
-            recal: recal_keys(Subsystem::TorqueCharacteristic),
+            recal: s.recal_keys(Subsystem::TorqueCharacteristic),
             chans: tq,
             wide: false,
             cached_disk: false,
@@ -932,7 +944,7 @@ fn refit_without(
     let mut groups: Vec<Subsystem> = chosen.iter().map(|k| k.fit().group()).collect();
     groups.sort();
     groups.dedup();
-    let recal: Vec<ParamKey> = groups.iter().flat_map(|g| recal_keys(*g)).collect();
+    let recal: Vec<ParamKey> = groups.iter().flat_map(|g| s.recal_keys(*g)).collect();
     let mut chans: Vec<Channel> = chosen
         .iter()
         .flat_map(|k| k.fit().channels())

@@ -394,6 +394,26 @@ fn recalibration_section(s: &mut String, d: &Diagnosis) {
     for (k, a, b) in &d.recalibration {
         let _ = writeln!(s, "| {k} | {} | {} |", g(*a), g(*b));
     }
+    if !d.undetermined.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nNot determined by the training records (kept nominal: moving one by {:.0} % of \
+             nominal changes χ² by less than {}):\n\n\
+             | parameter | fitted | Δχ² | determined by |\n|---|---|---|---|",
+            100.0 * crate::gap::method::select::PLAUSIBLE_REL,
+            crate::gap::method::identifiable::MIN_DELTA_CHI2
+        );
+        for u in &d.undetermined {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.2} | {} |",
+                u.key,
+                g(u.fitted),
+                u.delta_chi2,
+                u.determined_by
+            );
+        }
+    }
     if !d.notes.is_empty() {
         let _ = writeln!(s, "\n## Notes\n");
         for n in &d.notes {
