@@ -1005,3 +1005,50 @@ fn a_parameter_the_records_cannot_see_is_listed_not_moved() {
     );
     assert!(recalibrated(&low_slip) > 0.3, "{}", recalibrated(&low_slip));
 }
+
+/// The data-quality stage (issue 45): a clean simulated rig record has no artefact; the same
+/// record with clutch 2's torque logged as exact zeros, the first plate's thermocouple held at
+/// 1 Hz and five EMI spikes on clutch 1's torque has exactly those three, on those channels,
+/// with the true rate of the held one and the spikes' count and size.
+#[test]
+fn logger_artefacts_are_found_on_their_channels() {
+    use ddct::gap::quality::{check, DataKind};
+    use ddct::records::dataset::Col;
+    let clean = rig_dataset(
+        "rig",
+        &Params::default(),
+        Nominal,
+        &RigExperiment::identification(10, 60.0),
+        SensorNoise::default(),
+        31,
+        0.005,
+    )
+    .unwrap();
+    assert_eq!(check([&clean]), vec![]);
+    let mut d = clean.clone();
+    d.set(Col::T2, vec![0.0; d.len()]);
+    let every = (1.0 / d.dt).round() as usize;
+    let pp1 = d.get(Col::Pp1).unwrap();
+    let held: Vec<f64> = (0..d.len()).map(|k| pp1[k - k % every]).collect();
+    d.set(Col::Pp1, held);
+    let mut t1 = d.get(Col::T1).unwrap().to_vec();
+    for k in [500, 2100, 4000, 6100, 9000] {
+        t1[k] += 800.0;
+    }
+    d.set(Col::T1, t1);
+    let found = check([&d]);
+    let kinds: Vec<(Col, &DataKind)> = found.iter().map(|f| (f.channel, &f.kind)).collect();
+    assert_eq!(kinds.len(), 3, "{found:?}");
+    assert!(kinds.contains(&(Col::T2, &DataKind::Constant { value: 0.0 })));
+    assert!(
+        kinds.iter().any(|(c, k)| *c == Col::Pp1
+            && matches!(k, DataKind::Held { every: e, rate_hz } if *e == every && (rate_hz - 1.0).abs() < 1e-9)),
+        "{found:?}"
+    );
+    assert!(
+        kinds.iter().any(|(c, k)| *c == Col::T1
+            && matches!(k, DataKind::Spikes { count: 5, largest, .. } if (largest - 800.0).abs() < 20.0)),
+        "{found:?}"
+    );
+    assert!(found.iter().all(|f| f.file == "rig" && !f.fix.is_empty()));
+}

@@ -6,6 +6,8 @@
 //! - [`fit`]: least squares and statistics, knowing nothing of clutches;
 //! - [`model`]: what is fitted — a candidate model, its class terms and shapes, the effect
 //!   classes (one `EffectClass` impl per family in [`model::classes`]), the typed parameters;
+//! - [`quality`]: the data-quality stage — what the logger did to each channel (held,
+//!   constant, spiked), before any model is compared;
 //! - [`record`]: a record as the diagnosis reads it, with its model-free series and events;
 //! - [`eval`]: the model replayed on a record (the thermal replay of (16), the disk estimate);
 //! - [`method`]: the paper's identification, then the diagnosis — noise floors, where the gap
@@ -19,5 +21,6 @@ pub mod eval;
 pub mod fit;
 pub mod method;
 pub mod model;
+pub mod quality;
 pub mod record;
 pub mod report;

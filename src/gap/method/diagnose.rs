@@ -41,6 +41,7 @@ use crate::gap::model::classes::{self, group_channels, Knots, Needs};
 use crate::gap::model::keys::ParamKey;
 use crate::gap::model::shape::Shape;
 use crate::gap::model::terms::{self, Extra};
+use crate::gap::quality::{self, DataFinding};
 use crate::gap::record::measured;
 use crate::gap::record::measured::Measured;
 use crate::model::effects::{EffectSet, Subsystem};
@@ -256,6 +257,9 @@ pub struct Diagnosis {
     pub recalibration: Vec<(ParamKey, f64, f64)>,
     /// Recalibration parameters the training records do not determine (kept nominal).
     pub undetermined: Vec<Undetermined>,
+    /// What the loggers did to the records' channels (reported; the statistics do not yet
+    /// discount it).
+    pub data_quality: Vec<DataFinding>,
     pub blackbox: Option<BlackBoxResult>,
     pub notes: Vec<String>,
     /// The calibrated model (recalibrated parameters + the diagnosed effect).
@@ -1061,6 +1065,7 @@ pub fn diagnose(
 ) -> Result<Diagnosis, DiagnoseError> {
     let (mut tr, mut va, chans) = prepare_files(train, validate, nominal, o)?;
     let checkable = checkability(&[train, validate].concat());
+    let data_quality = quality::check(train.iter().chain(validate));
     let nunits_v = context::units(&va);
     let threads = o.threads.max(1);
     let nominal_model = Model::nominal(*nominal);
@@ -1078,7 +1083,7 @@ pub fn diagnose(
 
     // Phases 3–6: forward selection, recalibrations out of range, what is left above the
     // floor, the verdict.
-    let setup = setup(&tr, &va, nominal, &kn, &chans, &fixed, threads, o);
+    let setup = setup(&tr, &va, nominal, &kn, &chans, &fixed, o);
     let sc_nom_v = Scores::of(&nominal_model, &va, &chans, nunits_v);
     let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
     let ex_rec_all = excesses(&sc_rec_v, &chans, o);
@@ -1126,6 +1131,7 @@ pub fn diagnose(
         how_far,
         recalibration,
         undetermined,
+        data_quality,
         blackbox: w.blackbox,
         notes: w.notes,
         calibrated,
@@ -1274,7 +1280,6 @@ fn setup<'a>(
     kn: &'a Knots,
     chans: &'a [Channel],
     fixed: &'a [ParamKey],
-    threads: usize,
     o: &DiagnoseOptions,
 ) -> Setup<'a> {
     Setup {
@@ -1285,7 +1290,7 @@ fn setup<'a>(
         chans,
         nunits_v: context::units(va),
         bootstrap: o.bootstrap,
-        threads,
+        threads: o.threads.max(1),
         bic_threshold: o.bic_threshold,
         min_gain: o.min_gain,
         fixed,

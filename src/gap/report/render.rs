@@ -110,6 +110,7 @@ pub fn markdown(d: &Diagnosis) -> String {
     let mut s = String::new();
     verdict_section(&mut s, d);
     checkable_section(&mut s, d);
+    data_quality_section(&mut s, d);
     where_section(&mut s, d);
     which_section(&mut s, d);
     how_far_section(&mut s, d);
@@ -383,6 +384,45 @@ fn how_far_section(s: &mut String, d: &Diagnosis) {
             r.output,
             g(r.rmse_nominal),
             g(r.rmse_after)
+        );
+    }
+}
+
+/// What the loggers did to the channels ([`crate::gap::quality`]).
+fn data_quality_section(s: &mut String, d: &Diagnosis) {
+    use crate::gap::quality::DataKind;
+    if d.data_quality.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Data quality\n\n| record | channel | found | fix on the logger |\n|---|---|---|---|"
+    );
+    for f in &d.data_quality {
+        let found = match &f.kind {
+            DataKind::Constant { value } => format!("constant {}", g(*value)),
+            DataKind::Held { every, rate_hz } => {
+                format!(
+                    "held: a new value every {every} samples ({} Hz)",
+                    g(*rate_hz)
+                )
+            }
+            DataKind::Spikes {
+                count,
+                share,
+                largest,
+            } => format!(
+                "{count} spikes ({:.3} % of the samples), the largest {}",
+                100.0 * share,
+                g(*largest)
+            ),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {found} | {} |",
+            f.file,
+            f.channel.name(),
+            f.fix
         );
     }
 }

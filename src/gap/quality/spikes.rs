@@ -1,0 +1,101 @@
+//! Spikes: samples far from the median of their ±2 neighbours (the two samples at each end of
+//! the record, without a full window, are not judged). The running median follows a
+//! step or a ramp of the signal exactly, so only departures of one or two samples remain; they
+//! are spikes when above twelve robust standard deviations of those departures (1.4826 × their
+//! median absolute value) and above 5 % of the channel's range (1st to 99th percentile), so that
+//! neither noise nor the quantisation of a quiet channel counts.
+
+/// Robust standard deviations a spike must exceed.
+const K: f64 = 12.0;
+/// Share of the channel's range a spike must exceed.
+const MIN_RANGE_SHARE: f64 = 0.05;
+/// Largest share of the samples still "rare" spikes (more is another problem: noise).
+const MAX_SHARE: f64 = 0.02;
+
+/// The spikes of a channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spikes {
+    pub count: usize,
+    /// Share of the samples.
+    pub share: f64,
+    /// The largest departure from the local median (the channel's unit).
+    pub largest: f64,
+}
+
+/// The spikes of `v`, if any.
+pub fn find(v: &[f64]) -> Option<Spikes> {
+    let n = v.len();
+    if n < 20 {
+        return None;
+    }
+    // Full windows only: at the record's ends a shortened window's median is no reference.
+    let dev: Vec<f64> = (0..n)
+        .map(|k| {
+            if k < 2 || k + 2 >= n {
+                return 0.0;
+            }
+            let mut w = [0.0; 5];
+            let mut m = 0;
+            for x in &v[k - 2..k + 3] {
+                if x.is_finite() {
+                    w[m] = *x;
+                    m += 1;
+                }
+            }
+            w[..m].sort_by(f64::total_cmp);
+            if m == 0 || !v[k].is_finite() {
+                0.0
+            } else {
+                v[k] - w[m / 2]
+            }
+        })
+        .collect();
+    let mut abs: Vec<f64> = dev.iter().map(|d| d.abs()).collect();
+    abs.sort_by(f64::total_cmp);
+    let scale = 1.4826 * abs[n / 2];
+    let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    sorted.sort_by(f64::total_cmp);
+    if sorted.is_empty() {
+        return None;
+    }
+    let q = |p: f64| sorted[((sorted.len() - 1) as f64 * p).round() as usize];
+    let limit = (K * scale).max(MIN_RANGE_SHARE * (q(0.99) - q(0.01)));
+    if limit <= 0.0 {
+        return None;
+    }
+    let spikes: Vec<f64> = dev.iter().map(|d| d.abs()).filter(|d| *d > limit).collect();
+    let share = spikes.len() as f64 / n as f64;
+    (!spikes.is_empty() && share <= MAX_SHARE).then(|| Spikes {
+        count: spikes.len(),
+        share,
+        largest: spikes.iter().fold(0.0, |a: f64, b| a.max(*b)),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noisy(n: usize, seed: u64) -> Vec<f64> {
+        let mut rng = crate::gap::fit::stats::Rng::new(seed);
+        (0..n)
+            .map(|k| {
+                // Engagements: torque steps of 150 N·m every 500 samples, with 0.3 N·m noise.
+                let on = (k / 250) % 2 == 1;
+                (if on { 150.0 } else { 0.0 }) + 0.3 * rng.normal()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn rare_large_spikes_are_counted_and_steps_and_noise_are_not() {
+        assert_eq!(find(&noisy(10_000, 1)), None);
+        let mut v = noisy(10_000, 2);
+        for k in [1234, 5678, 9000] {
+            v[k] += 400.0;
+        }
+        let found = find(&v).expect("spikes");
+        assert_eq!(found.count, 3);
+        assert!((found.largest - 400.0).abs() < 5.0, "{found:?}");
+    }
+}
