@@ -52,35 +52,41 @@ pub fn delta_chi2(
     files: &[File],
     chans: &[Channel],
 ) -> f64 {
-    let base = standardized(model, files, chans);
-    delta_from(&base, model, nominal, key, files, chans)
+    Probe {
+        nominal,
+        files,
+        chans,
+    }
+    .delta(&standardized(model, files, chans), model, key)
 }
 
-/// [`delta_chi2`] with the standardized residuals of `model` given.
-fn delta_from(
-    base: &[f64],
-    model: &Model,
-    nominal: &Params,
-    key: ParamKey,
-    files: &[File],
-    chans: &[Channel],
-) -> f64 {
-    let v = key.get(&model.p);
-    let step = PLAUSIBLE_REL * key.get(nominal).abs();
-    let (_, hi) = plausible(key, nominal);
-    let mut moved = *model;
-    key.set(
-        &mut moved.p,
-        if v + step <= hi { v + step } else { v - step },
-    );
-    if moved.p.clutch.validate().is_err() {
-        key.set(&mut moved.p, v - step);
+/// What a move is judged on: the nominal parameters and the records' channels.
+struct Probe<'a> {
+    nominal: &'a Params,
+    files: &'a [File],
+    chans: &'a [Channel],
+}
+
+impl Probe<'_> {
+    /// [`delta_chi2`] with the standardized residuals `base` of `model` given.
+    fn delta(&self, base: &[f64], model: &Model, key: ParamKey) -> f64 {
+        let v = key.get(&model.p);
+        let step = PLAUSIBLE_REL * key.get(self.nominal).abs();
+        let (_, hi) = plausible(key, self.nominal);
+        let mut moved = *model;
+        key.set(
+            &mut moved.p,
+            if v + step <= hi { v + step } else { v - step },
+        );
+        if moved.p.clutch.validate().is_err() {
+            key.set(&mut moved.p, v - step);
+        }
+        base.iter()
+            .zip(&standardized(&moved, self.files, self.chans))
+            .map(|(a, b)| (a - b) * (a - b))
+            .filter(|d| d.is_finite())
+            .sum()
     }
-    base.iter()
-        .zip(&standardized(&moved, files, chans))
-        .map(|(a, b)| (a - b) * (a - b))
-        .filter(|d| d.is_finite())
-        .sum()
 }
 
 /// The standardized residual r/σ of `model` at every fit sample of `files` over `chans`, in a
@@ -109,9 +115,14 @@ pub fn undetermined(
     chans: &[Channel],
 ) -> Vec<Undetermined> {
     let base = standardized(model, files, chans);
+    let probe = Probe {
+        nominal,
+        files,
+        chans,
+    };
     keys.iter()
         .filter_map(|&key| {
-            let d = delta_from(&base, model, nominal, key, files, chans);
+            let d = probe.delta(&base, model, key);
             (d < MIN_DELTA_CHI2).then(|| Undetermined {
                 key,
                 fitted: key.get(&model.p),
