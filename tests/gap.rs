@@ -1052,3 +1052,51 @@ fn logger_artefacts_are_found_on_their_channels() {
     );
     assert!(found.iter().all(|f| f.file == "rig" && !f.fix.is_empty()));
 }
+
+/// A channel logged as exact zeros (clutch 2's position on a rig that engages clutch 1 only,
+/// its sensor not connected) is reported by the data-quality stage and not compared: the
+/// nominal records give no actuator finding and `nothing` as the verdict, where comparing the
+/// zeros with the replayed position (the open clutch at 3 mm) would flag the actuator.
+#[test]
+fn a_constant_channel_is_reported_not_compared() {
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::gap::method::finding::Finding;
+    use ddct::gap::quality::DataKind;
+    use ddct::model::effects::Subsystem;
+    use ddct::records::dataset::Col;
+    let p = Params::default();
+    let make = |name, e: RigExperiment, seed| {
+        let e = RigExperiment {
+            clutches: vec![0],
+            ..e
+        };
+        let mut d =
+            rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
+        d.set(Col::X2, vec![0.0; d.len()]);
+        d
+    };
+    let train = make("train", RigExperiment::identification(10, 60.0), 41);
+    let val = make("validate", RigExperiment::validation(6, 60.0), 42);
+    let o = DiagnoseOptions {
+        threads: 2,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&[train], &[val], &p, &o).unwrap();
+    for file in ["train", "validate"] {
+        assert!(
+            d.data_quality.iter().any(|f| f.file == file
+                && f.channel == Col::X2
+                && f.kind == DataKind::Constant { value: 0.0 }),
+            "{:?}",
+            d.data_quality
+        );
+    }
+    for f in &d.verdict.findings {
+        assert!(f.subsystem() != Some(Subsystem::Actuator), "{f:?}");
+    }
+    assert!(
+        matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
+        "{:?}",
+        d.verdict.findings
+    );
+}

@@ -1175,16 +1175,33 @@ fn prepare_files(
             o.max_fit_samples,
         )
     };
-    let tr = prep(train, o.carry_energy.then_some([0.0; 2]));
+    let mut tr = prep(train, o.carry_energy.then_some([0.0; 2]));
     let e_end = tr.last().map_or([0.0; 2], |f| {
         [0, 1].map(|i| f.m.e_cum[i].last().copied().unwrap_or(0.0))
     });
-    let va = prep(validate, o.carry_energy.then_some(e_end));
+    let mut va = prep(validate, o.carry_energy.then_some(e_end));
+    drop_constant_channels(&mut tr, train);
+    drop_constant_channels(&mut va, validate);
     let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
     }
     Ok((tr, va, chans))
+}
+
+/// A channel every sample of which holds one value (the data-quality stage's `constant`: logged
+/// but not connected, as exact zeros of an unused clutch) is not compared on that record: its
+/// noise floor would be its quantisation step, and the tolerance of the subsystem it entered
+/// would swamp the live channels'.
+fn drop_constant_channels(files: &mut [File], records: &[Dataset]) {
+    for (f, d) in files.iter_mut().zip(records) {
+        for c in Channel::ALL {
+            if d.get(c.column()).is_some_and(quality::is_constant) {
+                f.fit.idx[c.index()].clear();
+                f.all.idx[c.index()].clear();
+            }
+        }
+    }
 }
 
 /// Phases 1–2: the recalibrated model, with the noise floors of the training records (set

@@ -7,6 +7,7 @@
 use crate::gap::model::terms::Terms;
 use crate::model::effects::{EffectSet, Subsystem};
 use crate::model::params::Params;
+use crate::records::dataset::Col;
 
 /// A candidate model: parameters and effects.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,6 +65,20 @@ impl Channel {
             Channel::Pos(0) => "x_to1_mm",
             Channel::Pos(_) => "x_to2_mm",
             Channel::Engine => "T_e_Nm",
+        }
+    }
+
+    /// The record's column this channel compares with.
+    pub fn column(self) -> Col {
+        match self {
+            Channel::Torque(0) => Col::T1,
+            Channel::Torque(_) => Col::T2,
+            Channel::Temp(0) => Col::Pp1,
+            Channel::Temp(1) => Col::Pp2,
+            Channel::Temp(_) => Col::Cd,
+            Channel::Pos(0) => Col::X1,
+            Channel::Pos(_) => Col::X2,
+            Channel::Engine => Col::Te,
         }
     }
 

@@ -66,6 +66,11 @@ fn column_name<S: serde::Serializer>(c: &Col, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_str(c.name())
 }
 
+/// Whether every finite sample of `v` holds one value (a channel logged but not connected).
+pub fn is_constant(v: &[f64]) -> bool {
+    constant::value(v).is_some()
+}
+
 /// The channels checked.
 pub const CHECKED: [Col; 11] = [
     Col::T1,
