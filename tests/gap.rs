@@ -1100,3 +1100,50 @@ fn a_constant_channel_is_reported_not_compared() {
         d.verdict.findings
     );
 }
+
+/// A thermocouple logged at 1 Hz and held to the record's rate does not get a collapsed noise
+/// floor: only the pairs of compared samples that straddle an update are independent readings.
+/// Counted as independent samples, the held copies gave 0.056 °C against the truth's 0.15 °C
+/// (the "0.06–0.10 °C against 0.3"), and the hold then showed as a thermal excess. The
+/// floor of the held channel is now at least the live channel's; it also carries what the hold
+/// does to a reading (up to 1 s old while the plates heat), which is the held reading's error.
+#[test]
+fn a_held_thermocouple_keeps_its_noise_floor() {
+    use ddct::gap::method::context::{prepare, set_noise};
+    use ddct::gap::model::candidate::{Channel, Model};
+    use ddct::records::dataset::Col;
+    use ddct::records::events::SegmentOptions;
+    let p = Params::default();
+    let live = rig_dataset(
+        "rig",
+        &p,
+        Nominal,
+        &RigExperiment::identification(20, 300.0),
+        SensorNoise::default(),
+        51,
+        0.005,
+    )
+    .unwrap();
+    let mut held = live.clone();
+    let every = (1.0 / held.dt).round() as usize;
+    let v = held.get(Col::Pp1).unwrap();
+    let h: Vec<f64> = (0..v.len()).map(|k| v[k - k % every]).collect();
+    held.set(Col::Pp1, h);
+    let floor = |d: &ddct::records::dataset::Dataset| {
+        let mut files = prepare(
+            std::slice::from_ref(d),
+            &p,
+            &SegmentOptions::default(),
+            None,
+            3,
+            10,
+            8_000,
+        );
+        set_noise(&Model::nominal(p), &mut files);
+        files[0].sigma[Channel::Temp(0).index()]
+    };
+    let (a, b) = (floor(&live), floor(&held));
+    eprintln!("th_pp1 floor: live {a:.4} °C, held at 1 Hz {b:.4} °C");
+    assert!((a - 0.15).abs() < 0.05, "{a}");
+    assert!(b >= 0.9 * a && b < 5.0 * a, "{b} vs {a}");
+}

@@ -317,6 +317,19 @@ pub fn noise_sigma(diffs: &mut [f64], rms: f64, q: f64) -> f64 {
     diff_sigma.min(rms).max(q)
 }
 
+/// The measured series of channel `c` at the record's rate (the engine's is compared as window
+/// means: `None`).
+fn series(m: &Measured, c: Channel) -> Option<&[f64]> {
+    match c {
+        Channel::Torque(i) => Some(&m.torque[i]),
+        Channel::Temp(0) => Some(&m.pp[0]),
+        Channel::Temp(1) => Some(&m.pp[1]),
+        Channel::Temp(_) => Some(&m.cd),
+        Channel::Pos(i) => Some(&m.x[i]),
+        Channel::Engine => None,
+    }
+}
+
 /// Sets the noise floor of every channel of every record from its residuals under `model`;
 /// returns the pooled σ per channel.
 pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
@@ -328,14 +341,20 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
             let y = &pr.y[c.index()];
             let mut d2 = Vec::new();
             let (mut ss, mut n) = (0.0, 0usize);
+            // A held channel's equal readings are one sample copied, not two: only pairs that
+            // straddle an update carry the noise (else the floor collapses).
+            let held = series(&f.m, c).is_some_and(crate::gap::quality::is_held);
             if !y.is_empty() {
                 for w in f.all.get(c).windows(2) {
                     let (a, b) = (w[0], w[1]);
                     if b - a > 20 {
                         continue;
                     }
-                    let ra = predict::measured(&f.m, c, a) - y[a];
-                    let rb = predict::measured(&f.m, c, b) - y[b];
+                    let (ma, mb) = (predict::measured(&f.m, c, a), predict::measured(&f.m, c, b));
+                    if held && ma.to_bits() == mb.to_bits() {
+                        continue;
+                    }
+                    let (ra, rb) = (ma - y[a], mb - y[b]);
                     let d = rb - ra;
                     if d.is_finite() {
                         d2.push(d * d);

@@ -71,6 +71,11 @@ pub fn is_constant(v: &[f64]) -> bool {
     constant::value(v).is_some()
 }
 
+/// Whether `v` is held: a new value only every few samples ([`held`]).
+pub fn is_held(v: &[f64]) -> bool {
+    held::every(v).is_some()
+}
+
 /// The channels checked.
 pub const CHECKED: [Col; 11] = [
     Col::T1,
