@@ -604,16 +604,7 @@ fn recalibration_findings(
         Subsystem::Actuator,
     ] {
         let keys_ = s.recal_keys(sub);
-        let at_bound: Vec<ParamKey> = keys_
-            .iter()
-            .copied()
-            .filter(|k| {
-                let v = k.get(&model.p);
-                let (lo, hi) = select::plausible(*k, s.nominal);
-                let tol = 1e-3 * (hi - lo).abs();
-                (v - lo).abs() <= tol || (v - hi).abs() <= tol
-            })
-            .collect();
+        let at_bound = at_plausible_bound(s, &model.p, &keys_);
         let ch: Vec<Channel> = group_channels(sub)
             .into_iter()
             .filter(|c| s.chans.contains(c))
@@ -644,32 +635,53 @@ fn recalibration_findings(
         });
         let (z, n) = val.total(s.chans);
         if ci.0 > 0.0 && gain >= o.min_gain * (z - n).max(1e-9) {
-            for k in at_bound {
-                let nom = k.get(s.nominal);
-                let v = k.get(&m2.p);
-                let (lo, hi) = select::plausible(k, s.nominal);
-                if v >= lo && v <= hi {
-                    continue;
-                }
-                // A move the records do not determine at the refit is not a finding.
-                if identifiable::delta_chi2(&m2, s.nominal, k, s.train, &ch)
-                    < identifiable::MIN_DELTA_CHI2
-                {
-                    continue;
-                }
-                out.push(RecalibrationFinding {
-                    key: k,
-                    nominal: nom,
-                    value: v,
-                    move_pct: 100.0 * (v - nom) / nom.abs().max(1e-300),
-                    plausible: (lo, hi),
-                });
-            }
+            out.extend(moved_out_of_range(s, &m2, at_bound, &ch));
             model = m2;
             val = v2;
         }
     }
     (model, val, out)
+}
+
+/// The keys among `keys` that the recalibration left at a bound of their plausible range.
+fn at_plausible_bound(s: &Setup, p: &Params, keys: &[ParamKey]) -> Vec<ParamKey> {
+    keys.iter()
+        .copied()
+        .filter(|k| {
+            let v = k.get(p);
+            let (lo, hi) = select::plausible(*k, s.nominal);
+            let tol = 1e-3 * (hi - lo).abs();
+            (v - lo).abs() <= tol || (v - hi).abs() <= tol
+        })
+        .collect()
+}
+
+/// The keys the unbounded refit `m2` moved out of their plausible range and the records on
+/// `chans` determine there (a move they do not determine is not a finding).
+fn moved_out_of_range(
+    s: &Setup,
+    m2: &Model,
+    keys: Vec<ParamKey>,
+    chans: &[Channel],
+) -> Vec<RecalibrationFinding> {
+    keys.into_iter()
+        .filter_map(|k| {
+            let nom = k.get(s.nominal);
+            let v = k.get(&m2.p);
+            let (lo, hi) = select::plausible(k, s.nominal);
+            let outside = v < lo || v > hi;
+            (outside
+                && identifiable::delta_chi2(m2, s.nominal, k, s.train, chans)
+                    >= identifiable::MIN_DELTA_CHI2)
+                .then(|| RecalibrationFinding {
+                    key: k,
+                    nominal: nom,
+                    value: v,
+                    move_pct: 100.0 * (v - nom) / nom.abs().max(1e-300),
+                    plausible: (lo, hi),
+                })
+        })
+        .collect()
 }
 
 /// Time structure of a residual: lag-1 autocorrelation and where its excess sits.
@@ -1084,42 +1096,39 @@ pub fn diagnose(
     // Phases 3–6: forward selection, recalibrations out of range, what is left above the
     // floor, the verdict.
     let setup = setup(&tr, &va, nominal, &kn, &chans, &fixed, o);
-    let sc_nom_v = Scores::of(&nominal_model, &va, &chans, nunits_v);
-    let sc_rec_v = Scores::of(&recal, &va, &chans, nunits_v);
-    let ex_rec_all = excesses(&sc_rec_v, &chans, o);
+    let b = Before {
+        nominal: &nominal_model,
+        va: &va,
+        chans: &chans,
+        sc_nominal: Scores::of(&nominal_model, &va, &chans, nunits_v),
+        sc_recal: Scores::of(&recal, &va, &chans, nunits_v),
+        sigma,
+    };
+    let ex_rec_all = excesses(&b.sc_recal, &chans, o);
     let w = which(
         &setup,
         &recal,
         &classes,
-        &sc_rec_v,
+        &b.sc_recal,
         &ex_rec_all,
         o,
         &mut rng,
     );
 
     // Where.
-    let mut where_ = located(&recal, &va, &sc_rec_v, &chans, &ex_rec_all, o.fdr_q);
+    let mut where_ = located(&recal, &va, &b.sc_recal, &chans, &ex_rec_all, o.fdr_q);
     let verdict = verdict_of(
         w.findings,
         &w.rounds,
         &chans,
         &where_,
         &w.outside,
-        unexplained(&sc_rec_v, &w.after_val, &chans),
+        unexplained(&b.sc_recal, &w.after_val, &chans),
         not_checkable,
     );
 
     // Phase 7: how far.
-    let sc_after = Scores::of(&w.after, &va, &chans, nunits_v);
-    push_bias_map_after(&mut where_, &va, &sc_after, o.fdr_q);
-    let eq = output_gaps(
-        &va, &chans, &sc_nom_v, &sc_rec_v, &sc_after, &sigma, o, &mut rng,
-    );
-    let first = first_finding(&verdict.findings);
-    let main = main_gap(&first, &where_, &eq);
-    let replay_error = replay_gaps(&nominal_model, &w.after, &va);
-    let how_far = how_far(main.as_ref(), &eq, replay_error);
-    let traces = traces(&nominal_model, &w.after, &va, main.as_ref());
+    let (how_far, traces) = how_far_phase(&b, &w.after, &verdict, &mut where_, o, &mut rng);
     let calibrated = Some(calibration(&setup, &w.after, &verdict.findings));
     Ok(Diagnosis {
         train_files: train.iter().map(|d| d.source.clone()).collect(),
@@ -1137,6 +1146,40 @@ pub fn diagnose(
         calibrated,
         traces,
     })
+}
+
+/// The models and validation scores the gap is measured from, before the findings.
+struct Before<'a> {
+    nominal: &'a Model,
+    /// The validation records and the channels checked on them.
+    va: &'a [File],
+    chans: &'a [Channel],
+    sc_nominal: Scores,
+    sc_recal: Scores,
+    /// Each checked channel's noise floor.
+    sigma: Vec<f64>,
+}
+
+/// Phase 7: how far the gap closes with the findings in the model (the output gaps, the main
+/// one, the replay errors) and the traces that show it; adds the bias map after to `where_`.
+fn how_far_phase(
+    b: &Before,
+    after: &Model,
+    verdict: &Verdict,
+    where_: &mut Where,
+    o: &DiagnoseOptions,
+    rng: &mut Rng,
+) -> (HowFar, Vec<Trace>) {
+    let (va, chans) = (b.va, b.chans);
+    let sc_after = Scores::of(after, va, chans, context::units(va));
+    push_bias_map_after(where_, va, &sc_after, o.fdr_q);
+    let eq = output_gaps(b, &sc_after, o, rng);
+    let first = first_finding(&verdict.findings);
+    let main = main_gap(&first, where_, &eq);
+    let replay_error = replay_gaps(b.nominal, after, va);
+    let how_far = how_far(main.as_ref(), &eq, replay_error);
+    let traces = traces(b.nominal, after, va, main.as_ref());
+    (how_far, traces)
 }
 
 /// Logs the end of a phase (no clock in the core: the subscriber stamps each line with its time).
@@ -1575,15 +1618,13 @@ fn explain(findings: &[Finding], unexplained_pct: f64) -> String {
 /// Before/after of every output on the validation records.
 #[allow(clippy::too_many_arguments)]
 fn output_gaps(
-    va: &[File],
-    chans: &[Channel],
-    sc_nom_v: &Scores,
-    sc_rec_v: &Scores,
+    b: &Before,
     sc_after: &Scores,
-    sigma: &[f64],
     o: &DiagnoseOptions,
     rng: &mut Rng,
 ) -> Vec<OutputGap> {
+    let (va, chans, sigma) = (b.va, b.chans, &b.sigma);
+    let (sc_nom_v, sc_rec_v) = (&b.sc_nominal, &b.sc_recal);
     let nunits_v = context::units(va);
     let mut eq = Vec::new();
     for c in chans {
