@@ -1225,6 +1225,8 @@ fn prepare_files(
     let mut va = prep(validate, o.carry_energy.then_some(e_end));
     drop_constant_channels(&mut tr, train);
     drop_constant_channels(&mut va, validate);
+    drop_spikes(&mut tr, train);
+    drop_spikes(&mut va, validate);
     let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
@@ -1242,6 +1244,25 @@ fn drop_constant_channels(files: &mut [File], records: &[Dataset]) {
             if d.get(c.column()).is_some_and(quality::is_constant) {
                 f.fit.idx[c.index()].clear();
                 f.all.idx[c.index()].clear();
+            }
+        }
+    }
+}
+
+/// The spikes of a channel (the data-quality stage's `spikes`: EMI, a corrupted transfer) are
+/// not compared with the model, neither in the fits nor in the floors and validation scores: a
+/// fraction of a percent of the samples, hundreds of noise floors off, would otherwise dominate
+/// the channel's sum of squares and read as a gap of its subsystem.
+fn drop_spikes(files: &mut [File], records: &[Dataset]) {
+    for (f, d) in files.iter_mut().zip(records) {
+        for c in Channel::ALL {
+            let Some(v) = d.get(c.column()) else { continue };
+            let at = quality::spike_samples(v);
+            if at.is_empty() {
+                continue;
+            }
+            for s in [&mut f.fit, &mut f.all] {
+                s.idx[c.index()].retain(|k| at.binary_search(k).is_err());
             }
         }
     }

@@ -76,6 +76,11 @@ pub fn is_held(v: &[f64]) -> bool {
     held::every(v).is_some()
 }
 
+/// The samples of `v` that are spikes ([`spikes`]): not compared with the model.
+pub fn spike_samples(v: &[f64]) -> Vec<usize> {
+    spikes::samples(v)
+}
+
 /// The channels checked.
 pub const CHECKED: [Col; 11] = [
     Col::T1,

@@ -24,6 +24,22 @@ pub struct Spikes {
 
 /// The spikes of `v`, if any.
 pub fn find(v: &[f64]) -> Option<Spikes> {
+    let (at, dev) = located(v)?;
+    let count = at.len();
+    Some(Spikes {
+        count,
+        share: count as f64 / v.len() as f64,
+        largest: at.iter().fold(0.0, |a: f64, &k| a.max(dev[k].abs())),
+    })
+}
+
+/// The samples of `v` that are spikes (ascending; empty when the channel has none).
+pub fn samples(v: &[f64]) -> Vec<usize> {
+    located(v).map_or_else(Vec::new, |(at, _)| at)
+}
+
+/// The spike samples of `v` and every sample's departure from its local median.
+fn located(v: &[f64]) -> Option<(Vec<usize>, Vec<f64>)> {
     let n = v.len();
     if n < 20 {
         return None;
@@ -63,13 +79,9 @@ pub fn find(v: &[f64]) -> Option<Spikes> {
     if limit <= 0.0 {
         return None;
     }
-    let spikes: Vec<f64> = dev.iter().map(|d| d.abs()).filter(|d| *d > limit).collect();
-    let share = spikes.len() as f64 / n as f64;
-    (!spikes.is_empty() && share <= MAX_SHARE).then(|| Spikes {
-        count: spikes.len(),
-        share,
-        largest: spikes.iter().fold(0.0, |a: f64, b| a.max(*b)),
-    })
+    let at: Vec<usize> = (0..n).filter(|&k| dev[k].abs() > limit).collect();
+    let share = at.len() as f64 / n as f64;
+    (!at.is_empty() && share <= MAX_SHARE).then_some((at, dev))
 }
 
 #[cfg(test)]
@@ -96,6 +108,7 @@ mod tests {
         }
         let found = find(&v).expect("spikes");
         assert_eq!(found.count, 3);
+        assert_eq!(samples(&v), vec![1234, 5678, 9000]);
         assert!((found.largest - 400.0).abs() < 5.0, "{found:?}");
     }
 }
