@@ -1198,3 +1198,130 @@ fn torque_spikes_are_named_not_diagnosed() {
         d.verdict.findings
     );
 }
+
+/// Nominal rig records as a logger with two faults writes them: quiet thermocouples quantised
+/// to 1 °C (a coarse logger channel, ten times the DBC's step), and clutch 1's torque dropping to
+/// exact zeros for 20–60 ms now and then (a lost message filled with zeros). Each is a data
+/// finding on its channel, and neither reaches the verdict: `nothing`.
+fn logger_faults_case(quantise: bool, dropouts: bool) -> ddct::gap::method::diagnose::Diagnosis {
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::records::dataset::Col;
+    let p = Params::default();
+    let make = |name, e: RigExperiment, seed: u64| {
+        // Quiet thermocouples where they are quantised: the grid is not dithered by the noise.
+        let noise = SensorNoise {
+            temp_c: if quantise { 0.02 } else { 0.15 },
+            ..SensorNoise::default()
+        };
+        let mut d = rig_dataset(name, &p, Nominal, &e, noise, seed, 0.005).unwrap();
+        if quantise {
+            for c in [Col::Pp1, Col::Pp2, Col::Cd] {
+                let v: Vec<f64> = d.get(c).unwrap().iter().map(|x| x.round()).collect();
+                d.set(c, v);
+            }
+        }
+        if dropouts {
+            // Where the clutch carries torque, at least 1.5 s apart.
+            let mut t1 = d.get(Col::T1).unwrap().to_vec();
+            let mut k = 1;
+            while k + 13 < t1.len() {
+                let len = 4 + (k * 7) % 9;
+                if t1[k - 1].abs() > 30.0 && t1[k + len].abs() > 30.0 {
+                    t1[k..k + len].fill(0.0);
+                    k += 300;
+                }
+                k += 1;
+            }
+            d.set(Col::T1, t1);
+        }
+        d
+    };
+    let train = make("train", RigExperiment::identification(10, 60.0), 71);
+    let val = make("validate", RigExperiment::validation(6, 60.0), 72);
+    let o = DiagnoseOptions {
+        threads: 2,
+        ..DiagnoseOptions::default()
+    };
+    diagnose(&[train], &[val], &p, &o).unwrap()
+}
+
+#[test]
+fn coarse_thermocouples_are_named_not_diagnosed() {
+    use ddct::gap::method::finding::Finding;
+    use ddct::gap::quality::DataKind;
+    use ddct::records::dataset::Col;
+    let d = logger_faults_case(true, false);
+    for c in [Col::Pp1, Col::Pp2, Col::Cd] {
+        assert!(
+            d.data_quality.iter().any(|f| f.channel == c
+                && matches!(f.kind, DataKind::Quantised { step, .. } if (step - 1.0).abs() < 1e-9)),
+            "{c:?}: {:?}",
+            d.data_quality
+        );
+    }
+    assert!(
+        matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
+        "{:?}",
+        d.verdict.findings
+    );
+}
+
+#[test]
+fn torque_dropouts_are_named_not_diagnosed() {
+    use ddct::gap::method::finding::Finding;
+    use ddct::gap::quality::DataKind;
+    use ddct::records::dataset::Col;
+    let d = logger_faults_case(false, true);
+    assert!(
+        d.data_quality.iter().any(|f| f.channel == Col::T1
+            && matches!(f.kind, DataKind::Dropouts { runs, .. } if runs >= 5)),
+        "{:?}",
+        d.data_quality
+    );
+    assert!(
+        matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
+        "{:?}",
+        d.verdict.findings
+    );
+}
+
+/// The floor of a quiet thermocouple (0.02 °C of noise) quantised to 1 °C is at least the
+/// grid's own error, 1/√12 °C: its noise no longer dithers the grid, the reading changes only
+/// when the temperature crosses a step, and the floor from consecutive differences would fall
+/// near zero.
+#[test]
+fn a_coarse_thermocouple_keeps_its_noise_floor() {
+    use ddct::gap::method::context::{prepare, set_noise};
+    use ddct::gap::model::candidate::{Channel, Model};
+    use ddct::records::dataset::Col;
+    use ddct::records::events::SegmentOptions;
+    let p = Params::default();
+    let mut d = rig_dataset(
+        "rig",
+        &p,
+        Nominal,
+        &RigExperiment::identification(20, 300.0),
+        SensorNoise {
+            temp_c: 0.02,
+            ..SensorNoise::default()
+        },
+        53,
+        0.005,
+    )
+    .unwrap();
+    let v: Vec<f64> = d.get(Col::Pp1).unwrap().iter().map(|x| x.round()).collect();
+    d.set(Col::Pp1, v);
+    let mut files = prepare(
+        std::slice::from_ref(&d),
+        &p,
+        &SegmentOptions::default(),
+        None,
+        3,
+        10,
+        8_000,
+    );
+    set_noise(&Model::nominal(p), &mut files);
+    let floor = files[0].sigma[Channel::Temp(0).index()];
+    eprintln!("th_pp1 floor at a 1 °C grid: {floor:.4} °C");
+    assert!(floor >= 1.0 / 12f64.sqrt() - 1e-9, "{floor}");
+}

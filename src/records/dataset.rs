@@ -181,6 +181,35 @@ impl Col {
         }
     }
 
+    /// The resolution of the column as the bus carries it: its DBC signal's factor in the
+    /// column's unit (gears: 1).
+    pub fn resolution(self) -> f64 {
+        use crate::can::messages::{
+            BenchTemps as Bt, BenchTorque as Bq, DctActuators as A, DctSensors as S, DrvPedal as P,
+            EngStatus as E, TcuClutchCmd as C,
+        };
+        let rpm = RPM_TO_RADPS;
+        match self {
+            Col::X1 => A::clutch1_pos_def().factor,
+            Col::X2 => A::clutch2_pos_def().factor,
+            Col::X1Req => C::clutch1_pos_req_def().factor,
+            Col::X2Req => C::clutch2_pos_req_def().factor,
+            Col::Wf => E::eng_speed_def().factor * rpm,
+            Col::Te => E::eng_torque_act_def().factor,
+            Col::Wc1 => S::in_shaft1_speed_def().factor * rpm,
+            Col::Wc2 => S::in_shaft2_speed_def().factor * rpm,
+            Col::Wout => S::out_shaft_speed_def().factor * rpm,
+            Col::Th => S::housing_temp_def().factor,
+            Col::T1 => Bq::clutch1_torque_def().factor,
+            Col::T2 => Bq::clutch2_torque_def().factor,
+            Col::Pp1 => Bt::pressure_plate1_temp_def().factor,
+            Col::Pp2 => Bt::pressure_plate2_temp_def().factor,
+            Col::Cd => Bt::central_disk_temp_def().factor,
+            Col::Pedal => P::accel_pedal_def().factor,
+            Col::GearOdd | Col::GearEven => 1.0,
+        }
+    }
+
     /// The DBC signal whose value table a gear column follows (`DCT_Actuators.GearOddAct`,
     /// `GearEvenAct`, from the generated contract).
     pub fn gear_signal(self) -> Option<&'static SignalDef> {

@@ -364,7 +364,9 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
                 }
             }
             let rms = (ss / n.max(1) as f64).sqrt();
-            let sigma = noise_sigma(&mut d2, rms, quantum(c));
+            // A logger's coarser grid than the DBC's bounds the floor as the DBC's step does.
+            let grid = series(&f.m, c).and_then(crate::gap::quality::grid_step);
+            let sigma = noise_sigma(&mut d2, rms, quantum(c).max(grid.unwrap_or(0.0)));
             f.sigma[c.index()] = sigma;
             if n > 0 {
                 pooled[c.index()].0 += sigma * sigma * n as f64;

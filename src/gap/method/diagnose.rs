@@ -1218,15 +1218,23 @@ fn prepare_files(
             o.max_fit_samples,
         )
     };
-    let mut tr = prep(train, o.carry_energy.then_some([0.0; 2]));
+    let (train_r, train_bad) = repaired(train);
+    let (validate_r, validate_bad) = repaired(validate);
+    let mut tr = prep(
+        train_r.as_deref().unwrap_or(train),
+        o.carry_energy.then_some([0.0; 2]),
+    );
     let e_end = tr.last().map_or([0.0; 2], |f| {
         [0, 1].map(|i| f.m.e_cum[i].last().copied().unwrap_or(0.0))
     });
-    let mut va = prep(validate, o.carry_energy.then_some(e_end));
+    let mut va = prep(
+        validate_r.as_deref().unwrap_or(validate),
+        o.carry_energy.then_some(e_end),
+    );
     drop_constant_channels(&mut tr, train);
     drop_constant_channels(&mut va, validate);
-    drop_spikes(&mut tr, train);
-    drop_spikes(&mut va, validate);
+    drop_bridged(&mut tr, &train_bad);
+    drop_bridged(&mut va, &validate_bad);
     let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
@@ -1249,18 +1257,26 @@ fn drop_constant_channels(files: &mut [File], records: &[Dataset]) {
     }
 }
 
-/// The spikes of a channel (the data-quality stage's `spikes`: EMI, a corrupted transfer) are
-/// not compared with the model, neither in the fits nor in the floors and validation scores: a
-/// fraction of a percent of the samples, hundreds of noise floors off, would otherwise dominate
-/// the channel's sum of squares and read as a gap of its subsystem.
-fn drop_spikes(files: &mut [File], records: &[Dataset]) {
-    for (f, d) in files.iter_mut().zip(records) {
+/// The records with their spikes and dropouts bridged ([`quality::repaired`]): `None` when no
+/// record needed it (no copy), and per record the bridged samples of each channel.
+fn repaired(records: &[Dataset]) -> (Option<Vec<Dataset>>, Vec<quality::Bridged>) {
+    let r: Vec<quality::Repaired> = records.iter().map(quality::repaired).collect();
+    let bad: Vec<quality::Bridged> = r.iter().map(|x| x.excluded.clone()).collect();
+    let any = bad.iter().any(|b| !b.is_empty());
+    let owned = any.then(|| r.into_iter().map(|x| x.record.into_owned()).collect());
+    (owned, bad)
+}
+
+/// The bridged samples of a channel (spikes: EMI, a corrupted transfer; dropouts: lost messages
+/// filled with zeros) are not compared with the model, neither in the fits nor in the floors and
+/// validation scores: a fraction of a percent of the samples, hundreds of noise floors off,
+/// would otherwise dominate the channel's sum of squares and read as a gap of its subsystem.
+fn drop_bridged(files: &mut [File], bad: &[quality::Bridged]) {
+    for (f, bad) in files.iter_mut().zip(bad) {
         for c in Channel::ALL {
-            let Some(v) = d.get(c.column()) else { continue };
-            let at = quality::spike_samples(v);
-            if at.is_empty() {
+            let Some((_, at)) = bad.iter().find(|(col, _)| *col == c.column()) else {
                 continue;
-            }
+            };
             for s in [&mut f.fit, &mut f.all] {
                 s.idx[c.index()].retain(|k| at.binary_search(k).is_err());
             }

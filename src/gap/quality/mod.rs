@@ -1,16 +1,23 @@
 //! The data-quality stage (issue 45, item 1): before the model is compared with a record, each
 //! measured channel is checked for what a logger does to it — a channel that never changes
 //! (exact zeros of an unused clutch), one that updates slower than the record's rate and is held
-//! in between (sample-and-hold, with its true rate), isolated spikes (EMI). Each is a typed
-//! [`DataFinding`] naming the record, the channel and what to fix on the logger: a fact about the
-//! logger, not about the transmission.
+//! in between (sample-and-hold, with its true rate), a grid so coarse that the reading sits
+//! still, isolated spikes (EMI), short runs of zeros (lost messages filled with zeros). Each is a
+//! typed [`DataFinding`] naming the record, the channel and what to fix on the logger: a fact
+//! about the logger, not about the transmission. [`repair`] says what the diagnosis does with
+//! them: spike and dropout samples are bridged in the model's inputs and never compared.
 //!
 //! Checked: the outputs the diagnosis compares (clutch torques of (13), the thermocouples of
 //! (16), the positions, the engine torque of (18a)) and the speeds it takes as inputs.
 
 mod constant;
+mod dropouts;
 mod held;
+mod quantised;
+mod repair;
 mod spikes;
+
+pub use repair::{repaired, Bridged, Repaired};
 
 use crate::records::dataset::{Col, Dataset};
 
@@ -29,6 +36,16 @@ pub enum DataKind {
         share: f64,
         largest: f64,
     },
+    /// Readings on a grid of `step` (the channel's unit) so coarse that `repeated` of the
+    /// consecutive readings are equal: the noise is hidden below the step.
+    Quantised { step: f64, repeated: f64 },
+    /// Short runs of exact zeros inside a live reading: their number, the samples they hold and
+    /// the longest (s).
+    Dropouts {
+        runs: usize,
+        samples: usize,
+        longest_s: f64,
+    },
 }
 
 impl DataKind {
@@ -45,6 +62,14 @@ impl DataKind {
             DataKind::Spikes { .. } => {
                 "look for interference on the sensor line (shielding, ground) or a corrupted \
                  transfer; the spikes are not the transmission"
+            }
+            DataKind::Quantised { .. } => {
+                "log the channel at its full resolution (the DBC's factor), not rounded to a \
+                 coarser step"
+            }
+            DataKind::Dropouts { .. } => {
+                "the logger filled lost messages with zeros: log them as missing (empty) or \
+                 check the message's cycle and the bus load"
             }
         }
     }
@@ -76,9 +101,15 @@ pub fn is_held(v: &[f64]) -> bool {
     held::every(v).is_some()
 }
 
-/// The samples of `v` that are spikes ([`spikes`]): not compared with the model.
-pub fn spike_samples(v: &[f64]) -> Vec<usize> {
-    spikes::samples(v)
+/// The grid step of `v`'s readings, if they lie on one ([`quantised`]): a floor of the
+/// channel's noise is at least step/√12.
+pub fn grid_step(v: &[f64]) -> Option<f64> {
+    quantised::grid_step(v)
+}
+
+/// Longest run of zeros that is a dropout, in samples of a record at `dt` seconds.
+fn max_dropout(dt: f64) -> usize {
+    (dropouts::MAX_SECONDS / dt).round().max(1.0) as usize
 }
 
 /// The channels checked.
@@ -104,18 +135,7 @@ pub fn check<'a>(records: impl IntoIterator<Item = &'a Dataset>) -> Vec<DataFind
             let Some(v) = d.get(c) else { continue };
             let found = match constant::value(v) {
                 Some(value) => vec![DataKind::Constant { value }],
-                None => held::every(v)
-                    .map(|every| DataKind::Held {
-                        every,
-                        rate_hz: 1.0 / (every as f64 * d.dt),
-                    })
-                    .into_iter()
-                    .chain(spikes::find(v).map(|s| DataKind::Spikes {
-                        count: s.count,
-                        share: s.share,
-                        largest: s.largest,
-                    }))
-                    .collect(),
+                None => artefacts(v, d.dt, c.resolution()),
             };
             out.extend(found.into_iter().map(|kind| DataFinding {
                 file: d.source.clone(),
@@ -126,4 +146,34 @@ pub fn check<'a>(records: impl IntoIterator<Item = &'a Dataset>) -> Vec<DataFind
         }
     }
     out
+}
+
+/// The artefacts of a channel that is not constant, at a record step of `dt` s, carried by the
+/// bus at `resolution`.
+fn artefacts(v: &[f64], dt: f64, resolution: f64) -> Vec<DataKind> {
+    let held = held::every(v).map(|every| DataKind::Held {
+        every,
+        rate_hz: 1.0 / (every as f64 * dt),
+    });
+    // A held channel repeats its readings by the hold, not by a coarse grid.
+    let coarse = held
+        .is_none()
+        .then(|| quantised::coarse(v, resolution))
+        .flatten()
+        .map(|(step, repeated)| DataKind::Quantised { step, repeated });
+    let spikes = spikes::find(v).map(|s| DataKind::Spikes {
+        count: s.count,
+        share: s.share,
+        largest: s.largest,
+    });
+    let runs = dropouts::runs(v, max_dropout(dt));
+    let dropouts = (!runs.is_empty()).then(|| DataKind::Dropouts {
+        runs: runs.len(),
+        samples: runs.iter().map(|r| r.1).sum(),
+        longest_s: runs.iter().map(|r| r.1).max().unwrap_or(0) as f64 * dt,
+    });
+    [held, coarse, spikes, dropouts]
+        .into_iter()
+        .flatten()
+        .collect()
 }

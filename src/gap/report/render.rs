@@ -416,6 +416,19 @@ fn data_quality_section(s: &mut String, d: &Diagnosis) {
                 100.0 * share,
                 g(*largest)
             ),
+            DataKind::Quantised { step, repeated } => format!(
+                "quantised to {}: {:.0} % of the readings repeat the last",
+                g(*step),
+                100.0 * repeated
+            ),
+            DataKind::Dropouts {
+                runs,
+                samples,
+                longest_s,
+            } => format!(
+                "{runs} dropouts to zero ({samples} samples), the longest {} s; bridged, not compared",
+                g(*longest_s)
+            ),
         };
         let _ = writeln!(
             s,
