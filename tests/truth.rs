@@ -312,3 +312,57 @@ fn small_blind_run_reports_consistent_counts() {
     assert_eq!(again["summary"], j["summary"]);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Level before shape (issue 45, item 3): the friction level of the truth 35 % above nominal
+/// (μ_s and c4 together, beyond the recalibration's ±30 % plausible range) is reported as two
+/// recalibration findings that reach the truth's values, and no class: before, the class
+/// `friction_clamp_load`, whose free first segment is a pure level term, was named for it
+/// because the classes were tried before the levels at their bounds were refitted.
+#[test]
+fn a_friction_level_beyond_the_plausible_range_is_a_recalibration_not_a_class() {
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::gap::method::finding::Finding;
+    use ddct::gap::model::keys::ParamKey;
+    use ddct::records::dataset::Dataset;
+    let nominal = Params::default();
+    let mut truth_p = nominal;
+    truth_p.clutch.mu_s *= 1.35;
+    truth_p.clutch.c4 *= 1.35;
+    let spec = CaseSpec {
+        targets: vec![],
+        family: None,
+        magnitudes: vec![],
+        detune: 0.0,
+        variants: Variants::default(),
+        seed: 1,
+    };
+    let t = truth::build(&spec, &truth_p).unwrap();
+    let recs = truth::records(&t, 1);
+    let parse = |v: &[(String, String)]| -> Vec<Dataset> {
+        v.iter()
+            .map(|(n, c)| Dataset::from_csv(n, c).unwrap())
+            .collect()
+    };
+    let o = DiagnoseOptions {
+        threads: 2,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&parse(&recs.train), &parse(&recs.validate), &nominal, &o).unwrap();
+    let mut moved = Vec::new();
+    for f in &d.verdict.findings {
+        match f {
+            Finding::Recalibration(r) => moved.push((r.key, r.move_pct)),
+            other => panic!("only recalibrations expected, got {other:?}"),
+        }
+    }
+    moved.sort_by_key(|m| m.0.as_str());
+    eprintln!("{moved:?}");
+    assert_eq!(
+        moved.iter().map(|m| m.0).collect::<Vec<_>>(),
+        vec![ParamKey::C4, ParamKey::MuS],
+        "{moved:?}"
+    );
+    for (k, pct) in moved {
+        assert!((pct - 35.0).abs() < 3.0, "{k:?} moved {pct} %, truth 35 %");
+    }
+}

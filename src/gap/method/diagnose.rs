@@ -586,12 +586,13 @@ fn excesses(s: &Scores, chans: &[Channel], o: &DiagnoseOptions) -> Vec<Excess> {
     .collect()
 }
 
-/// Phase 4: recalibrated parameters at their plausible bound, refitted unbounded; the move is a
-/// finding when it closes a significant part of the gap left.
+/// Phase 4: recalibrated parameters among `watched` at their plausible bound, refitted
+/// unbounded; the move is a finding when it closes a significant part of the gap left.
 fn recalibration_findings(
     s: &Setup,
     model: &Model,
     val: &Scores,
+    watched: &[ParamKey],
     o: &DiagnoseOptions,
     rng: &mut Rng,
 ) -> (Model, Scores, Vec<RecalibrationFinding>) {
@@ -604,7 +605,8 @@ fn recalibration_findings(
         Subsystem::Actuator,
     ] {
         let keys_ = s.recal_keys(sub);
-        let at_bound = at_plausible_bound(s, &model.p, &keys_);
+        let mut at_bound = at_plausible_bound(s, &model.p, &keys_);
+        at_bound.retain(|k| watched.contains(k));
         let ch: Vec<Channel> = group_channels(sub)
             .into_iter()
             .filter(|c| s.chans.contains(c))
@@ -1348,15 +1350,24 @@ fn which(
     o: &DiagnoseOptions,
     rng: &mut Rng,
 ) -> Which {
-    let (selected, sel_val, rounds) = select::select(setup, recal, classes, o.max_classes, o.seed);
+    // Level before shape: a level ([`select::LEVELS`]) the bounded recalibration left at its
+    // plausible bound is refitted unbounded before any class is tried, so that no class's free
+    // level takes its place; the coefficients of a shape (the kiss point's temperature terms)
+    // wait until the classes that bend the shape have been tried.
+    let (level, level_val, mut recal_findings) =
+        recalibration_findings(setup, recal, sc_rec_v, select::LEVELS, o, rng);
+    phase_done("levels");
+    let (selected, sel_val, rounds) = select::select(setup, &level, classes, o.max_classes, o.seed);
     phase_done("selection");
-    let (after, after_val, recal_findings) =
-        recalibration_findings(setup, &selected, &sel_val, o, rng);
+    let (after, after_val, more) =
+        recalibration_findings(setup, &selected, &sel_val, select::RECAL, o, rng);
+    recal_findings.retain(|f| !more.iter().any(|m| m.key == f.key));
+    recal_findings.extend(more);
     phase_done("recalibration findings");
     let (outside, blackbox) = outside_library(setup, &after, &after_val, o);
     phase_done("outside the library");
     let mut notes = Vec::new();
-    let kept = kept_findings(&rounds, setup, sc_rec_v, &after_val, &mut notes);
+    let kept = kept_findings(&rounds, setup, &level_val, &after_val, &mut notes);
     let (findings, outside) = verdict(kept, ex_rec_all, outside, recal_findings, &mut notes);
     Which {
         rounds,

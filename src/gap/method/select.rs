@@ -41,6 +41,10 @@ pub const RECAL: &[ParamKey] = &[
     ParamKey::TauS,
 ];
 
+/// The levels among [`RECAL`] (the kiss point, the dynamic and static friction levels): moved
+/// beyond their plausible range before any class is tried (level before shape).
+pub const LEVELS: &[ParamKey] = &[ParamKey::XIsp0, ParamKey::C4, ParamKey::MuS];
+
 /// Plausible recalibration: within this fraction of the nominal value.
 pub const PLAUSIBLE_REL: f64 = 0.3;
 
