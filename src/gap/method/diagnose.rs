@@ -717,12 +717,7 @@ fn time_structure(files: &[File], preds: &[predict::Predictions], chans: &[Chann
 }
 
 /// Phase 5: a finding for every subsystem still above its floor that no class explains.
-fn outside_library(
-    s: &Setup,
-    model: &Model,
-    val: &Scores,
-    o: &DiagnoseOptions,
-) -> (Vec<OutsideFinding>, Option<BlackBoxResult>) {
+fn outside_library(s: &Setup, model: &Model, val: &Scores, o: &DiagnoseOptions) -> Outside {
     let train_preds = Scores::new(
         s.train,
         context::predictions(model, s.train, s.chans, true, false),
@@ -731,6 +726,7 @@ fn outside_library(
     );
     let mut out = Vec::new();
     let mut bb_out = None;
+    let mut drifted = Vec::new();
     for ex in excesses(val, s.chans, o) {
         if !ex.flagged {
             continue;
@@ -745,6 +741,14 @@ fn outside_library(
                 bb_out = Some(bb);
             }
         }
+        if ex.subsystem == Subsystem::Thermal {
+            let (found, physics) = drifts(s.validate, &preds, &ex.chans);
+            if !physics && !found.is_empty() {
+                // The thermocouples drift: a fact about the sensors, not about (16).
+                drifted.extend(found);
+                continue;
+            }
+        }
         out.push(OutsideFinding {
             subsystem: ex.subsystem,
             excess: ex.excess,
@@ -752,7 +756,63 @@ fn outside_library(
             time_structure: time_structure(s.validate, &preds, &ex.chans),
         });
     }
-    (out, bb_out)
+    Outside {
+        findings: out,
+        blackbox: bb_out,
+        drifted,
+    }
+}
+
+/// What phase 5 found outside the library.
+struct Outside {
+    findings: Vec<OutsideFinding>,
+    /// The black box's check of the torque residual left.
+    blackbox: Option<BlackBoxResult>,
+    /// Thermocouples whose residual is a drift ([`quality::drift`]), in place of a thermal
+    /// finding.
+    drifted: Vec<DataFinding>,
+}
+
+/// The thermocouple drifts of the validation records ([`quality::drift`]) on `chans`, and
+/// whether any channel's wandering residual follows the physics instead (a gap of the model).
+fn drifts(
+    files: &[File],
+    preds: &[predict::Predictions],
+    chans: &[Channel],
+) -> (Vec<DataFinding>, bool) {
+    use quality::drift::{self, Wander};
+    let mut found = Vec::new();
+    let mut physics = false;
+    for (f, pr) in files.iter().zip(preds) {
+        for &c in chans {
+            let y = &pr.y[c.index()];
+            if y.is_empty() {
+                continue;
+            }
+            let b = drift::blocks(f.all.get(c).iter().filter_map(|&k| {
+                let e = predict::measured(&f.m, c, k) - y[k];
+                let x: Vec<f64> = chans
+                    .iter()
+                    .map(|c2| pr.y[c2.index()][k] - f.m.th[k])
+                    .collect();
+                (e.is_finite() && x.iter().all(|v| v.is_finite())).then(|| (f.m.time[k], e, x))
+            }));
+            match drift::judge(&b, f.sigma[c.index()]) {
+                Wander::Quiet => {}
+                Wander::Physics => physics = true,
+                Wander::Drift { wander, r2 } => {
+                    let kind = quality::DataKind::Drift { wander, r2 };
+                    found.push(DataFinding {
+                        file: f.m.source.clone(),
+                        channel: c.column(),
+                        fix: kind.fix(),
+                        kind,
+                    });
+                }
+            }
+        }
+    }
+    (found, physics)
 }
 
 /// The black box's design matrix on a set of records.
@@ -1079,7 +1139,7 @@ pub fn diagnose(
 ) -> Result<Diagnosis, DiagnoseError> {
     let (mut tr, mut va, chans) = prepare_files(train, validate, nominal, o)?;
     let checkable = checkability(&[train, validate].concat());
-    let data_quality = quality::check(train.iter().chain(validate));
+    let mut data_quality = quality::check(train.iter().chain(validate));
     let nunits_v = context::units(&va);
     let threads = o.threads.max(1);
     let nominal_model = Model::nominal(*nominal);
@@ -1132,6 +1192,7 @@ pub fn diagnose(
     // Phase 7: how far.
     let (how_far, traces) = how_far_phase(&b, &w.after, &verdict, &mut where_, o, &mut rng);
     let calibrated = Some(calibration(&setup, &w.after, &verdict.findings));
+    data_quality.extend(w.drifted);
     Ok(Diagnosis {
         train_files: train.iter().map(|d| d.source.clone()).collect(),
         validate_files: validate.iter().map(|d| d.source.clone()).collect(),
@@ -1336,6 +1397,8 @@ struct Which {
     blackbox: Option<BlackBoxResult>,
     /// The verdict's notes (partial fits).
     notes: Vec<String>,
+    /// Sensor drifts found against the model (data findings).
+    drifted: Vec<DataFinding>,
 }
 
 /// Phases 3–6: forward selection of the classes, recalibrations out of range, what is left
@@ -1364,7 +1427,11 @@ fn which(
     recal_findings.retain(|f| !more.iter().any(|m| m.key == f.key));
     recal_findings.extend(more);
     phase_done("recalibration findings");
-    let (outside, blackbox) = outside_library(setup, &after, &after_val, o);
+    let Outside {
+        findings: outside,
+        blackbox,
+        drifted,
+    } = outside_library(setup, &after, &after_val, o);
     phase_done("outside the library");
     let mut notes = Vec::new();
     let kept = kept_findings(&rounds, setup, &level_val, &after_val, &mut notes);
@@ -1377,6 +1444,7 @@ fn which(
         outside,
         blackbox,
         notes,
+        drifted,
     }
 }
 

@@ -4,13 +4,15 @@
 //! in between (sample-and-hold, with its true rate), a grid so coarse that the reading sits
 //! still, isolated spikes (EMI), short runs of zeros (lost messages filled with zeros). Each is a
 //! typed [`DataFinding`] naming the record, the channel and what to fix on the logger: a fact
-//! about the logger, not about the transmission. [`repair`] says what the diagnosis does with
+//! about the logger, not about the transmission. A thermocouple's slow drift is found later,
+//! against the model ([`drift`], phase 5). [`repair`] says what the diagnosis does with
 //! them: spike and dropout samples are bridged in the model's inputs and never compared.
 //!
 //! Checked: the outputs the diagnosis compares (clutch torques of (13), the thermocouples of
 //! (16), the positions, the engine torque of (18a)) and the speeds it takes as inputs.
 
 mod constant;
+pub mod drift;
 mod dropouts;
 mod held;
 mod quantised;
@@ -39,6 +41,10 @@ pub enum DataKind {
     /// Readings on a grid of `step` (the channel's unit) so coarse that `repeated` of the
     /// consecutive readings are equal: the noise is hidden below the step.
     Quantised { step: f64, repeated: f64 },
+    /// A slow wander of the reading unrelated to the physics ([`drift`]: found against the
+    /// model): the range of its 10 s means (the channel's unit) and the share of its steps the
+    /// physics explains.
+    Drift { wander: f64, r2: f64 },
     /// Short runs of exact zeros inside a live reading: their number, the samples they hold and
     /// the longest (s).
     Dropouts {
@@ -66,6 +72,10 @@ impl DataKind {
             DataKind::Quantised { .. } => {
                 "log the channel at its full resolution (the DBC's factor), not rounded to a \
                  coarser step"
+            }
+            DataKind::Drift { .. } => {
+                "the sensor drifts (cold junction, ageing, a loose contact): check its reference \
+                 and calibrate it against a reference at rest"
             }
             DataKind::Dropouts { .. } => {
                 "the logger filled lost messages with zeros: log them as missing (empty) or \

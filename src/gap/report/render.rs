@@ -421,6 +421,11 @@ fn data_quality_section(s: &mut String, d: &Diagnosis) {
                 g(*step),
                 100.0 * repeated
             ),
+            DataKind::Drift { wander, r2 } => format!(
+                "drifts by {} over the record; the physics explains {:.0} % of its steps",
+                g(*wander),
+                100.0 * r2
+            ),
             DataKind::Dropouts {
                 runs,
                 samples,
