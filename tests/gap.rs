@@ -1201,7 +1201,7 @@ fn torque_spikes_are_named_not_diagnosed() {
 
 /// Nominal rig records as a logger with two faults writes them: quiet thermocouples quantised
 /// to 1 °C (a coarse logger channel, ten times the DBC's step), and clutch 1's torque dropping to
-/// exact zeros for 20–60 ms now and then (a lost message filled with zeros). Each is a data
+/// exact zeros for 40–120 ms now and then (a lost message filled with zeros). Each is a data
 /// finding on its channel, and neither reaches the verdict: `nothing`.
 fn logger_faults_case(quantise: bool, dropouts: bool) -> ddct::gap::method::diagnose::Diagnosis {
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
@@ -1221,7 +1221,7 @@ fn logger_faults_case(quantise: bool, dropouts: bool) -> ddct::gap::method::diag
             }
         }
         if dropouts {
-            // Where the clutch carries torque, at least 1.5 s apart.
+            // Where the clutch carries torque, at least 3 s apart.
             let mut t1 = d.get(Col::T1).unwrap().to_vec();
             let mut k = 1;
             while k + 13 < t1.len() {
@@ -1385,5 +1385,51 @@ fn drifting_thermocouples_are_named_not_diagnosed() {
             "seed {seed}: {:?}",
             d.verdict.findings
         );
+    }
+}
+
+/// Nominal rig records whose torque channels are stamped 40 ms late against the positions (the
+/// torque message timestamped on arrival through a slower gateway): a time skew between channel
+/// groups is a sensor finding of the library's `sensor_torque_skew` class (its magnitude the
+/// skew), not physics — the "skew between channel groups" is told by the sensor
+/// classes (torque skew, speed gain and skew, thermocouple lag), which fit it against the model.
+#[test]
+fn a_late_torque_channel_is_a_sensor_finding_not_physics() {
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::gap::method::finding::Finding;
+    use ddct::gap::model::class::ClassId;
+    use ddct::records::dataset::Col;
+    let p = Params::default();
+    let late = 4;
+    let make = |name, e: RigExperiment, seed: u64| {
+        let mut d =
+            rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
+        for c in [Col::T1, Col::T2] {
+            let v = d.get(c).unwrap();
+            let shifted: Vec<f64> = (0..v.len()).map(|k| v[k.saturating_sub(late)]).collect();
+            d.set(c, shifted);
+        }
+        d
+    };
+    let train = make("train", RigExperiment::identification(10, 60.0), 91);
+    let val = make("validate", RigExperiment::validation(6, 60.0), 92);
+    let late_s = late as f64 * train.dt;
+    assert!(
+        (late_s - 0.04).abs() < 1e-9,
+        "the records' step is {} s",
+        train.dt
+    );
+    let o = DiagnoseOptions {
+        threads: 2,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&[train], &[val], &p, &o).unwrap();
+    match d.verdict.findings.as_slice() {
+        [Finding::Sensor(f)] => {
+            assert_eq!(f.class, ClassId::SensorTorqueSkew);
+            eprintln!("skew {} {} (truth {late_s} s)", f.magnitude, f.unit);
+            assert!((f.magnitude.abs() - late_s).abs() < 0.003, "{f:?}");
+        }
+        other => panic!("{other:?}"),
     }
 }
