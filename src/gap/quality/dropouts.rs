@@ -14,6 +14,11 @@ const K: f64 = 12.0;
 /// Longest run of zeros that is a dropout (s).
 pub const MAX_SECONDS: f64 = 0.25;
 
+/// Longest run of zeros that is a dropout, in samples of a record at `dt` seconds.
+pub fn max_len(dt: f64) -> usize {
+    (MAX_SECONDS / dt).round().max(1.0) as usize
+}
+
 /// The dropout runs of `v` (at most `max_len` samples each): `(first sample, length)`, in order.
 pub fn runs(v: &[f64], max_len: usize) -> Vec<(usize, usize)> {
     let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();

@@ -11,6 +11,7 @@
 //! Checked: the outputs the diagnosis compares (clutch torques of (13), the thermocouples of
 //! (16), the positions, the engine torque of (18a)) and the speeds it takes as inputs.
 
+mod checked;
 mod constant;
 pub mod drift;
 mod dropouts;
@@ -19,6 +20,7 @@ mod quantised;
 mod repair;
 mod spikes;
 
+pub use checked::CHECKED;
 pub use repair::{repaired, Bridged, Repaired};
 
 use crate::records::dataset::{Col, Dataset};
@@ -117,26 +119,6 @@ pub fn grid_step(v: &[f64]) -> Option<f64> {
     quantised::grid_step(v)
 }
 
-/// Longest run of zeros that is a dropout, in samples of a record at `dt` seconds.
-fn max_dropout(dt: f64) -> usize {
-    (dropouts::MAX_SECONDS / dt).round().max(1.0) as usize
-}
-
-/// The channels checked.
-pub const CHECKED: [Col; 11] = [
-    Col::T1,
-    Col::T2,
-    Col::Pp1,
-    Col::Pp2,
-    Col::Cd,
-    Col::X1,
-    Col::X2,
-    Col::Te,
-    Col::Wf,
-    Col::Wc1,
-    Col::Wc2,
-];
-
 /// Every artefact of every checked channel of `records`, record by record.
 pub fn check<'a>(records: impl IntoIterator<Item = &'a Dataset>) -> Vec<DataFinding> {
     let mut out = Vec::new();
@@ -176,7 +158,7 @@ fn artefacts(v: &[f64], dt: f64, resolution: f64) -> Vec<DataKind> {
         share: s.share,
         largest: s.largest,
     });
-    let runs = dropouts::runs(v, max_dropout(dt));
+    let runs = dropouts::runs(v, dropouts::max_len(dt));
     let dropouts = (!runs.is_empty()).then(|| DataKind::Dropouts {
         runs: runs.len(),
         samples: runs.iter().map(|r| r.1).sum(),

@@ -4,7 +4,8 @@
 //! good samples on either side; in every comparison with the model — fits, noise floors,
 //! validation scores — they are left out.
 
-use super::{dropouts, max_dropout, spikes, CHECKED};
+use super::checked::CHECKED;
+use super::{dropouts, spikes};
 use crate::records::dataset::{Col, Dataset};
 use std::borrow::Cow;
 
@@ -24,7 +25,7 @@ pub fn repaired(d: &Dataset) -> Repaired<'_> {
     let mut excluded = Vec::new();
     for c in CHECKED {
         let Some(v) = d.get(c) else { continue };
-        let bad = bad_samples(v, max_dropout(d.dt));
+        let bad = bad_samples(v, dropouts::max_len(d.dt));
         if bad.is_empty() {
             continue;
         }
