@@ -272,6 +272,9 @@ impl Scores {
             s.std_unit[i] = other.std_unit[i].clone();
             s.unit_n[i] = other.unit_n[i].clone();
             s.unit_tol[i] = other.unit_tol[i].clone();
+            for (p, o) in s.preds.iter_mut().zip(&other.preds) {
+                p.y[i].clone_from(&o.y[i]);
+            }
         }
         s
     }

@@ -776,7 +776,7 @@ pub fn select(
         let mut ambiguous = Vec::new();
         if let Some(b) = kept {
             let best = &cands[b];
-            ambiguous = as_good_as(s, &cands, b, seed);
+            ambiguous = as_good_as(s, &sel.val, &cands, b, seed);
             sel.model = best.model;
             sel.val = best.val.clone();
             sel.chosen.push(best.class);
@@ -829,9 +829,11 @@ fn paired_difference(s: &Setup, a: &Candidate, b: &Candidate, seed: u64) -> (f64
     })
 }
 
-/// Credited candidates as good as candidate `b` of a round: at least 80 % of its gain and a
-/// paired (block bootstrap) difference that is not significant.
-fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassId> {
+/// Credited candidates as good as candidate `b` of a round (fitted on `base`'s validation
+/// scores): at least 80 % of its gain, and either a paired (block bootstrap) difference that is
+/// not significant or a change of the validation predictions that is nearly collinear with the
+/// best's ([`collinear`]): the records cannot tell the two apart, however close their fits.
+fn as_good_as(s: &Setup, base: &Scores, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassId> {
     let best = &cands[b];
     let mut out = Vec::new();
     for (j, c) in cands.iter().enumerate() {
@@ -839,11 +841,57 @@ fn as_good_as(s: &Setup, cands: &[Candidate], b: usize, seed: u64) -> Vec<ClassI
             continue;
         }
         let ci = paired_difference(s, best, c, seed ^ 0xA5A5 ^ j as u64);
-        if ci.0 <= 0.0 {
+        let cos = collinear(s, base, best, c);
+        tracing::debug!(
+            "{} beside {}: gain {:.1} against {:.1}, paired difference 95 % CI {:.1}…{:.1}, \
+             cosine of their changes {cos:.4}",
+            c.class,
+            best.class,
+            c.gain,
+            best.gain,
+            ci.0,
+            ci.1
+        );
+        if ci.0 <= 0.0 || cos >= MIN_COLLINEAR {
             out.push(c.class);
         }
     }
     out
+}
+
+/// Two classes whose changes of the standardized validation predictions make a smaller angle
+/// than this (cosine; 8.1°) are an ambiguity set: their predictions differ by less than a
+/// seventh of what either changes.
+pub const MIN_COLLINEAR: f64 = 0.99;
+
+/// The cosine of the angle between what candidates `a` and `b` change in the validation
+/// predictions against `base`, each residual standardized by its record's floor, over every
+/// checked channel.
+fn collinear(s: &Setup, base: &Scores, a: &Candidate, b: &Candidate) -> f64 {
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (i, f) in s.validate.iter().enumerate() {
+        let (p0, pa, pb) = (&base.preds[i], &a.val.preds[i], &b.val.preds[i]);
+        for &c in s.chans {
+            let k = c.index();
+            let (y0, ya, yb) = (&p0.y[k], &pa.y[k], &pb.y[k]);
+            if y0.is_empty() || ya.is_empty() || yb.is_empty() {
+                continue;
+            }
+            let sigma = f.sigma[k].max(1e-12);
+            for &t in f.all.get(c) {
+                let (da, db) = ((ya[t] - y0[t]) / sigma, (yb[t] - y0[t]) / sigma);
+                if da.is_finite() && db.is_finite() {
+                    ab += da * db;
+                    aa += da * da;
+                    bb += db * db;
+                }
+            }
+        }
+    }
+    if aa <= 0.0 || bb <= 0.0 {
+        return 0.0;
+    }
+    ab / (aa * bb).sqrt()
 }
 
 /// Contenders of the swap check for each kept class: at most this many of its round's runners-up.
@@ -906,7 +954,7 @@ fn swap(s: &Setup, base: &Model, classes: &[ClassId], sel: &mut Selection, seed:
         sel.model = best.model;
         sel.val = best.val.clone();
         sel.chosen[i] = best.class;
-        let ambiguous = as_good_as(s, &cands, b, round_seed);
+        let ambiguous = as_good_as(s, &without_val, &cands, b, round_seed);
         let r = &mut sel.rounds[i];
         r.candidates = cands;
         r.kept = Some(b);
