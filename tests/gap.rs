@@ -1433,3 +1433,51 @@ fn a_late_torque_channel_is_a_sensor_finding_not_physics() {
         other => panic!("{other:?}"),
     }
 }
+
+/// Thermocouples logged at 1 Hz and held to the record's rate are compared at their updates
+/// only, each reading once: counted at every copy, each staler than the last, they read as a
+/// sensor lag (seeds 101, 103, 105 gave `sensor_temperature_lag`); now `nothing`, with the holds
+/// named.
+#[test]
+fn held_thermocouples_are_compared_at_their_updates() {
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
+    use ddct::gap::method::finding::Finding;
+    use ddct::gap::quality::DataKind;
+    use ddct::records::dataset::Col;
+    let p = Params::default();
+    for seed in [101u64, 103] {
+        let make = |name, e: RigExperiment, seed: u64| {
+            let mut d =
+                rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
+            let every = (1.0 / d.dt).round() as usize;
+            for c in [Col::Pp1, Col::Pp2, Col::Cd] {
+                let v = d.get(c).unwrap();
+                let h: Vec<f64> = (0..v.len()).map(|k| v[k - k % every]).collect();
+                d.set(c, h);
+            }
+            d
+        };
+        let train = make("train", RigExperiment::identification(20, 300.0), seed);
+        let val = make("validate", RigExperiment::validation(10, 300.0), seed + 1);
+        let o = DiagnoseOptions {
+            threads: 2,
+            ..DiagnoseOptions::default()
+        };
+        let d = diagnose(&[train], &[val], &p, &o).unwrap();
+        let held = d
+            .data_quality
+            .iter()
+            .filter(|f| matches!(f.kind, DataKind::Held { .. }))
+            .count();
+        assert_eq!(
+            held, 6,
+            "three thermocouples on two records: {:?}",
+            d.data_quality
+        );
+        assert!(
+            matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
+            "seed {seed}: {:?}",
+            d.verdict.findings
+        );
+    }
+}

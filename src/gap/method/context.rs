@@ -346,11 +346,15 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
             let (mut ss, mut n) = (0.0, 0usize);
             // A held channel's equal readings are one sample copied, not two: only pairs that
             // straddle an update carry the noise (else the floor collapses).
-            let held = series(&f.m, c).is_some_and(crate::gap::quality::is_held);
+            let every = series(&f.m, c).and_then(crate::gap::quality::held_every);
+            let held = every.is_some();
+            // A held channel is compared at its updates only: consecutive compared samples
+            // are a hold apart.
+            let max_gap = every.map_or(20, |e| 20.max(2 * e + f.all.temp_stride));
             if !y.is_empty() {
                 for w in f.all.get(c).windows(2) {
                     let (a, b) = (w[0], w[1]);
-                    if b - a > 20 {
+                    if b - a > max_gap {
                         continue;
                     }
                     let (ma, mb) = (predict::measured(&f.m, c, a), predict::measured(&f.m, c, b));

@@ -1298,6 +1298,8 @@ fn prepare_files(
     drop_constant_channels(&mut va, validate);
     drop_bridged(&mut tr, &train_bad);
     drop_bridged(&mut va, &validate_bad);
+    keep_updates(&mut tr, train);
+    keep_updates(&mut va, validate);
     let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
@@ -1342,6 +1344,30 @@ fn drop_bridged(files: &mut [File], bad: &[quality::Bridged]) {
             };
             for s in [&mut f.fit, &mut f.all] {
                 s.idx[c.index()].retain(|k| at.binary_search(k).is_err());
+            }
+        }
+    }
+}
+
+/// A held channel (the data-quality stage's `held`: a slower source copied to the record's
+/// rate) is compared at its updates only — the first compared sample after each change of the
+/// reading: the copies in between are one reading counted again, each staler than the last
+/// (counted, thermocouples held at 1 Hz read as a sensor lag).
+fn keep_updates(files: &mut [File], records: &[Dataset]) {
+    for (f, d) in files.iter_mut().zip(records) {
+        for c in Channel::ALL {
+            let Some(v) = d.get(c.column()) else { continue };
+            if quality::held_every(v).is_none() {
+                continue;
+            }
+            for s in [&mut f.fit, &mut f.all] {
+                let idx = &mut s.idx[c.index()];
+                let mut prev: Option<usize> = None;
+                idx.retain(|&k| {
+                    let fresh = prev.is_none_or(|p| v[k].to_bits() != v[p].to_bits());
+                    prev = Some(k);
+                    fresh
+                });
             }
         }
     }

@@ -108,9 +108,9 @@ pub fn is_constant(v: &[f64]) -> bool {
     constant::value(v).is_some()
 }
 
-/// Whether `v` is held: a new value only every few samples ([`held`]).
-pub fn is_held(v: &[f64]) -> bool {
-    held::every(v).is_some()
+/// The number of samples each value of `v` is held for, when `v` is held ([`held`]).
+pub fn held_every(v: &[f64]) -> Option<usize> {
+    held::every(v)
 }
 
 /// The grid step of `v`'s readings, if they lie on one ([`quantised`]): a floor of the
