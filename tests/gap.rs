@@ -1109,10 +1109,7 @@ fn a_constant_channel_is_reported_not_compared() {
 /// does to a reading (up to 1 s old while the plates heat), which is the held reading's error.
 #[test]
 fn a_held_thermocouple_keeps_its_noise_floor() {
-    use ddct::gap::method::context::{prepare, set_noise};
-    use ddct::gap::model::candidate::{Channel, Model};
     use ddct::records::dataset::Col;
-    use ddct::records::events::SegmentOptions;
     let p = Params::default();
     let live = rig_dataset(
         "rig",
@@ -1129,40 +1126,95 @@ fn a_held_thermocouple_keeps_its_noise_floor() {
     let v = held.get(Col::Pp1).unwrap();
     let h: Vec<f64> = (0..v.len()).map(|k| v[k - k % every]).collect();
     held.set(Col::Pp1, h);
-    let floor = |d: &ddct::records::dataset::Dataset| {
-        let mut files = prepare(
-            std::slice::from_ref(d),
-            &p,
-            &SegmentOptions::default(),
-            None,
-            3,
-            10,
-            8_000,
-        );
-        set_noise(&Model::nominal(p), &mut files);
-        files[0].sigma[Channel::Temp(0).index()]
-    };
-    let (a, b) = (floor(&live), floor(&held));
+    let (a, b) = (pp1_floor(&live), pp1_floor(&held));
     eprintln!("th_pp1 floor: live {a:.4} °C, held at 1 Hz {b:.4} °C");
     assert!((a - 0.15).abs() < 0.05, "{a}");
     assert!(b >= 0.9 * a && b < 5.0 * a, "{b} vs {a}");
+}
+
+/// Nominal rig records as a faulty logger writes them, and their diagnosis (issue 45, item 1).
+mod logger {
+    use super::*;
+    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+    use ddct::gap::method::finding::Finding;
+    pub use ddct::gap::quality::DataKind;
+    pub use ddct::records::dataset::{Col, Dataset};
+
+    /// How long the records are: 60 s (10 training, 6 validation engagements) or 300 s (20, 10).
+    #[derive(Clone, Copy)]
+    pub enum Length {
+        Short,
+        Long,
+    }
+
+    /// Diagnoses nominal training and validation rig records (seeds `seed`, `seed + 1`) after
+    /// `fault` has written each as the logger does (it gets the record and its seed).
+    pub fn diagnosed(
+        length: Length,
+        noise: SensorNoise,
+        seed: u64,
+        fault: impl Fn(&mut Dataset, u64),
+    ) -> Diagnosis {
+        let p = Params::default();
+        let (train_e, val_e) = match length {
+            Length::Short => (
+                RigExperiment::identification(10, 60.0),
+                RigExperiment::validation(6, 60.0),
+            ),
+            Length::Long => (
+                RigExperiment::identification(20, 300.0),
+                RigExperiment::validation(10, 300.0),
+            ),
+        };
+        let make = |name, e: &RigExperiment, seed: u64| {
+            let mut d = rig_dataset(name, &p, Nominal, e, noise, seed, 0.005).unwrap();
+            fault(&mut d, seed);
+            d
+        };
+        let train = make("train", &train_e, seed);
+        let val = make("validate", &val_e, seed + 1);
+        let o = DiagnoseOptions {
+            threads: 2,
+            ..DiagnoseOptions::default()
+        };
+        diagnose(&[train], &[val], &p, &o).unwrap()
+    }
+
+    /// The verdict is `nothing`.
+    pub fn assert_nothing(d: &Diagnosis) {
+        assert!(
+            matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
+            "{:?}",
+            d.verdict.findings
+        );
+    }
+
+    /// The channels of the data findings that match `kind`, record by record.
+    pub fn found(d: &Diagnosis, kind: impl Fn(&DataKind) -> bool) -> Vec<(String, Col)> {
+        d.data_quality
+            .iter()
+            .filter(|f| kind(&f.kind))
+            .map(|f| (f.file.clone(), f.channel))
+            .collect()
+    }
+
+    /// Holds every `every`-th reading of `c` until the next.
+    pub fn hold(d: &mut Dataset, c: Col, every: usize) {
+        let v = d.get(c).unwrap();
+        let h: Vec<f64> = (0..v.len()).map(|k| v[k - k % every]).collect();
+        d.set(c, h);
+    }
 }
 
 /// Rare large spikes on a torque channel (EMI: 0.3 % of the samples, ±150 N·m) are a logger
 /// artefact, not physics: the data-quality stage names them on their channel and the verdict on
 /// nominal records stays `nothing` — no class and no `outside_library` on the torque
 /// characteristic (the issue's case: the floor was trimmed but the validation sum of squares
-/// was not).
+/// was not; before: `outside_library[torque_characteristic]`, excess 3 676 %).
 #[test]
 fn torque_spikes_are_named_not_diagnosed() {
-    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::gap::method::finding::Finding;
-    use ddct::gap::quality::DataKind;
-    use ddct::records::dataset::Col;
-    let p = Params::default();
-    let make = |name, e: RigExperiment, seed: u64| {
-        let mut d =
-            rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
+    use logger::*;
+    let d = diagnosed(Length::Short, SensorNoise::default(), 61, |d, seed| {
         let mut t1 = d.get(Col::T1).unwrap().to_vec();
         let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
         for (k, v) in t1.iter_mut().enumerate() {
@@ -1174,127 +1226,83 @@ fn torque_spikes_are_named_not_diagnosed() {
             }
         }
         d.set(Col::T1, t1);
-        d
-    };
-    let train = make("train", RigExperiment::identification(10, 60.0), 61);
-    let val = make("validate", RigExperiment::validation(6, 60.0), 62);
-    let o = DiagnoseOptions {
-        threads: 2,
-        ..DiagnoseOptions::default()
-    };
-    let d = diagnose(&[train], &[val], &p, &o).unwrap();
+    });
+    let spikes = found(&d, |k| matches!(k, DataKind::Spikes { .. }));
     for file in ["train", "validate"] {
         assert!(
-            d.data_quality.iter().any(|f| f.file == file
-                && f.channel == Col::T1
-                && matches!(f.kind, DataKind::Spikes { .. })),
+            spikes.contains(&(file.into(), Col::T1)),
             "{:?}",
             d.data_quality
         );
     }
-    assert!(
-        matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
-        "{:?}",
-        d.verdict.findings
-    );
+    assert_nothing(&d);
 }
 
-/// Nominal rig records as a logger with two faults writes them: quiet thermocouples quantised
-/// to 1 °C (a coarse logger channel, ten times the DBC's step), and clutch 1's torque dropping to
-/// exact zeros for 40–120 ms now and then (a lost message filled with zeros). Each is a data
-/// finding on its channel, and neither reaches the verdict: `nothing`.
-fn logger_faults_case(quantise: bool, dropouts: bool) -> ddct::gap::method::diagnose::Diagnosis {
-    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::records::dataset::Col;
-    let p = Params::default();
-    let make = |name, e: RigExperiment, seed: u64| {
-        // Quiet thermocouples where they are quantised: the grid is not dithered by the noise.
-        let noise = SensorNoise {
-            temp_c: if quantise { 0.02 } else { 0.15 },
-            ..SensorNoise::default()
-        };
-        let mut d = rig_dataset(name, &p, Nominal, &e, noise, seed, 0.005).unwrap();
-        if quantise {
-            for c in [Col::Pp1, Col::Pp2, Col::Cd] {
-                let v: Vec<f64> = d.get(c).unwrap().iter().map(|x| x.round()).collect();
-                d.set(c, v);
-            }
-        }
-        if dropouts {
-            // Where the clutch carries torque, at least 3 s apart.
-            let mut t1 = d.get(Col::T1).unwrap().to_vec();
-            let mut k = 1;
-            while k + 13 < t1.len() {
-                let len = 4 + (k * 7) % 9;
-                if t1[k - 1].abs() > 30.0 && t1[k + len].abs() > 30.0 {
-                    t1[k..k + len].fill(0.0);
-                    k += 300;
-                }
-                k += 1;
-            }
-            d.set(Col::T1, t1);
-        }
-        d
-    };
-    let train = make("train", RigExperiment::identification(10, 60.0), 71);
-    let val = make("validate", RigExperiment::validation(6, 60.0), 72);
-    let o = DiagnoseOptions {
-        threads: 2,
-        ..DiagnoseOptions::default()
-    };
-    diagnose(&[train], &[val], &p, &o).unwrap()
-}
-
+/// Quiet thermocouples (0.02 °C of noise) quantised to 1 °C by the logger (ten times the DBC's
+/// step): a data finding on each, and `nothing` in the verdict.
 #[test]
 fn coarse_thermocouples_are_named_not_diagnosed() {
-    use ddct::gap::method::finding::Finding;
-    use ddct::gap::quality::DataKind;
-    use ddct::records::dataset::Col;
-    let d = logger_faults_case(true, false);
+    use logger::*;
+    let quiet = SensorNoise {
+        temp_c: 0.02,
+        ..SensorNoise::default()
+    };
+    let d = diagnosed(Length::Short, quiet, 71, |d, _| {
+        for c in [Col::Pp1, Col::Pp2, Col::Cd] {
+            let v: Vec<f64> = d.get(c).unwrap().iter().map(|x| x.round()).collect();
+            d.set(c, v);
+        }
+    });
+    let coarse = found(
+        &d,
+        |k| matches!(k, DataKind::Quantised { step, .. } if (step - 1.0).abs() < 1e-9),
+    );
     for c in [Col::Pp1, Col::Pp2, Col::Cd] {
         assert!(
-            d.data_quality.iter().any(|f| f.channel == c
-                && matches!(f.kind, DataKind::Quantised { step, .. } if (step - 1.0).abs() < 1e-9)),
+            coarse.iter().any(|f| f.1 == c),
             "{c:?}: {:?}",
             d.data_quality
         );
     }
-    assert!(
-        matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
-        "{:?}",
-        d.verdict.findings
-    );
+    assert_nothing(&d);
 }
 
+/// Clutch 1's torque dropping to exact zeros for 40–120 ms where the clutch carries torque (a
+/// lost message the logger filled with zeros): named as dropouts, bridged and not compared.
+/// Before: `outside_library[torque_characteristic]` (excess 90 %); now `nothing`.
 #[test]
 fn torque_dropouts_are_named_not_diagnosed() {
-    use ddct::gap::method::finding::Finding;
-    use ddct::gap::quality::DataKind;
-    use ddct::records::dataset::Col;
-    let d = logger_faults_case(false, true);
+    use logger::*;
+    let d = diagnosed(Length::Short, SensorNoise::default(), 71, |d, _| {
+        // Where the clutch carries torque, at least 3 s apart.
+        let mut t1 = d.get(Col::T1).unwrap().to_vec();
+        let mut k = 1;
+        while k + 13 < t1.len() {
+            let len = 4 + (k * 7) % 9;
+            if t1[k - 1].abs() > 30.0 && t1[k + len].abs() > 30.0 {
+                t1[k..k + len].fill(0.0);
+                k += 300;
+            }
+            k += 1;
+        }
+        d.set(Col::T1, t1);
+    });
     assert!(
         d.data_quality.iter().any(|f| f.channel == Col::T1
             && matches!(f.kind, DataKind::Dropouts { runs, .. } if runs >= 5)),
         "{:?}",
         d.data_quality
     );
-    assert!(
-        matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
-        "{:?}",
-        d.verdict.findings
-    );
+    assert_nothing(&d);
 }
 
 /// The floor of a quiet thermocouple (0.02 °C of noise) quantised to 1 °C is at least the
 /// grid's own error, 1/√12 °C: its noise no longer dithers the grid, the reading changes only
 /// when the temperature crosses a step, and the floor from consecutive differences would fall
-/// near zero.
+/// near zero (0.073 °C before).
 #[test]
 fn a_coarse_thermocouple_keeps_its_noise_floor() {
-    use ddct::gap::method::context::{prepare, set_noise};
-    use ddct::gap::model::candidate::{Channel, Model};
-    use ddct::records::dataset::Col;
-    use ddct::records::events::SegmentOptions;
+    use logger::*;
     let p = Params::default();
     let mut d = rig_dataset(
         "rig",
@@ -1311,80 +1319,42 @@ fn a_coarse_thermocouple_keeps_its_noise_floor() {
     .unwrap();
     let v: Vec<f64> = d.get(Col::Pp1).unwrap().iter().map(|x| x.round()).collect();
     d.set(Col::Pp1, v);
-    let mut files = prepare(
-        std::slice::from_ref(&d),
-        &p,
-        &SegmentOptions::default(),
-        None,
-        3,
-        10,
-        8_000,
-    );
-    set_noise(&Model::nominal(p), &mut files);
-    let floor = files[0].sigma[Channel::Temp(0).index()];
+    let floor = pp1_floor(&d);
     eprintln!("th_pp1 floor at a 1 °C grid: {floor:.4} °C");
     assert!(floor >= 1.0 / 12f64.sqrt() - 1e-9, "{floor}");
 }
 
-/// Nominal rig records whose thermocouples drift (each its own random walk, about 1 °C over a
-/// record: a cold junction warming, a sensor ageing).
-fn drifting_thermocouples_case(seed: u64) -> ddct::gap::method::diagnose::Diagnosis {
-    use ddct::gap::fit::stats::Rng;
-    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::records::dataset::Col;
-    let p = Params::default();
-    let make = |name, e: RigExperiment, seed: u64| {
-        let mut d =
-            rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
-        let mut rng = Rng::new(seed ^ 0xd71f);
-        for c in [Col::Pp1, Col::Pp2, Col::Cd] {
-            let step = 1.0 / (d.len() as f64).sqrt();
-            let mut walk = 0.0;
-            let v: Vec<f64> = d
-                .get(c)
-                .unwrap()
-                .iter()
-                .map(|x| {
-                    walk += step * rng.normal();
-                    x + walk
-                })
-                .collect();
-            d.set(c, v);
-        }
-        d
-    };
-    let train = make("train", RigExperiment::identification(20, 300.0), seed);
-    let val = make("validate", RigExperiment::validation(10, 300.0), seed + 1);
-    let o = DiagnoseOptions {
-        threads: 2,
-        ..DiagnoseOptions::default()
-    };
-    diagnose(&[train], &[val], &p, &o).unwrap()
-}
-
-/// Drifting thermocouples are named as drifts on their channels and are not a thermal gap: three
-/// seeds gave `outside_library:thermal` before, now `nothing` with the drifts in the data-quality
-/// list (the model-gap side of the test, a residual whose steps follow the physics, is
-/// `scripts/gap-cases`' conduction_sign, still `outside_library:thermal`).
+/// Drifting thermocouples (each its own random walk, about 1 °C over a 300 s record: a cold
+/// junction warming, a sensor ageing) are named as drifts on their channels and are not a
+/// thermal gap: three seeds gave `outside_library:thermal` before, now `nothing` with the drifts
+/// in the data-quality list (the model-gap side of the test, a residual whose steps follow the
+/// physics, is `scripts/gap-cases`' conduction_sign, still `outside_library:thermal`).
 #[test]
 fn drifting_thermocouples_are_named_not_diagnosed() {
-    use ddct::gap::method::finding::Finding;
-    use ddct::gap::quality::DataKind;
+    use ddct::gap::fit::stats::Rng;
+    use logger::*;
     for seed in [81, 83, 85] {
-        let d = drifting_thermocouples_case(seed);
-        let drifts: Vec<_> = d
-            .data_quality
-            .iter()
-            .filter(|f| matches!(f.kind, DataKind::Drift { .. }))
-            .map(|f| f.channel)
-            .collect();
+        let d = diagnosed(Length::Long, SensorNoise::default(), seed, |d, seed| {
+            let mut rng = Rng::new(seed ^ 0xd71f);
+            let step = 1.0 / (d.len() as f64).sqrt();
+            for c in [Col::Pp1, Col::Pp2, Col::Cd] {
+                let mut walk = 0.0;
+                let v: Vec<f64> = d
+                    .get(c)
+                    .unwrap()
+                    .iter()
+                    .map(|x| {
+                        walk += step * rng.normal();
+                        x + walk
+                    })
+                    .collect();
+                d.set(c, v);
+            }
+        });
+        let drifts = found(&d, |k| matches!(k, DataKind::Drift { .. }));
         eprintln!("seed {seed}: drifts on {drifts:?}");
         assert!(!drifts.is_empty(), "seed {seed}: {:?}", d.data_quality);
-        assert!(
-            matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
-            "seed {seed}: {:?}",
-            d.verdict.findings
-        );
+        assert_nothing(&d);
     }
 }
 
@@ -1395,35 +1365,25 @@ fn drifting_thermocouples_are_named_not_diagnosed() {
 /// classes (torque skew, speed gain and skew, thermocouple lag), which fit it against the model.
 #[test]
 fn a_late_torque_channel_is_a_sensor_finding_not_physics() {
-    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::gap::method::finding::Finding;
     use ddct::gap::model::class::ClassId;
-    use ddct::records::dataset::Col;
-    let p = Params::default();
+    use logger::*;
     let late = 4;
-    let make = |name, e: RigExperiment, seed: u64| {
-        let mut d =
-            rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
+    let dt = std::cell::Cell::new(0.0);
+    let d = diagnosed(Length::Short, SensorNoise::default(), 91, |d, _| {
+        dt.set(d.dt);
         for c in [Col::T1, Col::T2] {
             let v = d.get(c).unwrap();
             let shifted: Vec<f64> = (0..v.len()).map(|k| v[k.saturating_sub(late)]).collect();
             d.set(c, shifted);
         }
-        d
-    };
-    let train = make("train", RigExperiment::identification(10, 60.0), 91);
-    let val = make("validate", RigExperiment::validation(6, 60.0), 92);
-    let late_s = late as f64 * train.dt;
+    });
+    let late_s = late as f64 * dt.get();
     assert!(
         (late_s - 0.04).abs() < 1e-9,
         "the records' step is {} s",
-        train.dt
+        dt.get()
     );
-    let o = DiagnoseOptions {
-        threads: 2,
-        ..DiagnoseOptions::default()
-    };
-    let d = diagnose(&[train], &[val], &p, &o).unwrap();
     match d.verdict.findings.as_slice() {
         [Finding::Sensor(f)] => {
             assert_eq!(f.class, ClassId::SensorTorqueSkew);
@@ -1440,44 +1400,39 @@ fn a_late_torque_channel_is_a_sensor_finding_not_physics() {
 /// named.
 #[test]
 fn held_thermocouples_are_compared_at_their_updates() {
-    use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::gap::method::finding::Finding;
-    use ddct::gap::quality::DataKind;
-    use ddct::records::dataset::Col;
-    let p = Params::default();
+    use logger::*;
     for seed in [101u64, 103] {
-        let make = |name, e: RigExperiment, seed: u64| {
-            let mut d =
-                rig_dataset(name, &p, Nominal, &e, SensorNoise::default(), seed, 0.005).unwrap();
+        let d = diagnosed(Length::Long, SensorNoise::default(), seed, |d, _| {
             let every = (1.0 / d.dt).round() as usize;
             for c in [Col::Pp1, Col::Pp2, Col::Cd] {
-                let v = d.get(c).unwrap();
-                let h: Vec<f64> = (0..v.len()).map(|k| v[k - k % every]).collect();
-                d.set(c, h);
+                hold(d, c, every);
             }
-            d
-        };
-        let train = make("train", RigExperiment::identification(20, 300.0), seed);
-        let val = make("validate", RigExperiment::validation(10, 300.0), seed + 1);
-        let o = DiagnoseOptions {
-            threads: 2,
-            ..DiagnoseOptions::default()
-        };
-        let d = diagnose(&[train], &[val], &p, &o).unwrap();
-        let held = d
-            .data_quality
-            .iter()
-            .filter(|f| matches!(f.kind, DataKind::Held { .. }))
-            .count();
+        });
+        let held = found(&d, |k| matches!(k, DataKind::Held { .. }));
         assert_eq!(
-            held, 6,
-            "three thermocouples on two records: {:?}",
-            d.data_quality
+            held.len(),
+            6,
+            "three thermocouples on two records: {held:?}"
         );
-        assert!(
-            matches!(d.verdict.findings.as_slice(), [Finding::Nothing]),
-            "seed {seed}: {:?}",
-            d.verdict.findings
-        );
+        assert_nothing(&d);
     }
+}
+
+/// The noise floor of th_pp1 the diagnosis sets on rig record `d` under the nominal model.
+fn pp1_floor(d: &ddct::records::dataset::Dataset) -> f64 {
+    use ddct::gap::method::context::{prepare, set_noise};
+    use ddct::gap::model::candidate::{Channel, Model};
+    use ddct::records::events::SegmentOptions;
+    let p = Params::default();
+    let mut files = prepare(
+        std::slice::from_ref(d),
+        &p,
+        &SegmentOptions::default(),
+        None,
+        3,
+        10,
+        8_000,
+    );
+    set_noise(&Model::nominal(p), &mut files);
+    files[0].sigma[Channel::Temp(0).index()]
 }

@@ -58,33 +58,12 @@ fn the_diagnosis_and_the_truth_do_not_share_code() {
 #[test]
 fn a_nominal_record_is_matched_by_the_nominal_model_within_noise() {
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
-    use ddct::records::dataset::Dataset;
     use ddct::truth::experiments;
     use ddct::truth::physics::Physics;
     use ddct::truth::sim::{self, Noise};
     let p = Params::default();
-    let spec = CaseSpec {
-        targets: vec![],
-        family: None,
-        magnitudes: vec![],
-        detune: 0.0,
-        variants: Variants::default(),
-        seed: 11,
-    };
-    let t = truth::build(&spec, &p).unwrap();
-    let recs = truth::records(&t, 11);
-    let parse = |v: &[(String, String)]| -> Vec<Dataset> {
-        v.iter()
-            .map(|(n, c)| Dataset::from_csv(n, c).unwrap())
-            .collect()
-    };
-    let d = diagnose(
-        &parse(&recs.train),
-        &parse(&recs.validate),
-        &p,
-        &DiagnoseOptions::default(),
-    )
-    .unwrap();
+    let (train, validate) = effectless_records(&p, 11);
+    let d = diagnose(&train, &validate, &p, &DiagnoseOptions::default()).unwrap();
     // The generated noise of the torque residual over the validation records' torque samples.
     let ph = Physics::new(&p);
     let nz = Noise::default();
@@ -323,31 +302,16 @@ fn a_friction_level_beyond_the_plausible_range_is_a_recalibration_not_a_class() 
     use ddct::gap::method::diagnose::{diagnose, DiagnoseOptions};
     use ddct::gap::method::finding::Finding;
     use ddct::gap::model::keys::ParamKey;
-    use ddct::records::dataset::Dataset;
     let nominal = Params::default();
     let mut truth_p = nominal;
     truth_p.clutch.mu_s *= 1.35;
     truth_p.clutch.c4 *= 1.35;
-    let spec = CaseSpec {
-        targets: vec![],
-        family: None,
-        magnitudes: vec![],
-        detune: 0.0,
-        variants: Variants::default(),
-        seed: 1,
-    };
-    let t = truth::build(&spec, &truth_p).unwrap();
-    let recs = truth::records(&t, 1);
-    let parse = |v: &[(String, String)]| -> Vec<Dataset> {
-        v.iter()
-            .map(|(n, c)| Dataset::from_csv(n, c).unwrap())
-            .collect()
-    };
+    let (train, validate) = effectless_records(&truth_p, 1);
     let o = DiagnoseOptions {
         threads: 2,
         ..DiagnoseOptions::default()
     };
-    let d = diagnose(&parse(&recs.train), &parse(&recs.validate), &nominal, &o).unwrap();
+    let d = diagnose(&train, &validate, &nominal, &o).unwrap();
     let mut moved = Vec::new();
     for f in &d.verdict.findings {
         match f {
@@ -365,4 +329,32 @@ fn a_friction_level_beyond_the_plausible_range_is_a_recalibration_not_a_class() 
     for (k, pct) in moved {
         assert!((pct - 35.0).abs() < 3.0, "{k:?} moved {pct} %, truth 35 %");
     }
+}
+
+/// The training and validation records of the truth generator's rig with parameters `p` and no
+/// effect (sensor noise seeded by `seed`), parsed.
+fn effectless_records(
+    p: &Params,
+    seed: u64,
+) -> (
+    Vec<ddct::records::dataset::Dataset>,
+    Vec<ddct::records::dataset::Dataset>,
+) {
+    use ddct::records::dataset::Dataset;
+    let spec = CaseSpec {
+        targets: vec![],
+        family: None,
+        magnitudes: vec![],
+        detune: 0.0,
+        variants: Variants::default(),
+        seed,
+    };
+    let t = truth::build(&spec, p).unwrap();
+    let recs = truth::records(&t, seed);
+    let parse = |v: &[(String, String)]| -> Vec<Dataset> {
+        v.iter()
+            .map(|(n, c)| Dataset::from_csv(n, c).unwrap())
+            .collect()
+    };
+    (parse(&recs.train), parse(&recs.validate))
 }
