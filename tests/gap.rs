@@ -1436,3 +1436,48 @@ fn pp1_floor(d: &ddct::records::dataset::Dataset) -> f64 {
     set_noise(&Model::nominal(p), &mut files);
     files[0].sigma[Channel::Temp(0).index()]
 }
+
+/// A CSV record keeps what the logger wrote: a grid point on a row (to the rounding of the
+/// times, whose step the loader estimates as 0.00999999999999801 s) is that row, so held and
+/// coarsely quantised channels are still found after loading (interpolated a rounding away from
+/// their rows, equal readings became unequal by 1e-12 and neither was found).
+#[test]
+fn artefacts_survive_a_csv_round_trip() {
+    use ddct::gap::quality::{check, DataKind};
+    use logger::*;
+    let mut d = rig_dataset(
+        "rig",
+        &Params::default(),
+        Nominal,
+        &RigExperiment::identification(20, 300.0),
+        SensorNoise::default(),
+        111,
+        0.005,
+    )
+    .unwrap();
+    let every = (1.0 / d.dt).round() as usize;
+    hold(&mut d, Col::Pp1, every);
+    let v: Vec<f64> = d.get(Col::Cd).unwrap().iter().map(|x| x.round()).collect();
+    d.set(Col::Cd, v);
+    let loaded = Dataset::from_csv("rig.csv", &d.to_csv()).unwrap();
+    let found = check([&loaded]);
+    assert!(
+        found
+            .iter()
+            .any(|f| f.channel == Col::Pp1 && matches!(f.kind, DataKind::Held { .. })),
+        "{found:?}"
+    );
+    assert!(
+        found
+            .iter()
+            .any(|f| f.channel == Col::Cd && matches!(f.kind, DataKind::Quantised { .. })),
+        "{found:?}"
+    );
+    // A step of the coarse grid is not a spike.
+    assert!(
+        !found
+            .iter()
+            .any(|f| matches!(f.kind, DataKind::Spikes { .. })),
+        "{found:?}"
+    );
+}

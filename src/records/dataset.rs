@@ -16,7 +16,8 @@
 //! Frames that fail the E2E check (bad CRC, repeated counter, wrong DLC) are dropped and counted.
 //!
 //! Every signal is resampled onto a uniform grid by linear interpolation (gears by zero-order
-//! hold); a grid point where a required signal has no sample within [`MAX_HOLD_S`] is marked
+//! hold; a grid point on a sample, to the rounding of the times, takes the sample as logged);
+//! a grid point where a required signal has no sample within [`MAX_HOLD_S`] is marked
 //! invalid in [`Dataset::valid`]. Errors name the file, line and column.
 //!
 //! Bad input is an error, not a plausible record (issue 17 item 7): a value outside its column's
@@ -1718,6 +1719,9 @@ impl RawRecord {
     }
 }
 
+/// A grid point closer to a sample than this share of the step between samples is on it.
+const ON_SAMPLE: f64 = 1e-6;
+
 /// Resamples every present series onto a uniform grid over the common span of the required ones.
 ///
 /// `cycles` (bus logs): the grid is anchored at the plant's cycle clock (ENG_Status times) and a
@@ -1845,7 +1849,17 @@ fn on_grid(
             (s.v[j], next - s.t[j] <= hold || t - s.t[j] <= hold)
         } else {
             let (ta, tb) = (s.t[j], s.t[j + 1]);
-            let v = s.v[j] + (s.v[j + 1] - s.v[j]) * (t - ta) / (tb - ta);
+            let w = (t - ta) / (tb - ta);
+            // A grid point on a sample (to the rounding of the times) is that sample as logged,
+            // not an interpolation a rounding away from it: a held or quantised channel keeps
+            // its equal readings and its grid.
+            let v = if w <= ON_SAMPLE {
+                s.v[j]
+            } else if w >= 1.0 - ON_SAMPLE {
+                s.v[j + 1]
+            } else {
+                s.v[j] + (s.v[j + 1] - s.v[j]) * w
+            };
             (v, tb - ta <= hold)
         };
         if (!fresh || !v.is_finite()) && c.required() {

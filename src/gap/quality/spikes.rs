@@ -2,7 +2,8 @@
 //! the record, without a full window, are not judged). The running median follows a
 //! step or a ramp of the signal exactly, so only departures of one or two samples remain; they
 //! are spikes when above twelve robust standard deviations of those departures (1.4826 × their
-//! median absolute value) and above 5 % of the channel's range (1st to 99th percentile), so that
+//! median absolute value, at least the grid's q/√12 on a quantised channel, where most
+//! departures are exactly zero) and above 5 % of the channel's range (1st to 99th percentile), so that
 //! neither noise nor the quantisation of a quiet channel counts.
 
 /// Robust standard deviations a spike must exceed.
@@ -68,7 +69,9 @@ fn located(v: &[f64]) -> Option<(Vec<usize>, Vec<f64>)> {
         .collect();
     let mut abs: Vec<f64> = dev.iter().map(|d| d.abs()).collect();
     abs.sort_by(f64::total_cmp);
-    let scale = 1.4826 * abs[n / 2];
+    // Never below the grid's own error: on a coarse grid most departures are exactly zero.
+    let grid = super::quantised::grid_step(v).map_or(0.0, |q| q / 12f64.sqrt());
+    let scale = (1.4826 * abs[n / 2]).max(grid);
     let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
     sorted.sort_by(f64::total_cmp);
     if sorted.is_empty() {
@@ -110,5 +113,18 @@ mod tests {
         assert_eq!(found.count, 3);
         assert_eq!(samples(&v), vec![1234, 5678, 9000]);
         assert!((found.largest - 400.0).abs() < 5.0, "{found:?}");
+    }
+
+    #[test]
+    fn two_steps_of_a_coarse_grid_are_not_a_spike_and_ten_are() {
+        // A thermocouple rising 30 °C on a 1 °C grid: nearly every departure from the local
+        // median is exactly zero; a fast rise puts a reading two steps off now and then.
+        let mut v: Vec<f64> = (0..6_000).map(|k| (k as f64 * 0.005).round()).collect();
+        for k in [1_000, 3_000, 5_000] {
+            v[k] += 2.0;
+        }
+        assert_eq!(find(&v), None);
+        v[4_000] += 10.0;
+        assert_eq!(samples(&v), vec![4_000]);
     }
 }
