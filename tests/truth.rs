@@ -2,7 +2,7 @@
 //! (`ddct::blind`, `ddct gap blind`, `ddct gap truth`), issue 17 item 6.
 
 use ddct::model::params::Params;
-use ddct::truth::{self, CaseSpec, Variants};
+use ddct::truth::{self, CaseSpec};
 use std::path::PathBuf;
 
 mod common;
@@ -341,15 +341,7 @@ fn effectless_records(
     Vec<ddct::records::dataset::Dataset>,
 ) {
     use ddct::records::dataset::Dataset;
-    let spec = CaseSpec {
-        targets: vec![],
-        family: None,
-        magnitudes: vec![],
-        detune: 0.0,
-        variants: Variants::default(),
-        seed,
-    };
-    let t = truth::build(&spec, p).unwrap();
+    let t = truth::build(&CaseSpec::nominal(seed), p).unwrap();
     let recs = truth::records(&t, seed);
     let parse = |v: &[(String, String)]| -> Vec<Dataset> {
         v.iter()

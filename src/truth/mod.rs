@@ -240,6 +240,20 @@ pub struct CaseSpec {
     pub seed: u64,
 }
 
+impl CaseSpec {
+    /// A truth without any effect: the baseline alone, not detuned, drawn from `seed`.
+    pub fn nominal(seed: u64) -> CaseSpec {
+        CaseSpec {
+            targets: vec![],
+            family: None,
+            magnitudes: vec![],
+            detune: 0.0,
+            variants: Variants::default(),
+            seed,
+        }
+    }
+}
+
 /// Builds a truth by hand.
 pub fn build(spec: &CaseSpec, nominal: &Params) -> Result<Truth, String> {
     if spec.targets.len() > 2 {
@@ -827,15 +841,7 @@ mod tests {
     #[test]
     fn nominal_truth_has_no_effect_and_a_truth_is_deterministic() {
         let p = Params::default();
-        let spec = CaseSpec {
-            targets: vec![],
-            family: None,
-            magnitudes: vec![],
-            detune: 0.0,
-            variants: Variants::default(),
-            seed: 4,
-        };
-        let t = build(&spec, &p).unwrap();
+        let t = build(&CaseSpec::nominal(4), &p).unwrap();
         assert_eq!(
             (t.kind, t.effect_size, t.band),
             (TruthKind::Nominal, 0.0, Band::Below1)
