@@ -1426,6 +1426,7 @@ fn pp1_floor(d: &ddct::records::dataset::Dataset) -> f64 {
     let p = Params::default();
     let mut files = prepare(
         std::slice::from_ref(d),
+        &[ddct::gap::quality::Profile::of(d)],
         &p,
         &SegmentOptions::default(),
         None,

@@ -12,6 +12,7 @@
 use crate::gap::eval::predict::{self, Predictions, Samples};
 use crate::gap::eval::set_hooks::SetHooks;
 use crate::gap::model::candidate::{Channel, Model};
+use crate::gap::quality::{Facts, Profile};
 use crate::gap::record::measured::Measured;
 use crate::model::params::Params;
 use crate::records::dataset::Dataset;
@@ -34,13 +35,20 @@ pub struct File {
     pub sigma: Vec<f64>,
     /// Disk temperature estimate of the current base model (reused by torque fits).
     pub disk: Option<[Vec<f64>; 2]>,
+    /// Per channel: how many samples each reading is held for, and the step of the grid its
+    /// readings lie on (the data-quality stage's [`Facts`]; bounds of the noise floor).
+    pub held: Vec<Option<usize>>,
+    pub grid: Vec<Option<f64>>,
 }
 
 /// Prepares records: measured quantities, samples (fits thinned to at most `max_fit` samples
 /// per channel group), bootstrap units. With `carry_energy`, the friction energy accumulates
-/// over the records in order, starting at the given energies (J).
+/// over the records in order, starting at the given energies (J). `profiles` (one per record,
+/// of the record as logged) say which samples are compared ([`compared`]).
+#[allow(clippy::too_many_arguments)]
 pub fn prepare(
     ds: &[Dataset],
+    profiles: &[Profile],
     p: &Params,
     seg: &SegmentOptions,
     carry_energy: Option<[f64; 2]>,
@@ -64,19 +72,55 @@ pub fn prepare(
     let tstride = temp_stride.max(total_n.div_ceil(max_fit.max(1)));
     let mut u = 0;
     ms.into_iter()
-        .map(|m| {
-            let f = File {
+        .zip(profiles)
+        .map(|(m, q)| {
+            let facts = Channel::ALL.map(|c| q.get(c.column()).cloned().unwrap_or_default());
+            let mut f = File {
                 fit: Samples::new(&m, stride, tstride),
                 all: Samples::new(&m, 1, temp_stride),
                 unit0: u,
                 m,
                 sigma: vec![1.0; Channel::ALL.len()],
                 disk: None,
+                held: facts.iter().map(|x| x.held).collect(),
+                grid: facts.iter().map(|x| x.grid).collect(),
             };
+            for (c, x) in Channel::ALL.into_iter().zip(&facts) {
+                compared(&mut f, c, x);
+            }
             u += f.m.seg.blocks.len().max(1);
             f
         })
         .collect()
+}
+
+/// Leaves out of every comparison what the data-quality stage says is not a reading of channel
+/// `c` ([`Facts`]):
+/// - a constant channel (exact zeros of an unused clutch) entirely: its floor would be its
+///   quantisation step, and the tolerance of its subsystem would swamp the live channels';
+/// - spike and dropout samples (bridged in the inputs): a fraction of a percent of the samples,
+///   hundreds of floors off, would dominate the sum of squares and read as a gap;
+/// - of a held channel, every sample but the first after each change of the reading: the copies
+///   are one reading counted again, each staler than the last (counted, thermocouples held at
+///   1 Hz read as a sensor lag).
+fn compared(f: &mut File, c: Channel, x: &Facts) {
+    let v = series(&f.m, c);
+    for s in [&mut f.fit, &mut f.all] {
+        let idx = &mut s.idx[c.index()];
+        if x.constant.is_some() {
+            idx.clear();
+            continue;
+        }
+        idx.retain(|k| x.bad.binary_search(k).is_err());
+        if let (Some(_), Some(v)) = (x.held, v) {
+            let mut prev: Option<usize> = None;
+            idx.retain(|&k| {
+                let fresh = prev.is_none_or(|p| v[k].to_bits() != v[p].to_bits());
+                prev = Some(k);
+                fresh
+            });
+        }
+    }
 }
 
 /// Number of bootstrap units (event blocks) of a set of records.
@@ -346,7 +390,7 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
             let (mut ss, mut n) = (0.0, 0usize);
             // A held channel's equal readings are one sample copied, not two: only pairs that
             // straddle an update carry the noise (else the floor collapses).
-            let every = series(&f.m, c).and_then(crate::gap::quality::held_every);
+            let every = f.held[c.index()];
             let held = every.is_some();
             // A held channel is compared at its updates only: consecutive compared samples
             // are a hold apart.
@@ -372,7 +416,7 @@ pub fn set_noise(model: &Model, files: &mut [File]) -> Vec<f64> {
             }
             let rms = (ss / n.max(1) as f64).sqrt();
             // A logger's coarser grid than the DBC's bounds the floor as the DBC's step does.
-            let grid = series(&f.m, c).and_then(crate::gap::quality::grid_step);
+            let grid = f.grid[c.index()];
             let sigma = noise_sigma(&mut d2, rms, quantum(c).max(grid.unwrap_or(0.0)));
             f.sigma[c.index()] = sigma;
             if n > 0 {

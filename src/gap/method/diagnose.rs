@@ -48,6 +48,7 @@ use crate::model::effects::{EffectSet, Subsystem};
 use crate::model::params::Params;
 use crate::records::dataset::{Col, Dataset};
 use crate::records::events::SegmentOptions;
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 /// Options of the diagnosis.
@@ -1137,18 +1138,20 @@ pub fn diagnose(
     nominal: &Params,
     o: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let (mut tr, mut va, chans) = prepare_files(train, validate, nominal, o)?;
+    let Prepared {
+        train: mut tr,
+        validate: mut va,
+        chans,
+        data_quality,
+    } = prepare_files(train, validate, nominal, o)?;
     let checkable = checkability(&[train, validate].concat());
-    let mut data_quality = quality::check(train.iter().chain(validate));
     let nunits_v = context::units(&va);
-    let threads = o.threads.max(1);
     let nominal_model = Model::nominal(*nominal);
     let mut rng = Rng::new(o.seed);
 
     // Phase 1–2: recalibration, noise floors, knots.
     let (recal, sigma, kn, undetermined) =
-        recalibrate_with_floors(&nominal_model, &chans, &mut tr, &mut va, threads);
-    let recalibration = recalibration_table(nominal, &recal.p);
+        recalibrate_with_floors(&nominal_model, &chans, &mut tr, &mut va, o.threads.max(1));
     let fixed: Vec<ParamKey> = undetermined.iter().map(|u| u.key).collect();
 
     // Classes this record set can check.
@@ -1192,7 +1195,6 @@ pub fn diagnose(
     // Phase 7: how far.
     let (how_far, traces) = how_far_phase(&b, &w.after, &verdict, &mut where_, o, &mut rng);
     let calibrated = Some(calibration(&setup, &w.after, &verdict.findings));
-    data_quality.extend(w.drifted);
     Ok(Diagnosis {
         train_files: train.iter().map(|d| d.source.clone()).collect(),
         validate_files: validate.iter().map(|d| d.source.clone()).collect(),
@@ -1201,9 +1203,9 @@ pub fn diagnose(
         where_,
         verdict,
         how_far,
-        recalibration,
+        recalibration: recalibration_table(nominal, &recal.p),
         undetermined,
-        data_quality,
+        data_quality: [data_quality, w.drifted].concat(),
         blackbox: w.blackbox,
         notes: w.notes,
         calibrated,
@@ -1250,14 +1252,18 @@ fn phase_done(name: &str) {
     tracing::debug!("{name} done");
 }
 
-/// Training records, validation records, and the channels the fit can use and the validation
-/// can check.
-type Prepared = (Vec<File>, Vec<File>, Vec<Channel>);
+/// The records prepared for the phases, the channels the fit can use and the validation can
+/// check, and what the loggers did to the records (every record's data findings).
+struct Prepared {
+    train: Vec<File>,
+    validate: Vec<File>,
+    chans: Vec<Channel>,
+    data_quality: Vec<DataFinding>,
+}
 
-/// The training and validation records prepared for the diagnosis, and the channels the fit
-/// can use and the validation can check; an error without training or validation records or
-/// without such a channel. With carried energy the validation records continue where the
-/// training records ended (one clutch pack, the validation run on the worn pack).
+/// Prepares the records: each analysed once by the data-quality stage ([`quality::Profile`]),
+/// its spikes and dropouts bridged in the model's inputs ([`quality::repaired`]), and what is
+/// not a reading left out of the comparisons ([`context::prepare`]).
 fn prepare_files(
     train: &[Dataset],
     validate: &[Dataset],
@@ -1271,106 +1277,46 @@ fn prepare_files(
         return Err(DiagnoseError::NoValidation);
     }
     let prep = |ds: &[Dataset], carry: Option<[f64; 2]>| {
-        context::prepare(
-            ds,
+        let profiles: Vec<quality::Profile> = ds.iter().map(quality::Profile::of).collect();
+        let repaired: Vec<Cow<Dataset>> = ds
+            .iter()
+            .zip(&profiles)
+            .map(|(d, q)| quality::repaired(d, q))
+            .collect();
+        // A copy only when some record had anything to bridge.
+        let owned: Option<Vec<Dataset>> = repaired
+            .iter()
+            .any(|r| matches!(r, Cow::Owned(_)))
+            .then(|| repaired.into_iter().map(Cow::into_owned).collect());
+        let files = context::prepare(
+            owned.as_deref().unwrap_or(ds),
+            &profiles,
             nominal,
             &o.seg,
             carry,
             o.torque_stride,
             o.temp_stride,
             o.max_fit_samples,
-        )
+        );
+        let found: Vec<DataFinding> = profiles.iter().flat_map(|q| q.findings()).collect();
+        (files, found)
     };
-    let (train_r, train_bad) = repaired(train);
-    let (validate_r, validate_bad) = repaired(validate);
-    let mut tr = prep(
-        train_r.as_deref().unwrap_or(train),
-        o.carry_energy.then_some([0.0; 2]),
-    );
+    let (tr, mut data_quality) = prep(train, o.carry_energy.then_some([0.0; 2]));
     let e_end = tr.last().map_or([0.0; 2], |f| {
         [0, 1].map(|i| f.m.e_cum[i].last().copied().unwrap_or(0.0))
     });
-    let mut va = prep(
-        validate_r.as_deref().unwrap_or(validate),
-        o.carry_energy.then_some(e_end),
-    );
-    drop_constant_channels(&mut tr, train);
-    drop_constant_channels(&mut va, validate);
-    drop_bridged(&mut tr, &train_bad);
-    drop_bridged(&mut va, &validate_bad);
-    keep_updates(&mut tr, train);
-    keep_updates(&mut va, validate);
+    let (va, found) = prep(validate, o.carry_energy.then_some(e_end));
+    data_quality.extend(found);
     let chans = checked_channels(&tr, &va);
     if chans.is_empty() {
         return Err(DiagnoseError::NothingCheckable);
     }
-    Ok((tr, va, chans))
-}
-
-/// A channel every sample of which holds one value (the data-quality stage's `constant`: logged
-/// but not connected, as exact zeros of an unused clutch) is not compared on that record: its
-/// noise floor would be its quantisation step, and the tolerance of the subsystem it entered
-/// would swamp the live channels'.
-fn drop_constant_channels(files: &mut [File], records: &[Dataset]) {
-    for (f, d) in files.iter_mut().zip(records) {
-        for c in Channel::ALL {
-            if d.get(c.column()).is_some_and(quality::is_constant) {
-                f.fit.idx[c.index()].clear();
-                f.all.idx[c.index()].clear();
-            }
-        }
-    }
-}
-
-/// The records with their spikes and dropouts bridged ([`quality::repaired`]): `None` when no
-/// record needed it (no copy), and per record the bridged samples of each channel.
-fn repaired(records: &[Dataset]) -> (Option<Vec<Dataset>>, Vec<quality::Bridged>) {
-    let r: Vec<quality::Repaired> = records.iter().map(quality::repaired).collect();
-    let bad: Vec<quality::Bridged> = r.iter().map(|x| x.excluded.clone()).collect();
-    let any = bad.iter().any(|b| !b.is_empty());
-    let owned = any.then(|| r.into_iter().map(|x| x.record.into_owned()).collect());
-    (owned, bad)
-}
-
-/// The bridged samples of a channel (spikes: EMI, a corrupted transfer; dropouts: lost messages
-/// filled with zeros) are not compared with the model, neither in the fits nor in the floors and
-/// validation scores: a fraction of a percent of the samples, hundreds of noise floors off,
-/// would otherwise dominate the channel's sum of squares and read as a gap of its subsystem.
-fn drop_bridged(files: &mut [File], bad: &[quality::Bridged]) {
-    for (f, bad) in files.iter_mut().zip(bad) {
-        for c in Channel::ALL {
-            let Some((_, at)) = bad.iter().find(|(col, _)| *col == c.column()) else {
-                continue;
-            };
-            for s in [&mut f.fit, &mut f.all] {
-                s.idx[c.index()].retain(|k| at.binary_search(k).is_err());
-            }
-        }
-    }
-}
-
-/// A held channel (the data-quality stage's `held`: a slower source copied to the record's
-/// rate) is compared at its updates only — the first compared sample after each change of the
-/// reading: the copies in between are one reading counted again, each staler than the last
-/// (counted, thermocouples held at 1 Hz read as a sensor lag).
-fn keep_updates(files: &mut [File], records: &[Dataset]) {
-    for (f, d) in files.iter_mut().zip(records) {
-        for c in Channel::ALL {
-            let Some(v) = d.get(c.column()) else { continue };
-            if quality::held_every(v).is_none() {
-                continue;
-            }
-            for s in [&mut f.fit, &mut f.all] {
-                let idx = &mut s.idx[c.index()];
-                let mut prev: Option<usize> = None;
-                idx.retain(|&k| {
-                    let fresh = prev.is_none_or(|p| v[k].to_bits() != v[p].to_bits());
-                    prev = Some(k);
-                    fresh
-                });
-            }
-        }
-    }
+    Ok(Prepared {
+        train: tr,
+        validate: va,
+        chans,
+        data_quality,
+    })
 }
 
 /// Phases 1–2: the recalibrated model, with the noise floors of the training records (set

@@ -46,10 +46,10 @@ pub fn repeated(v: &[f64]) -> f64 {
     pairs.iter().filter(|&&e| e).count() as f64 / pairs.len().max(1) as f64
 }
 
-/// `(step, share of repeated readings)` when `v`, carried by the bus at `resolution`, is
-/// coarsely quantised.
-pub fn coarse(v: &[f64], resolution: f64) -> Option<(f64, f64)> {
-    let q = grid_step(v)?;
+/// `(step, share of repeated readings)` when `v`, on a grid of `grid` ([`grid_step`]) and
+/// carried by the bus at `resolution`, is coarsely quantised.
+pub fn coarse(v: &[f64], grid: Option<f64>, resolution: f64) -> Option<(f64, f64)> {
+    let q = grid?;
     let r = repeated(v);
     (q > MIN_COARSER * resolution && r > MIN_REPEATED).then_some((q, r))
 }
@@ -69,17 +69,22 @@ mod tests {
     fn a_coarse_grid_is_found_and_a_fine_one_or_none_is_not_coarse() {
         let v = ramp_with_noise(5_000, 1);
         assert_eq!(grid_step(&v), None);
-        assert_eq!(coarse(&v, 0.1), None);
+        assert_eq!(coarse(&v, grid_step(&v), 0.1), None);
         // The DBC's 0.1 °C: on a grid, but the noise still moves the reading.
         let fine: Vec<f64> = v.iter().map(|x| (x * 10.0).round() / 10.0).collect();
         let q = grid_step(&fine).expect("grid");
         assert!((q - 0.1).abs() < 1e-9, "{q}");
-        assert_eq!(coarse(&fine, 0.1), None, "repeated {}", repeated(&fine));
+        assert_eq!(
+            coarse(&fine, grid_step(&fine), 0.1),
+            None,
+            "repeated {}",
+            repeated(&fine)
+        );
         // A 1 °C logger channel: the reading sits still.
         let coarse_v: Vec<f64> = v.iter().map(|x| x.round()).collect();
-        let (q, r) = coarse(&coarse_v, 0.1).expect("coarse");
+        let (q, r) = coarse(&coarse_v, grid_step(&coarse_v), 0.1).expect("coarse");
         // The same grid as the bus's own resolution is not the logger's doing.
-        assert_eq!(coarse(&coarse_v, 1.0), None);
+        assert_eq!(coarse(&coarse_v, grid_step(&coarse_v), 1.0), None);
         assert!((q - 1.0).abs() < 1e-9 && r > 0.5, "{q} {r}");
     }
 }

@@ -4,48 +4,21 @@
 //! good samples on either side; in every comparison with the model — fits, noise floors,
 //! validation scores — they are left out.
 
-use super::checked::CHECKED;
-use super::{dropouts, spikes};
-use crate::records::dataset::{Col, Dataset};
+use super::profile::Profile;
+use crate::records::dataset::Dataset;
 use std::borrow::Cow;
 
-/// The bridged samples of each channel of a record that had any (ascending).
-pub type Bridged = Vec<(Col, Vec<usize>)>;
-
-/// A record with its spike and dropout samples bridged, and those samples per channel.
-pub struct Repaired<'a> {
-    /// The record itself when nothing needed bridging.
-    pub record: Cow<'a, Dataset>,
-    pub excluded: Bridged,
-}
-
-/// `d` with the spikes and dropouts of its checked channels bridged.
-pub fn repaired(d: &Dataset) -> Repaired<'_> {
+/// `d` with the spike and dropout samples of its checked channels (its `profile`'s) bridged:
+/// the record itself when it has none.
+pub fn repaired<'a>(d: &'a Dataset, profile: &Profile) -> Cow<'a, Dataset> {
     let mut record = Cow::Borrowed(d);
-    let mut excluded = Vec::new();
-    for c in CHECKED {
+    for (c, bad) in profile.bad() {
         let Some(v) = d.get(c) else { continue };
-        let bad = bad_samples(v, dropouts::max_len(d.dt));
-        if bad.is_empty() {
-            continue;
-        }
         let mut w = v.to_vec();
-        bridge(&mut w, &bad);
+        bridge(&mut w, bad);
         record.to_mut().set(c, w);
-        excluded.push((c, bad));
     }
-    Repaired { record, excluded }
-}
-
-/// The spike and dropout samples of `v`, ascending.
-fn bad_samples(v: &[f64], max_dropout: usize) -> Vec<usize> {
-    let mut bad = spikes::samples(v);
-    for (start, len) in dropouts::runs(v, max_dropout) {
-        bad.extend(start..start + len);
-    }
-    bad.sort_unstable();
-    bad.dedup();
-    bad
+    record
 }
 
 /// Replaces the samples `bad` (ascending) of `v` by the straight line between the nearest good

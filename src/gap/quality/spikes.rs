@@ -23,24 +23,21 @@ pub struct Spikes {
     pub largest: f64,
 }
 
-/// The spikes of `v`, if any.
-pub fn find(v: &[f64]) -> Option<Spikes> {
-    let (at, dev) = located(v)?;
+/// The spike samples of `v` (ascending) and their summary, if any; `grid` is the step of the
+/// channel's readings when they lie on one ([`super::quantised::grid_step`]).
+pub fn detect(v: &[f64], grid: Option<f64>) -> Option<(Vec<usize>, Spikes)> {
+    let (at, dev) = located(v, grid)?;
     let count = at.len();
-    Some(Spikes {
+    let summary = Spikes {
         count,
         share: count as f64 / v.len() as f64,
         largest: at.iter().fold(0.0, |a: f64, &k| a.max(dev[k].abs())),
-    })
-}
-
-/// The samples of `v` that are spikes (ascending; empty when the channel has none).
-pub fn samples(v: &[f64]) -> Vec<usize> {
-    located(v).map_or_else(Vec::new, |(at, _)| at)
+    };
+    Some((at, summary))
 }
 
 /// The spike samples of `v` and every sample's departure from its local median.
-fn located(v: &[f64]) -> Option<(Vec<usize>, Vec<f64>)> {
+fn located(v: &[f64], grid: Option<f64>) -> Option<(Vec<usize>, Vec<f64>)> {
     let n = v.len();
     if n < 20 {
         return None;
@@ -70,8 +67,7 @@ fn located(v: &[f64]) -> Option<(Vec<usize>, Vec<f64>)> {
     let mut abs: Vec<f64> = dev.iter().map(|d| d.abs()).collect();
     abs.sort_by(f64::total_cmp);
     // Never below the grid's own error: on a coarse grid most departures are exactly zero.
-    let grid = super::quantised::grid_step(v).map_or(0.0, |q| q / 12f64.sqrt());
-    let scale = (1.4826 * abs[n / 2]).max(grid);
+    let scale = (1.4826 * abs[n / 2]).max(grid.map_or(0.0, |q| q / 12f64.sqrt()));
     let mut sorted: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
     sorted.sort_by(f64::total_cmp);
     if sorted.is_empty() {
@@ -90,6 +86,14 @@ fn located(v: &[f64]) -> Option<(Vec<usize>, Vec<f64>)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn find(v: &[f64]) -> Option<Spikes> {
+        detect(v, super::super::quantised::grid_step(v)).map(|(_, s)| s)
+    }
+
+    fn samples(v: &[f64]) -> Vec<usize> {
+        detect(v, super::super::quantised::grid_step(v)).map_or_else(Vec::new, |(at, _)| at)
+    }
 
     fn noisy(n: usize, seed: u64) -> Vec<f64> {
         let mut rng = crate::gap::fit::stats::Rng::new(seed);
